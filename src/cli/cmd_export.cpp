@@ -1,0 +1,7 @@
+#include "cli/commands.hpp"
+
+namespace strata::cli {
+
+void register_export_commands(CLI::App& app) { (void)app; }
+
+}  // namespace strata::cli

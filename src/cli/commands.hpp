@@ -1,0 +1,17 @@
+#pragma once
+// Each command group registers its subcommands on the application. A command's
+// callback parses and validates, calls the library, and throws strata::Error
+// subclasses for anything the user can fix; main() maps them to one line on
+// stderr and a non-zero exit status.
+#include <CLI/CLI.hpp>
+
+namespace strata::cli {
+
+void register_project_commands(CLI::App& app);   // init, info
+void register_stratigraphy_commands(CLI::App& app);  // unit, relation, matrix, layer
+void register_import_commands(CLI::App& app);    // import photos|markers, markers
+void register_synth_command(CLI::App& app);      // synth
+void register_process_commands(CLI::App& app);   // process, (later) volume, check
+void register_export_commands(CLI::App& app);    // export ...
+
+}  // namespace strata::cli

@@ -1,0 +1,60 @@
+// strata: the command-line front end. Thin by design: parse, validate, call the
+// library, map errors to exit codes.
+#include "cli/commands.hpp"
+#include "core/error.hpp"
+#include "core/log.hpp"
+#include "core/progress.hpp"
+
+#include <fmt/format.h>
+
+#include <cstdio>
+
+int main(int argc, char** argv) {
+  CLI::App app{
+      "strata: photographs of each excavated layer -> a georeferenced, measured,\n"
+      "volumetric record of the excavation.\n\n"
+      "A project is a folder: project.gpkg (the database, opens in QGIS), media/\n"
+      "(original photos, never modified), cache/ and products/.\n\n"
+      "Typical session:\n"
+      "  strata init site --crs EPSG:32636\n"
+      "  strata unit add site 101 --type deposit\n"
+      "  strata relation add site 101 above 102\n"
+      "  strata layer add site L101 --unit 101\n"
+      "  strata import photos site --layer L101 photos/*.jpg\n"
+      "  strata import markers site survey.csv\n"
+      "  strata info site\n",
+      "strata"};
+  app.set_version_flag("--version", "strata 0.1.0");
+  app.require_subcommand(1);
+  bool quiet = false, verbose = false;
+  app.add_flag("-q,--quiet", quiet, "only warnings and errors on stderr");
+  app.add_flag("-v,--verbose", verbose, "debug messages on stderr");
+  app.parse_complete_callback([&] {
+    if (quiet) strata::log::set_level(strata::log::Level::warning);
+    if (verbose) strata::log::set_level(strata::log::Level::debug);
+  });
+
+  strata::cli::register_project_commands(app);
+  strata::cli::register_stratigraphy_commands(app);
+  strata::cli::register_import_commands(app);
+  strata::cli::register_synth_command(app);
+  strata::cli::register_process_commands(app);
+  strata::cli::register_export_commands(app);
+
+  strata::install_cancel_handler();
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  } catch (const strata::Cancelled& e) {
+    fmt::print(stderr, "strata: {}; the project is unchanged by the interrupted step\n", e.what());
+    return 130;
+  } catch (const strata::Error& e) {
+    fmt::print(stderr, "strata: error: {}\n", e.what());
+    return 1;
+  } catch (const std::exception& e) {
+    fmt::print(stderr, "strata: internal error: {}\n", e.what());
+    return 70;
+  }
+  return 0;
+}

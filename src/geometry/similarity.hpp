@@ -1,0 +1,32 @@
+#pragma once
+// 3D similarity transforms (scale, rotation, translation): the georeference of a
+// reconstruction onto surveyed markers.
+#include <Eigen/Core>
+
+#include <vector>
+
+namespace strata {
+
+struct Similarity3 {
+  double scale = 1.0;
+  Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d t = Eigen::Vector3d::Zero();
+
+  Eigen::Vector3d apply(const Eigen::Vector3d& x) const { return scale * (R * x) + t; }
+  Similarity3 inverse() const;
+};
+
+// Least-squares similarity mapping src[i] onto dst[i] (Umeyama 1991, through
+// Eigen::umeyama). Throws InputError when fewer than 3 points are given or
+// they are (near-)collinear: `min_spread_ratio` is the smallest singular value of
+// the centred point set relative to the largest, below which the rotation about
+// the line through them is undetermined.
+Similarity3 fit_similarity(const std::vector<Eigen::Vector3d>& src,
+                           const std::vector<Eigen::Vector3d>& dst,
+                           double min_spread_ratio = 0.02);
+
+// Ratio of the second to the first singular value of a centred point set:
+// 0 for collinear points, about 1 for well spread ones.
+double planar_spread_ratio(const std::vector<Eigen::Vector3d>& points);
+
+}  // namespace strata
