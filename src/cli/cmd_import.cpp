@@ -1,7 +1,113 @@
+// strata import photos|markers, strata markers
 #include "cli/commands.hpp"
+#include "core/error.hpp"
+#include "core/log.hpp"
+#include "importers/markers/marker_importer.hpp"
+#include "importers/photos/photo_importer.hpp"
+#include "project/project.hpp"
+#include "project/records.hpp"
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include <map>
+#include <memory>
 
 namespace strata::cli {
 
-void register_import_commands(CLI::App& app) { (void)app; }
+void register_import_commands(CLI::App& app) {
+  auto* import = app.add_subcommand("import", "bring photos and surveyed markers into a project");
+  import->require_subcommand(1);
+  {
+    auto* cmd = import->add_subcommand(
+        "photos",
+        "copy a layer's photos into media/ (named by SHA-256, never modified) and read their EXIF.\n"
+        "Importing the same file again is a no-op. If any file is unreadable, truncated or not an\n"
+        "image, nothing is imported (unless --skip-bad).");
+    auto dir = std::make_shared<std::string>();
+    auto options = std::make_shared<PhotoImportOptions>();
+    auto files = std::make_shared<std::vector<std::string>>();
+    cmd->add_option("DIR", *dir, "project folder")->required();
+    cmd->add_option("--layer", options->layer, "layer the photos belong to")->required();
+    cmd->add_flag("--skip-bad", options->skip_bad, "import the good files and list the bad ones");
+    cmd->add_option("FILE", *files, "photos (JPEG, PNG or TIFF)")->required();
+    cmd->footer("Example: strata import photos site --layer L101 card/DCIM/100CANON/*.JPG");
+    cmd->callback([=] {
+      Project p = Project::open(*dir);
+      std::vector<std::filesystem::path> paths(files->begin(), files->end());
+      const auto s = import_photos(p, *options, paths);
+      for (const auto& b : s.bad) log::warn("skipped bad file {}", b);
+      for (const auto& a : s.already_present) log::info("already imported, skipped: {}", a);
+      if (!s.without_exif.empty()) {
+        log::warn("{} photo(s) without usable EXIF focal length (the focal length will be "
+                  "estimated during alignment): {}{}",
+                  s.without_exif.size(), s.without_exif.front(), s.without_exif.size() > 1 ? ", ..." : "");
+      }
+      fmt::print("layer {}: {} photo(s) imported, {} already present, {} bad\n", options->layer,
+                 s.imported, s.already_present.size(), s.bad.size());
+    });
+  }
+  {
+    auto* cmd = import->add_subcommand(
+        "markers",
+        "import surveyed markers (ground control) from a CSV file (name,E,N,Z[,sigma][,kind];\n"
+        "header optional; comma, semicolon, tab or space separated; kind = control|check) or an\n"
+        "OpenDroneMap gcp_list.txt (first line a CRS, then geo_x geo_y geo_z im_x im_y image [name];\n"
+        "its image observations are stored too, for photos already imported).\n"
+        "Coordinates in another CRS (--crs, or the ODM header) are transformed into the site CRS.");
+    auto dir = std::make_shared<std::string>();
+    auto file = std::make_shared<std::string>();
+    auto format = std::make_shared<std::string>("auto");
+    auto options = std::make_shared<MarkerImportOptions>();
+    cmd->add_option("DIR", *dir, "project folder")->required();
+    cmd->add_option("FILE", *file, "marker file")->required();
+    cmd->add_option("--format", *format, "csv, odm, or auto (default: detected)");
+    cmd->add_option("--crs", options->crs,
+                    "CRS of the file's coordinates (default: the site CRS for CSV, the header for "
+                    "ODM); e.g. EPSG:4326 for longitude/latitude in degrees");
+    cmd->add_option("--sigma", options->default_sigma,
+                    "survey precision in metres for markers without a sigma column (default 0.01)");
+    cmd->add_flag("--update", options->update, "replace markers already in the project");
+    cmd->add_option("--layer", options->layer, "ODM: observed images are in this layer");
+    cmd->footer("Example: strata import markers site survey.csv --crs EPSG:32636");
+    cmd->callback([=] {
+      Project p = Project::open(*dir);
+      options->format = parse_marker_format(*format);
+      const auto s = import_markers(p, *options, *file);
+      fmt::print("{} ({}, {}): {} new, {} updated, {} unchanged markers; {} new, {} updated observations\n",
+                 *file, s.format, s.source_crs, s.markers_new, s.markers_updated, s.markers_unchanged,
+                 s.observations_new, s.observations_updated);
+    });
+  }
+  {
+    auto* cmd = app.add_subcommand("markers", "list markers with their survey and image observations");
+    auto dir = std::make_shared<std::string>();
+    auto json = std::make_shared<bool>(false);
+    cmd->add_option("DIR", *dir, "project folder")->required();
+    cmd->add_flag("--json", *json, "machine-readable output");
+    cmd->callback([=] {
+      Project p = Project::open(*dir);
+      std::map<std::int64_t, int> seen;
+      for (const auto& o : list_observations(p.db())) seen[o.marker_id]++;
+      const auto markers = list_markers(p.db());
+      if (*json) {
+        nlohmann::json j = nlohmann::json::array();
+        for (const auto& m : markers) {
+          j.push_back({{"name", m.name}, {"kind", m.kind}, {"E", m.position.x()}, {"N", m.position.y()},
+                       {"Z", m.position.z()}, {"sigma_m", m.sigma.x()}, {"observations", seen[m.id]}});
+        }
+        fmt::print("{}\n", j.dump(2));
+        return;
+      }
+      fmt::print("{:<10} {:<8} {:>14} {:>14} {:>10} {:>8} {:>6}\n", "name", "kind", "E", "N", "Z",
+                 "sigma", "obs");
+      for (const auto& m : markers) {
+        fmt::print("{:<10} {:<8} {:>14.4f} {:>14.4f} {:>10.4f} {:>8.4f} {:>6}\n", m.name, m.kind,
+                   m.position.x(), m.position.y(), m.position.z(), m.sigma.x(), seen[m.id]);
+      }
+      fmt::print("{} markers. Residuals appear here once a layer is processed.\n", markers.size());
+    });
+  }
+}
 
 }  // namespace strata::cli

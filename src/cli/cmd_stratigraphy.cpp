@@ -1,7 +1,218 @@
+// strata unit, relation, matrix, layer
 #include "cli/commands.hpp"
+#include "core/error.hpp"
+#include "core/log.hpp"
+#include "project/project.hpp"
+#include "project/records.hpp"
+#include "stratigraphy/harris_matrix.hpp"
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <unistd.h>
 
 namespace strata::cli {
+namespace {
 
-void register_stratigraphy_commands(CLI::App& app) { (void)app; }
+HarrisMatrix load_matrix(Database& db) {
+  std::vector<std::string> codes;
+  for (const auto& u : list_units(db)) codes.push_back(u.code);
+  std::vector<CanonicalRelation> rels;
+  for (const auto& r : list_relations(db)) {
+    rels.push_back({r.unit_a, *relation_kind_from_string(r.kind), r.unit_b});
+  }
+  return HarrisMatrix(codes, rels);
+}
+
+// Renders DOT to SVG through Graphviz's `dot`, when installed.
+std::string dot_to_svg(const std::string& dot) {
+  const auto tmp = std::filesystem::temp_directory_path() /
+                   fmt::format("strata-matrix-{}.dot", ::getpid());
+  {
+    std::FILE* f = std::fopen(tmp.c_str(), "w");
+    if (!f) throw IoError(fmt::format("{}: cannot write", tmp.string()));
+    std::fwrite(dot.data(), 1, dot.size(), f);
+    std::fclose(f);
+  }
+  std::string cmd = fmt::format("dot -Tsvg '{}' 2>/dev/null", tmp.string());
+  std::FILE* pipe = ::popen(cmd.c_str(), "r");
+  std::string svg;
+  if (pipe) {
+    char buf[4096];
+    std::size_t n;
+    while ((n = std::fread(buf, 1, sizeof buf, pipe)) > 0) svg.append(buf, n);
+    const int status = ::pclose(pipe);
+    if (status != 0) svg.clear();
+  }
+  std::filesystem::remove(tmp);
+  if (svg.empty()) {
+    throw InputError(
+        "--format svg needs Graphviz's 'dot' (apt-get install graphviz); --format dot gives the "
+        "same matrix as text");
+  }
+  return svg;
+}
+
+}  // namespace
+
+void register_stratigraphy_commands(CLI::App& app) {
+  // ---- unit
+  auto* unit = app.add_subcommand("unit", "stratigraphic units (contexts): add, list");
+  unit->require_subcommand(1);
+  {
+    auto* cmd = unit->add_subcommand("add", "record a stratigraphic unit");
+    auto dir = std::make_shared<std::string>();
+    auto rec = std::make_shared<UnitRecord>();
+    cmd->add_option("DIR", *dir, "project folder")->required();
+    cmd->add_option("CODE", rec->code, "unit code, e.g. 101 or US1024")->required();
+    cmd->add_option("--type", rec->type, "deposit (default), cut, structure or interface")
+        ->check(CLI::IsMember({"deposit", "cut", "structure", "interface"}));
+    cmd->add_option("--description", rec->description, "free text, e.g. 'dark brown silty fill'");
+    cmd->callback([=] {
+      Project p = Project::open(*dir);
+      Transaction tx(p.db());
+      insert_unit(p.db(), *rec);
+      tx.commit();
+      fmt::print("unit {} added ({})\n", rec->code, rec->type);
+    });
+  }
+  {
+    auto* cmd = unit->add_subcommand("list", "list units with their layers");
+    auto dir = std::make_shared<std::string>();
+    cmd->add_option("DIR", *dir, "project folder")->required();
+    cmd->callback([=] {
+      Project p = Project::open(*dir);
+      const auto layers = list_layers(p.db());
+      for (const auto& u : list_units(p.db())) {
+        std::string ls;
+        for (const auto& l : layers) {
+          if (l.unit == u.code) ls += (ls.empty() ? "" : ", ") + l.name;
+        }
+        fmt::print("{:<10} {:<10} {:<40} layers: {}\n", u.code, u.type, u.description,
+                   ls.empty() ? "-" : ls);
+      }
+    });
+  }
+
+  // ---- relation
+  auto* relation = app.add_subcommand("relation", "stratigraphic relations: add, list");
+  relation->require_subcommand(1);
+  {
+    std::string words;
+    for (const auto& w : relation_words()) words += (words.empty() ? "" : ", ") + w;
+    auto* cmd = relation->add_subcommand(
+        "add",
+        "record 'A relation B', e.g. '102 below 101' or '205 fills 204'.\nRelations: " + words +
+            ".\nA relation that would make the Harris matrix cyclic is refused and the cycle printed.");
+    auto dir = std::make_shared<std::string>();
+    auto a = std::make_shared<std::string>();
+    auto word = std::make_shared<std::string>();
+    auto b = std::make_shared<std::string>();
+    cmd->add_option("DIR", *dir, "project folder")->required();
+    cmd->add_option("CODE_A", *a, "first unit")->required();
+    cmd->add_option("RELATION", *word, "relation word")->required();
+    cmd->add_option("CODE_B", *b, "second unit")->required();
+    cmd->callback([=] {
+      Project p = Project::open(*dir);
+      const CanonicalRelation r = canonical_relation(*a, *word, *b);
+      require_unit(p.db(), r.unit_a);
+      require_unit(p.db(), r.unit_b);
+      HarrisMatrix matrix = load_matrix(p.db());
+      matrix.add(r);  // throws with the cycle
+      Transaction tx(p.db());
+      const bool added = insert_relation(p.db(), {0, r.unit_a, to_string(r.kind), r.unit_b}) != 0;
+      tx.commit();
+      fmt::print("{} {} {} {}\n", r.unit_a, to_string(r.kind), r.unit_b,
+                 added ? "recorded" : "was already recorded");
+    });
+  }
+  {
+    auto* cmd = relation->add_subcommand("list", "list relations (canonical direction)");
+    auto dir = std::make_shared<std::string>();
+    cmd->add_option("DIR", *dir, "project folder")->required();
+    cmd->callback([=] {
+      Project p = Project::open(*dir);
+      for (const auto& r : list_relations(p.db())) fmt::print("{} {} {}\n", r.unit_a, r.kind, r.unit_b);
+    });
+  }
+
+  // ---- matrix
+  {
+    auto* cmd = app.add_subcommand(
+        "matrix",
+        "the Harris matrix after transitive reduction (only direct relations drawn); same_as units "
+        "share a box, contemporary units are joined by a dashed line");
+    auto dir = std::make_shared<std::string>();
+    auto format = std::make_shared<std::string>("dot");
+    auto out = std::make_shared<std::string>();
+    cmd->add_option("DIR", *dir, "project folder")->required();
+    cmd->add_option("--format", *format, "dot (Graphviz text, default), json, or svg (needs Graphviz)")
+        ->check(CLI::IsMember({"dot", "json", "svg"}));
+    cmd->add_option("--out", *out, "write to this file instead of stdout");
+    cmd->footer("Example: strata matrix site --format svg --out matrix.svg");
+    cmd->callback([=] {
+      Project p = Project::open(*dir);
+      const HarrisMatrix m = load_matrix(p.db());
+      std::string text = *format == "json" ? m.to_json() : m.to_dot();
+      if (*format == "svg") text = dot_to_svg(text);
+      if (out->empty()) {
+        fmt::print("{}", text);
+      } else {
+        const std::string tmp = *out + ".tmp";
+        std::FILE* f = std::fopen(tmp.c_str(), "wb");
+        if (!f) throw IoError(fmt::format("{}: cannot write", *out));
+        std::fwrite(text.data(), 1, text.size(), f);
+        std::fclose(f);
+        std::filesystem::rename(tmp, *out);
+        log::info("wrote {}", *out);
+      }
+    });
+  }
+
+  // ---- layer
+  auto* layer = app.add_subcommand("layer", "recorded surfaces (photo sets): add, list");
+  layer->require_subcommand(1);
+  {
+    auto* cmd = layer->add_subcommand(
+        "add", "record a layer: the surface photographed when a unit's top is exposed");
+    auto dir = std::make_shared<std::string>();
+    auto rec = std::make_shared<LayerRecord>();
+    auto captured = std::make_shared<std::string>();
+    cmd->add_option("DIR", *dir, "project folder")->required();
+    cmd->add_option("LAYER", rec->name, "layer name, e.g. L101")->required();
+    cmd->add_option("--unit", rec->unit, "the unit whose top this surface is")->required();
+    cmd->add_option("--captured-at", *captured, "capture time, ISO 8601 (default: from the photos' EXIF)");
+    cmd->callback([=] {
+      Project p = Project::open(*dir);
+      LayerRecord l = *rec;
+      if (!captured->empty()) {
+        if (captured->size() < 10 || (*captured)[4] != '-' || (*captured)[7] != '-') {
+          throw InputError(fmt::format("--captured-at '{}' is not an ISO 8601 date (YYYY-MM-DD[THH:MM:SS])",
+                                       *captured));
+        }
+        l.captured_at = *captured;
+      }
+      Transaction tx(p.db());
+      insert_layer(p.db(), l);
+      tx.commit();
+      fmt::print("layer {} added (unit {})\n", l.name, l.unit);
+    });
+  }
+  {
+    auto* cmd = layer->add_subcommand("list", "list layers");
+    auto dir = std::make_shared<std::string>();
+    cmd->add_option("DIR", *dir, "project folder")->required();
+    cmd->callback([=] {
+      Project p = Project::open(*dir);
+      for (const auto& l : list_layers(p.db())) {
+        const auto n = list_images(p.db(), l.id).size();
+        fmt::print("{:<10} unit {:<10} {:>4} photos  {}\n", l.name, l.unit, n, l.captured_at.value_or(""));
+      }
+    });
+  }
+}
 
 }  // namespace strata::cli

@@ -17,6 +17,10 @@ struct ImageKeypoints {
   std::vector<Eigen::Vector2d> points;     // pixels
   std::vector<float> scales;               // keypoint size in pixels (optional, may be empty)
   std::vector<std::uint8_t> colours;       // RGB triplets per keypoint (optional, may be empty)
+  // Key of this image's entry in the features cache (photo SHA-256 + options
+  // fingerprint); matching finds the descriptors by it. Empty for keypoints that
+  // did not come from extract_features().
+  std::string features_key;
 };
 
 enum class TwoViewModel { none, essential, fundamental, homography };
@@ -27,6 +31,10 @@ struct PairMatches {
   int image_b = -1;
   std::vector<std::pair<int, int>> matches;  // keypoint index in a, in b (inliers only)
   TwoViewModel model = TwoViewModel::none;
+  // How many of the verified matches a single homography also explains (same
+  // threshold). A ratio homography_inliers / matches.size() near 1 means a planar
+  // scene or a pure rotation: a poor initial pair for SfM. 0 when not computed.
+  int homography_inliers = 0;
 };
 
 // A coded target (ArUco / AprilTag) found in one image.

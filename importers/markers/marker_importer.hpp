@@ -1,0 +1,40 @@
+#pragma once
+// importer.markers.csv and importer.markers.odm: surveyed markers (and, from
+// OpenDroneMap gcp_list files, their image observations) into the project, in
+// the site CRS. All or nothing: the first bad line aborts the whole import.
+#include "project/project.hpp"
+
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace strata {
+
+enum class MarkerFormat { automatic, csv, odm };
+
+struct MarkerImportOptions {
+  MarkerFormat format = MarkerFormat::automatic;
+  // CRS of the coordinates in the file. CSV: default the site CRS. ODM: the file's
+  // first line, which this overrides when given. In a geographic CRS, E is the
+  // longitude and N the latitude, in decimal degrees.
+  std::string crs;
+  // One-sigma survey precision (metres) for markers whose file gives none.
+  double default_sigma = 0.01;
+  bool update = false;  // replace markers already in the project with new coordinates
+  std::string layer;    // ODM: look up observed images in this layer only
+};
+
+struct MarkerImportSummary {
+  std::string format;      // "csv" | "odm"
+  std::string source_crs;  // as used
+  int markers_new = 0, markers_updated = 0, markers_unchanged = 0;
+  int observations_new = 0, observations_updated = 0;
+};
+
+MarkerImportSummary import_markers(Project& project, const MarkerImportOptions& options,
+                                   const std::filesystem::path& file);
+
+MarkerFormat parse_marker_format(const std::string& text);  // csv|odm|auto
+
+}  // namespace strata

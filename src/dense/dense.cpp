@@ -1,0 +1,375 @@
+// run_dense(): the dense stage for one layer, in streaming steps (one reference view
+// and its sources in memory at a time; intermediate results in the cache):
+//   view selection -> undistortion -> PatchMatch depth maps -> consistency filter
+//   -> TSDF fusion -> mesh / points -> writers -> quality figures.
+// The maths lives in the other files of this module; this one orders the steps,
+// times them, and reports progress.
+#include "core/error.hpp"
+#include "core/hash.hpp"
+#include "core/log.hpp"
+#include "core/progress.hpp"
+#include "core/resources.hpp"
+#include "dense/dense.hpp"
+#include "dense/internal.hpp"
+
+#include <fmt/format.h>
+#include <tbb/global_control.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <system_error>
+
+namespace strata {
+namespace {
+
+using dense::DepthMap;
+using dense::PinholeCamera;
+using dense::ViewImage;
+
+template <typename T>
+std::uint64_t mix(std::uint64_t h, const T& v) {
+  return dense::hash_bytes(&v, sizeof(T), h);
+}
+std::uint64_t mix_string(std::uint64_t h, const std::string& s) {
+  return dense::hash_bytes(s.data(), s.size(), h);
+}
+std::uint64_t mix_pose(std::uint64_t h, const Pose& p) {
+  h = dense::hash_bytes(p.R.data(), 9 * sizeof(double), h);
+  return dense::hash_bytes(p.t.data(), 3 * sizeof(double), h);
+}
+
+StepFigures figures(const Stopwatch& sw) { return {sw.seconds(), peak_memory_bytes()}; }
+
+double percentile(std::vector<double> v, double q) {
+  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
+  const auto k = static_cast<std::size_t>(std::lround(std::clamp(q, 0.0, 1.0) * (v.size() - 1)));
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
+  return v[k];
+}
+
+// Andrew's monotone chain: convex hull of the sparse points in XY, counter-clockwise.
+std::vector<Eigen::Vector2d> convex_hull(std::vector<Eigen::Vector2d> p) {
+  std::sort(p.begin(), p.end(), [](const auto& a, const auto& b) {
+    return a.x() < b.x() || (a.x() == b.x() && a.y() < b.y());
+  });
+  if (p.size() < 3) return p;
+  auto cross = [](const Eigen::Vector2d& o, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+    return (a.x() - o.x()) * (b.y() - o.y()) - (a.y() - o.y()) * (b.x() - o.x());
+  };
+  std::vector<Eigen::Vector2d> h(2 * p.size());
+  std::size_t k = 0;
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    while (k >= 2 && cross(h[k - 2], h[k - 1], p[i]) <= 0) --k;
+    h[k++] = p[i];
+  }
+  for (std::size_t i = p.size() - 1, t = k + 1; i > 0; --i) {
+    while (k >= t && cross(h[k - 2], h[k - 1], p[i - 1]) <= 0) --k;
+    h[k++] = p[i - 1];
+  }
+  h.resize(k - 1);
+  return h;
+}
+
+bool inside_polygon(const std::vector<Eigen::Vector2d>& poly, const Eigen::Vector2d& q) {
+  bool in = false;  // even-odd crossing rule
+  for (std::size_t i = 0, j = poly.size() - 1; i < poly.size(); j = i++) {
+    const auto &a = poly[i], &b = poly[j];
+    if ((a.y() > q.y()) != (b.y() > q.y()) &&
+        q.x() < (b.x() - a.x()) * (q.y() - a.y()) / (b.y() - a.y()) + a.x()) {
+      in = !in;
+    }
+  }
+  return in;
+}
+
+}  // namespace
+
+DenseSummary run_dense(const DenseOptions& options, const Reconstruction& rec,
+                       const std::vector<std::filesystem::path>& image_paths,
+                       const Eigen::Vector3d& site_origin, const std::filesystem::path& cache_dir,
+                       const std::filesystem::path& out_dir) {
+  options.validate();
+  if (image_paths.size() != rec.images.size()) {
+    throw InputError(fmt::format("dense: {} image paths for {} images in the reconstruction",
+                                 image_paths.size(), rec.images.size()));
+  }
+  for (const auto& im : rec.images) {
+    if (im.registered && (im.group < 0 || im.group >= static_cast<int>(rec.groups.size()))) {
+      throw InputError(fmt::format("dense: image {} refers to camera group {} of {}", im.name,
+                                   im.group, rec.groups.size()));
+    }
+  }
+  tbb::global_control threads(tbb::global_control::max_allowed_parallelism,
+                              static_cast<std::size_t>(options.threads));
+  const Stopwatch total;
+  DenseSummary summary;
+  const int n = static_cast<int>(rec.images.size());
+  summary.images_total = n;
+  const auto& pm = options.patch_match;
+  summary.depth_scale = pm.scale;
+  const auto image_dir = cache_dir / "dense" / "images";
+  const auto depth_dir = cache_dir / "dense" / "depth";
+  std::error_code ec;
+  for (const auto& d : {image_dir, depth_dir, out_dir}) {
+    std::filesystem::create_directories(d, ec);
+    if (ec) throw IoError(fmt::format("dense: {}: cannot create folder: {}", d.string(), ec.message()));
+  }
+
+  // ---- 1. view selection ------------------------------------------------------
+  Stopwatch sw;
+  const auto neighbours = dense::select_views(rec, options.views, pm.depth_margin);
+  std::vector<char> needed(static_cast<std::size_t>(n), 0);  // undistorted image needed
+  std::vector<int> refs;
+  for (int i = 0; i < n; ++i) {
+    if (neighbours[i].sources.empty()) continue;
+    refs.push_back(i);
+    needed[i] = 1;
+    for (int s : neighbours[i].sources) needed[s] = 1;
+  }
+  if (refs.empty()) {
+    throw ProcessingError("dense: no registered image has overlapping neighbours with shared sparse points");
+  }
+  summary.view_selection = figures(sw);
+  log::info("dense: {} of {} images have source views", refs.size(), n);
+
+  auto camera_of = [&](int i) {
+    const auto& im = rec.images[i];
+    return dense::undistorted_camera(rec.groups[im.group].intrinsics, im.pose, pm.scale);
+  };
+
+  // ---- 2. undistortion (once per image, into the cache) ------------------------
+  sw = Stopwatch();
+  std::vector<std::uint64_t> image_key(static_cast<std::size_t>(n), 0);
+  auto image_file = [&](int i) { return image_dir / fmt::format("{:05d}.img", i); };
+  {
+    Progress progress("dense: undistort", static_cast<std::size_t>(std::count(needed.begin(), needed.end(), 1)));
+    for (int i = 0; i < n; ++i) {
+      if (!needed[i]) continue;
+      check_cancelled();
+      const auto& im = rec.images[i];
+      const auto& intr = rec.groups[im.group].intrinsics;
+      std::uint64_t key = mix_string(0x5354524154410001ull, image_paths[i].string());
+      const auto size = std::filesystem::file_size(image_paths[i], ec);
+      if (ec) throw IoError(fmt::format("dense.undistort: {}: cannot read the photo", image_paths[i].string()));
+      const auto mtime = std::filesystem::last_write_time(image_paths[i], ec).time_since_epoch().count();
+      key = mix(mix(mix(key, size), mtime), pm.scale);
+      for (double v : {intr.fx, intr.fy, intr.cx, intr.cy, intr.k1, intr.k2}) key = mix(key, v);
+      key = mix(mix(key, intr.width), intr.height);
+      key = mix_pose(key, im.pose);
+      image_key[i] = key;
+      ViewImage cached;
+      if (!options.reuse_cache || !dense::read_view_image(image_file(i), key, cached)) {
+        dense::write_view_image(image_file(i), dense::undistort_image(image_paths[i], intr, im.pose, pm.scale), key);
+      }
+      progress.step();
+    }
+  }
+  summary.undistortion = figures(sw);
+
+  auto load_image = [&](int i) {
+    ViewImage img;
+    if (!dense::read_view_image(image_file(i), image_key[i], img)) {
+      throw IoError(fmt::format("dense.cache: {}: unreadable undistorted image", image_file(i).string()));
+    }
+    return img;
+  };
+
+  // ---- 3. depth maps (PatchMatch; one reference + sources in memory) ------------
+  sw = Stopwatch();
+  std::vector<std::uint64_t> raw_key(static_cast<std::size_t>(n), 0);
+  auto raw_file = [&](int i) { return depth_dir / fmt::format("{:05d}.raw.dmap", i); };
+  auto filtered_file = [&](int i) { return depth_dir / fmt::format("{:05d}.filtered.dmap", i); };
+  std::vector<double> gsd;
+  double valid_sum = 0;
+  {
+    Progress progress("dense: depth maps", refs.size());
+    for (int i : refs) {
+      check_cancelled();
+      const auto& nb = neighbours[i];
+      std::uint64_t key = mix(image_key[i], 0x444550544831ull);
+      for (int s : nb.sources) key = mix(key, image_key[s]);
+      key = mix(mix(key, nb.depth_min), nb.depth_max);
+      for (double v : {pm.scale, static_cast<double>(pm.window_radius), static_cast<double>(pm.window_step),
+                       static_cast<double>(pm.iterations), static_cast<double>(pm.best_k), pm.max_cost,
+                       pm.max_normal_angle_deg, static_cast<double>(pm.seed)}) {
+        key = mix(key, v);
+      }
+      raw_key[i] = key;
+      DepthMap map;
+      if (options.reuse_cache && dense::read_depth_map(raw_file(i), key, map)) {
+        ++summary.depth_maps_from_cache;
+      } else {
+        const ViewImage ref = load_image(i);
+        std::vector<ViewImage> src;
+        src.reserve(nb.sources.size());
+        for (int s : nb.sources) src.push_back(load_image(s));
+        std::vector<const ViewImage*> src_ptr;
+        for (const auto& s : src) src_ptr.push_back(&s);
+        map = dense::patch_match(ref, src_ptr, nb.depth_min, nb.depth_max, pm);
+        dense::write_depth_map(raw_file(i), map, key);
+      }
+      const std::size_t valid = map.valid_count();
+      valid_sum += static_cast<double>(valid) / (static_cast<double>(map.width) * map.height);
+      if (valid > 0) {
+        std::vector<double> d;
+        d.reserve(valid);
+        for (float v : map.depth) if (v > 0) d.push_back(v);
+        gsd.push_back(percentile(std::move(d), 0.5) / camera_of(i).fx);  // metres per pixel
+      }
+      progress.step();
+    }
+  }
+  summary.valid_depth_fraction = valid_sum / static_cast<double>(refs.size());
+  summary.depth_maps = figures(sw);
+
+  // ---- 4. geometric consistency (reads raw maps of the reference and its sources) --
+  sw = Stopwatch();
+  const auto& cons = options.consistency;
+  std::vector<std::uint64_t> filtered_key(static_cast<std::size_t>(n), 0);
+  double kept_sum = 0;
+  {
+    Progress progress("dense: consistency", refs.size());
+    for (int i : refs) {
+      check_cancelled();
+      std::uint64_t key = mix(raw_key[i], 0x46494c54ull);
+      for (int s : neighbours[i].sources) key = mix(key, raw_key[s]);
+      key = mix(mix(mix(key, cons.min_consistent_views), cons.max_reprojection_px), cons.max_relative_depth);
+      filtered_key[i] = key;
+      DepthMap filtered;
+      if (!options.reuse_cache || !dense::read_depth_map(filtered_file(i), key, filtered)) {
+        DepthMap ref;
+        if (!dense::read_depth_map(raw_file(i), raw_key[i], ref)) {
+          throw IoError(fmt::format("dense.cache: {}: unreadable depth map", raw_file(i).string()));
+        }
+        std::vector<DepthMap> maps;
+        std::vector<PinholeCamera> cams;
+        for (int s : neighbours[i].sources) {
+          DepthMap m;
+          if (raw_key[s] == 0 || !dense::read_depth_map(raw_file(s), raw_key[s], m)) continue;
+          maps.push_back(std::move(m));
+          cams.push_back(camera_of(s));
+        }
+        std::vector<dense::DepthNeighbour> nbs;
+        for (std::size_t k = 0; k < maps.size(); ++k) nbs.push_back({&maps[k], &cams[k]});
+        filtered = dense::filter_consistent(ref, camera_of(i), nbs, cons);
+        dense::write_depth_map(filtered_file(i), filtered, key);
+      }
+      kept_sum += static_cast<double>(filtered.valid_count()) /
+                  (static_cast<double>(filtered.width) * filtered.height);
+      if (filtered.valid_count() > 0) ++summary.images_with_depth;
+      progress.step();
+    }
+  }
+  summary.consistent_depth_fraction = kept_sum / static_cast<double>(refs.size());
+  summary.filtering = figures(sw);
+
+  // ---- 5. TSDF fusion ------------------------------------------------------------
+  sw = Stopwatch();
+  const auto& fo = options.fusion;
+  summary.gsd_m = gsd.empty() ? 0 : percentile(gsd, 0.5);
+  double voxel = fo.voxel_size_m;
+  if (voxel == 0) {
+    if (summary.gsd_m <= 0) throw ProcessingError("dense: no depth estimated, cannot choose a voxel size");
+    voxel = std::clamp(fo.voxel_gsd_factor * summary.gsd_m, fo.min_voxel_size_m, fo.max_voxel_size_m);
+  }
+  summary.voxel_size_m = voxel;
+  summary.truncation_m = fo.truncation_voxels * voxel;
+  dense::TsdfVolume volume(voxel, summary.truncation_m);
+  {
+    Progress progress("dense: fusion", refs.size());
+    for (int i : refs) {
+      check_cancelled();
+      DepthMap map;
+      if (!dense::read_depth_map(filtered_file(i), filtered_key[i], map)) {
+        throw IoError(fmt::format("dense.cache: {}: unreadable depth map", filtered_file(i).string()));
+      }
+      if (map.valid_count() > 0) volume.integrate(camera_of(i), map, load_image(i).rgb);
+      progress.step();
+    }
+  }
+  volume.finalise(fo.min_weight);
+  summary.active_voxels = volume.active_voxels();
+  summary.fusion = figures(sw);
+  log::info("dense: voxel {:.1f} mm, {} active voxels", voxel * 1e3, summary.active_voxels);
+  if (summary.active_voxels == 0) throw ProcessingError("dense: fusion left no observed voxel");
+
+  // ---- 6. mesh and points -----------------------------------------------------------
+  sw = Stopwatch();
+  DenseMesh mesh = volume.extract_mesh(0.0);
+  const DenseMesh points = volume.points_from_mesh(mesh);
+  if (options.mesh.adaptivity > 0) mesh = volume.extract_mesh(options.mesh.adaptivity);
+  if (options.mesh.target_faces > 0 && mesh.faces.size() > options.mesh.target_faces) {
+    mesh = simplify_mesh(mesh, options.mesh.target_faces);
+    volume.colour_vertices(mesh);
+  }
+  summary.mesh_vertices = mesh.vertices.size();
+  summary.mesh_faces = mesh.faces.size();
+  summary.points = points.vertices.size();
+  summary.meshing = figures(sw);
+
+  // ---- 7. writers ---------------------------------------------------------------------
+  sw = Stopwatch();
+  ExportFrame frame = options.exports;
+  frame.site_origin = site_origin;
+  auto record = [&](const std::string& kind, const std::filesystem::path& p) {
+    summary.products.push_back({kind, p, sha256_file(p)});
+  };
+  volume.write(out_dir / "surface.vdb", site_origin, frame.crs);
+  record("surface", out_dir / "surface.vdb");
+  write_ply(out_dir / "mesh.ply", mesh, frame);
+  record("mesh", out_dir / "mesh.ply");
+  if (options.mesh.write_obj) {
+    write_obj(out_dir / "mesh.obj", mesh, frame);
+    record("mesh_obj", out_dir / "mesh.obj");
+  }
+  write_ply(out_dir / "points.ply", points, frame);
+  record("points", out_dir / "points.ply");
+  summary.writing = figures(sw);
+
+  // ---- 8. quality: completeness over the area, distance to the sparse points ---------
+  std::vector<Eigen::Vector2d> area = options.quality.area;
+  if (area.empty()) {
+    std::vector<Eigen::Vector2d> xy;
+    for (const auto& p : rec.points) xy.push_back(p.X.head<2>());
+    area = convex_hull(std::move(xy));
+  }
+  if (area.size() >= 3) {
+    Eigen::Vector2d lo = area[0], hi = area[0];
+    for (const auto& p : area) {
+      lo = lo.cwiseMin(p);
+      hi = hi.cwiseMax(p);
+    }
+    const double cell = options.quality.cell_size_m;
+    const int nx = std::max(1, static_cast<int>(std::ceil((hi.x() - lo.x()) / cell)));
+    const int ny = std::max(1, static_cast<int>(std::ceil((hi.y() - lo.y()) / cell)));
+    const HeightField hf = volume.top_surface(lo.x() + 0.5 * cell, lo.y() + 0.5 * cell, cell, nx, ny);
+    std::size_t inside = 0, covered = 0;
+    for (int j = 0; j < ny; ++j) {
+      for (int i = 0; i < nx; ++i) {
+        if (!inside_polygon(area, {hf.x0 + i * cell, hf.y0 + j * cell})) continue;
+        ++inside;
+        if (std::isfinite(hf.at(i, j))) ++covered;
+      }
+    }
+    summary.area_m2 = static_cast<double>(inside) * cell * cell;
+    summary.completeness = inside > 0 ? static_cast<double>(covered) / inside : 0;
+  }
+  std::vector<Eigen::Vector3d> sparse;
+  for (const auto& p : rec.points) sparse.push_back(p.X);
+  std::vector<double> dist;
+  for (double d : volume.distances(sparse)) if (std::isfinite(d)) dist.push_back(d);
+  summary.sparse_points_compared = dist.size();
+  summary.median_distance_sparse_m = percentile(dist, 0.5);
+  summary.p95_distance_sparse_m = percentile(dist, 0.95);
+
+  summary.total = figures(total);
+  log::info("dense: {} faces, {} points, completeness {:.1f} %, sparse distance median {:.1f} mm, "
+            "p95 {:.1f} mm, {:.1f} s",
+            summary.mesh_faces, summary.points, 100 * summary.completeness,
+            summary.median_distance_sparse_m * 1e3, summary.p95_distance_sparse_m * 1e3,
+            summary.total.seconds);
+  return summary;
+}
+
+}  // namespace strata

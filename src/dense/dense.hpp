@@ -1,0 +1,171 @@
+#pragma once
+// The dense stage: multi-view stereo depth maps on the CPU, TSDF fusion into an
+// OpenVDB level set, mesh and point-cloud products (issue 5).
+//
+// Public surface in the Ceres style: DenseOptions (validated once), DenseSummary,
+// one entry function run_dense(), plus readers of the level set it writes.
+// No OpenVDB/CGAL/OpenCV type appears here; those stay inside src/dense/*.cpp.
+//
+// Frames: every coordinate is the site frame (site CRS minus the site origin,
+// metres, double) unless a name says "crs". The site origin is written into
+// the .vdb metadata ("site_origin_e", "site_origin_n", "site_origin_z", "crs")
+// and added back in exported PLY/OBJ vertices.
+#include "dense/dense_mesh.hpp"
+#include "sfm/reconstruction.hpp"
+
+#include <Eigen/Core>
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace strata {
+
+// Choice of source views for each reference image from the sparse covisibility
+// (shared tracks) and the triangulation angle of the shared points.
+struct ViewSelectionOptions {
+  int max_neighbours = 5;       // source views per reference image (4-6 is usual)
+  int min_shared_points = 8;    // sparse points both views must see
+  double min_angle_deg = 5.0;   // preferred triangulation angle range, degrees:
+  double max_angle_deg = 40.0;  //   too small = poor depth, too large = poor matching
+};
+
+// PatchMatch stereo with slanted support windows (Bleyer et al. 2011), red/black
+// propagation (Galliani et al. 2015) and best-K multi-view NCC (Schönberger et al. 2016).
+struct PatchMatchOptions {
+  double scale = 0.5;             // depth-map resolution relative to the photo: 1, 0.5 or 0.25
+  int window_radius = 5;          // NCC window half-size, pixels at depth-map scale
+  int window_step = 2;            // use every n-th pixel of the window (speed)
+  int iterations = 5;             // red/black propagation sweeps
+  int best_k = 2;                 // photometric cost = mean of the best k source costs
+  double max_cost = 0.6;          // 1 - NCC above which a pixel has no depth, in [0, 2]
+  double depth_margin = 0.25;     // widening of the sparse depth range, fraction of it
+  double max_normal_angle_deg = 75.0;  // plane normals kept within this angle of the view ray
+  std::uint64_t seed = 1;         // random initialisation; results are deterministic
+};
+
+// Forward-backward geometric consistency between depth maps (Schönberger et al. 2016, §4.4).
+struct ConsistencyOptions {
+  int min_consistent_views = 2;   // a depth survives when this many neighbours agree
+  double max_reprojection_px = 1.0;   // pixels at depth-map scale
+  double max_relative_depth = 0.01;   // |d_back - d| / d
+};
+
+// Truncated signed distance fusion (Curless & Levoy 1996) in a sparse OpenVDB grid.
+struct FusionOptions {
+  double voxel_size_m = 0;        // metres; 0 = voxel_gsd_factor x depth-map GSD, clamped below
+  double voxel_gsd_factor = 1.25; // voxel size in GSDs when chosen automatically
+  double min_voxel_size_m = 0.002;  // metres, clamp of the automatic choice
+  double max_voxel_size_m = 0.05;   // metres
+  double truncation_voxels = 4;   // half-width of the narrow band, voxels
+  double min_weight = 1.5;        // accumulated weight below which a voxel counts as unseen
+};
+
+struct MeshOptions {
+  std::size_t target_faces = 0;   // CGAL edge-collapse simplification target; 0 = keep all
+  double adaptivity = 0;          // openvdb::tools::volumeToMesh adaptivity, in [0, 1]
+  bool write_obj = false;         // also write mesh.obj beside mesh.ply
+};
+
+struct QualityOptions {
+  // Area whose completeness is measured: a polygon in site-frame XY (metres).
+  // Empty: the convex hull of the sparse points.
+  std::vector<Eigen::Vector2d> area;
+  double cell_size_m = 0.01;      // grid cell for completeness, metres
+};
+
+struct DenseOptions {
+  ViewSelectionOptions views;
+  PatchMatchOptions patch_match;
+  ConsistencyOptions consistency;
+  FusionOptions fusion;
+  MeshOptions mesh;
+  ExportFrame exports;            // precision of PLY/OBJ vertices; site origin filled by run_dense
+  QualityOptions quality;
+  int threads = 2;                // TBB worker threads
+  bool reuse_cache = true;        // reuse depth maps in the cache whose key matches
+
+  // Throws InputError naming the first invalid field.
+  void validate() const;
+};
+
+struct StepFigures {
+  double seconds = 0;
+  std::int64_t peak_memory_bytes = 0;  // process peak RSS at the end of the step
+};
+
+struct DenseProduct {
+  std::string kind;               // "surface", "mesh", "mesh_obj", "points"
+  std::filesystem::path path;
+  std::string sha256;
+};
+
+struct DenseSummary {
+  int images_total = 0;
+  int images_with_depth = 0;      // reference images that produced a depth map
+  int depth_maps_from_cache = 0;
+  double depth_scale = 0;         // as used
+  double gsd_m = 0;               // median depth-map ground sampling distance, metres
+  double voxel_size_m = 0;        // as used
+  double truncation_m = 0;
+  double valid_depth_fraction = 0;    // after PatchMatch, mean over images
+  double consistent_depth_fraction = 0;  // after geometric filtering, mean over images
+  std::size_t active_voxels = 0;
+  std::size_t mesh_vertices = 0;
+  std::size_t mesh_faces = 0;
+  std::size_t points = 0;
+
+  // Quality (design.md "Quality figures")
+  double completeness = 0;        // fraction of area cells with surface, [0, 1]
+  double area_m2 = 0;             // area measured for completeness
+  double median_distance_sparse_m = 0;  // |surface - sparse point|, metres
+  double p95_distance_sparse_m = 0;
+  std::size_t sparse_points_compared = 0;
+
+  StepFigures view_selection, undistortion, depth_maps, filtering, fusion, meshing, writing;
+  StepFigures total;
+  std::vector<DenseProduct> products;
+};
+
+// Runs the whole dense stage for one aligned layer. image_paths[i] is the photo of
+// reconstruction.images[i]. site_origin is the site origin (E, N, Z in the site CRS,
+// metres). Depth maps and undistorted images go to cache_dir (deletable);
+// out_dir receives surface.vdb, mesh.ply, points.ply (and mesh.obj on request),
+// each written to a temporary file and renamed.
+DenseSummary run_dense(const DenseOptions& options, const Reconstruction& reconstruction,
+                       const std::vector<std::filesystem::path>& image_paths,
+                       const Eigen::Vector3d& site_origin,
+                       const std::filesystem::path& cache_dir,
+                       const std::filesystem::path& out_dir);
+
+// ---- reading the level set back ------------------------------------------------
+
+struct LevelSetInfo {
+  double voxel_size_m = 0;
+  Eigen::Vector3d site_origin = Eigen::Vector3d::Zero();  // E, N, Z of the site CRS
+  std::string crs;
+  Eigen::Vector3d min = Eigen::Vector3d::Zero();  // active bounding box, site frame, metres
+  Eigen::Vector3d max = Eigen::Vector3d::Zero();
+};
+
+// A regular XY grid of heights (site frame, metres). Cell (i, j) has its centre at
+// (x0 + i*cell, y0 + j*cell); z[j*nx + i]; NaN where there is no surface.
+struct HeightField {
+  double x0 = 0, y0 = 0, cell = 0;
+  int nx = 0, ny = 0;
+  std::vector<double> z;
+  double at(int i, int j) const { return z[static_cast<std::size_t>(j) * nx + i]; }
+};
+
+LevelSetInfo read_level_set_info(const std::filesystem::path& vdb);
+// The uppermost zero crossing of the "surface" grid above each cell centre (the
+// visible top of the layer, what a DTM needs). Throws IoError when unreadable.
+HeightField sample_top_surface(const std::filesystem::path& vdb, double x0, double y0,
+                               double cell, int nx, int ny);
+// Volume enclosed by a closed level set, cubic metres (openvdb::tools::levelSetVolume).
+double level_set_volume_m3(const std::filesystem::path& vdb);
+// Zero level set of a .vdb as triangles (site frame), unseen voxels masked out.
+DenseMesh level_set_mesh(const std::filesystem::path& vdb, double adaptivity = 0);
+
+}  // namespace strata

@@ -1,0 +1,153 @@
+#pragma once
+// Internal building blocks of the dense stage (not for other modules; tests use
+// them). Plain structs, Eigen and std only: OpenCV lives in images.cpp, OpenVDB
+// in fusion.cpp, CGAL in simplify.cpp.
+#include "dense/dense.hpp"
+#include "geometry/camera.hpp"
+
+#include <Eigen/Core>
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace strata::dense {
+
+// An undistorted pinhole camera at depth-map resolution. Pixel (0,0) is the
+// centre of the top-left pixel, as in geometry/camera.hpp.
+struct PinholeCamera {
+  int width = 0, height = 0;       // pixels
+  double fx = 0, fy = 0, cx = 0, cy = 0;  // pixels
+  Pose pose;                       // world (site frame) -> camera
+
+  // Point in the camera frame at the given depth (z_cam, metres) through pixel (u, v).
+  Eigen::Vector3d ray_point(double u, double v, double depth) const {
+    return {(u - cx) / fx * depth, (v - cy) / fy * depth, depth};
+  }
+  Eigen::Vector3d to_world(const Eigen::Vector3d& Xc) const {
+    return pose.R.transpose() * (Xc - pose.t);
+  }
+};
+
+// The pinhole camera that undistort_image() resamples to: same focal length and
+// principal point as the photo, scaled (centre-of-pixel convention kept exact).
+PinholeCamera undistorted_camera(const Intrinsics& intrinsics, const Pose& pose, double scale);
+
+// One undistorted photo at depth-map resolution.
+struct ViewImage {
+  PinholeCamera camera;
+  std::vector<float> gray;          // [0, 1], NaN outside the photo
+  std::vector<std::uint8_t> rgb;    // interleaved, 0 outside the photo
+  float gray_at(int x, int y) const { return gray[static_cast<std::size_t>(y) * camera.width + x]; }
+};
+
+// Reads a photo and resamples it without distortion (cv::remap through the strata
+// radial model) at `scale`. Throws IoError("dense.undistort: <path>: ...").
+ViewImage undistort_image(const std::filesystem::path& photo, const Intrinsics& intrinsics,
+                          const Pose& pose, double scale);
+
+// Depth + normal per pixel; depth 0 = no estimate.
+struct DepthMap {
+  int width = 0, height = 0;
+  std::vector<float> depth;       // metres along the camera z axis
+  std::vector<float> normal;      // 3 per pixel, camera frame, facing the camera
+  std::vector<float> confidence;  // [0, 1]: 1 - photometric cost, then consistency share
+  void resize(int w, int h) {
+    width = w;
+    height = h;
+    const auto n = static_cast<std::size_t>(w) * h;
+    depth.assign(n, 0.f);
+    normal.assign(3 * n, 0.f);
+    confidence.assign(n, 0.f);
+  }
+  std::size_t valid_count() const;
+};
+
+// Neighbours of one reference image and its expected depth range from the sparse points.
+struct ViewNeighbours {
+  std::vector<int> sources;   // image indices, best first
+  double depth_min = 0;       // metres
+  double depth_max = 0;
+};
+
+// For every image of the reconstruction: its source views (empty when the image is
+// unregistered or has no usable neighbour) and depth range.
+std::vector<ViewNeighbours> select_views(const Reconstruction& rec, const ViewSelectionOptions& opt,
+                                         double depth_margin);
+
+// PatchMatch stereo for one reference view against its sources (see patch_match.cpp).
+DepthMap patch_match(const ViewImage& ref, const std::vector<const ViewImage*>& sources,
+                     double depth_min, double depth_max, const PatchMatchOptions& opt);
+
+// Keeps the depths that at least opt.min_consistent_views neighbour depth maps confirm
+// by forward-backward reprojection; confidence is scaled by the agreeing share.
+struct DepthNeighbour {
+  const DepthMap* depth;
+  const PinholeCamera* camera;
+};
+DepthMap filter_consistent(const DepthMap& ref, const PinholeCamera& ref_camera,
+                           const std::vector<DepthNeighbour>& neighbours,
+                           const ConsistencyOptions& opt);
+
+// ---- cache files (binary, little-endian, versioned, keyed) ----------------------
+// A key mixes every input that changes the content; a stale file is recomputed.
+std::uint64_t hash_bytes(const void* data, std::size_t size, std::uint64_t seed = 0);
+void write_depth_map(const std::filesystem::path& path, const DepthMap& map, std::uint64_t key);
+bool read_depth_map(const std::filesystem::path& path, std::uint64_t key, DepthMap& out);
+void write_view_image(const std::filesystem::path& path, const ViewImage& image, std::uint64_t key);
+bool read_view_image(const std::filesystem::path& path, std::uint64_t key, ViewImage& out);
+
+// ---- TSDF volume (OpenVDB inside fusion.cpp) -------------------------------------
+class TsdfVolume {
+ public:
+  TsdfVolume(double voxel_size_m, double truncation_m);
+  ~TsdfVolume();
+  TsdfVolume(const TsdfVolume&) = delete;
+  TsdfVolume& operator=(const TsdfVolume&) = delete;
+
+  // Reads surface.vdb written by write().
+  static std::unique_ptr<TsdfVolume> read(const std::filesystem::path& vdb, LevelSetInfo* info);
+
+  // Curless & Levoy (1996) running weighted average of truncated distances along
+  // the view rays of one depth map; colours averaged with the same weights.
+  void integrate(const PinholeCamera& camera, const DepthMap& depth,
+                 const std::vector<std::uint8_t>& rgb);
+  // Drops voxels seen with less than min_weight; call once after integration.
+  void finalise(double min_weight);
+
+  double voxel_size() const;
+  std::size_t active_voxels() const;
+  // Zero level set as triangles; faces next to unseen voxels are dropped (they are
+  // the border of the narrow band, not the surface). Coloured when colour exists.
+  DenseMesh extract_mesh(double adaptivity) const;
+  // Colours vertices from the colour grid (after simplification).
+  void colour_vertices(DenseMesh& mesh) const;
+  // The point cloud of a mesh from extract_mesh(0): its vertices (one per surface
+  // cell, on the zero level set) with colour and the level-set gradient as normal.
+  DenseMesh points_from_mesh(const DenseMesh& full_mesh) const;
+  // Uppermost zero crossing per cell (see sample_top_surface()).
+  HeightField top_surface(double x0, double y0, double cell, int nx, int ny) const;
+  // |signed distance| to the surface at each point, metres; NaN outside the band.
+  std::vector<double> distances(const std::vector<Eigen::Vector3d>& points) const;
+  // Writes grids "surface" (level set), "weight", "colour", with the site origin and CRS
+  // as metadata; temp file then rename.
+  void write(const std::filesystem::path& vdb, const Eigen::Vector3d& site_origin,
+             const std::string& crs) const;
+  double level_set_volume() const;
+
+  struct Impl;
+
+ private:
+  explicit TsdfVolume(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+// Writes `bytes` to path via a temporary file in the same folder and a rename, so a
+// reader never sees half a file. Throws IoError naming `stage`.
+void write_file_atomically(const std::filesystem::path& path, const std::string& stage,
+                           const std::function<void(const std::filesystem::path& tmp)>& write);
+
+}  // namespace strata::dense

@@ -1,0 +1,360 @@
+// PatchMatch multi-view stereo on the CPU.
+//
+// Each pixel of the reference view carries a plane hypothesis (depth along the
+// camera z axis, normal in the camera frame), following
+//  - Bleyer, Rhemann, Rother 2011, "PatchMatch Stereo - Stereo Matching with Slanted
+//    Support Windows": random initialisation, spatial plane propagation, refinement;
+//  - Galliani, Lasinger, Schindler 2015, "Massively Parallel Multiview Stereopsis by
+//    Surface Normal Diffusion" (Gipuma): red/black (checkerboard) updates, so that half
+//    the pixels update in parallel from the other half, and best-K cost aggregation;
+//  - Schönberger, Zheng, Pollefeys, Frahm 2016, "Pixelwise View Selection for
+//    Unstructured Multi-View Stereo": plane-induced homographies, NCC over a window,
+//    the perturbation scheme of the refinement step.
+// The photometric cost of a plane against one source view is 1 - NCC of the window
+// warped by the plane's homography; the cost of a hypothesis is the mean of the best
+// K source costs, which tolerates occlusion in the other sources.
+#include "core/error.hpp"
+#include "core/progress.hpp"
+#include "dense/internal.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <numbers>
+
+namespace strata::dense {
+namespace {
+
+constexpr float kMaxCost = 2.0f;          // 1 - NCC of anti-correlated windows
+constexpr float kMinVariance = 1e-5f;     // gray^2: below this a window is textureless
+constexpr int kMaxSources = 16;
+
+// splitmix64: small, fast, good enough for PatchMatch sampling; one stream per row.
+struct Random {
+  std::uint64_t state;
+  std::uint64_t next() {
+    std::uint64_t z = (state += 0x9E3779B97F4A7C15ull);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return z ^ (z >> 31);
+  }
+  double uniform() { return static_cast<double>(next() >> 11) * 0x1.0p-53; }  // [0, 1)
+  double gaussian() {  // Box-Muller
+    const double u1 = std::max(uniform(), 1e-12), u2 = uniform();
+    return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * std::numbers::pi * u2);
+  }
+};
+
+// Plane-induced homography from reference pixels to source pixels:
+// H = K_s (R_rel + t_rel n^T / c) K_r^-1 for the plane n.X = c (camera frame of the
+// reference). Precomputed parts: A = K_s R_rel K_r^-1, b = K_s t_rel.
+struct SourceGeometry {
+  Eigen::Matrix3d A;
+  Eigen::Vector3d b;
+  const ViewImage* image;
+};
+
+float sample_bilinear(const ViewImage& img, double x, double y) {
+  const int w = img.camera.width, h = img.camera.height;
+  if (!(x >= 0 && y >= 0 && x <= w - 1.000001 && y <= h - 1.000001)) {
+    return std::numeric_limits<float>::quiet_NaN();
+  }
+  const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
+  const float ax = static_cast<float>(x - x0), ay = static_cast<float>(y - y0);
+  const float* row0 = img.gray.data() + static_cast<std::size_t>(y0) * w + x0;
+  const float* row1 = row0 + w;
+  const float top = row0[0] + ax * (row0[1] - row0[0]);
+  const float bottom = row1[0] + ax * (row1[1] - row1[0]);
+  return top + ay * (bottom - top);
+}
+
+class Solver {
+ public:
+  Solver(const ViewImage& ref, const std::vector<const ViewImage*>& sources, double dmin,
+         double dmax, const PatchMatchOptions& opt)
+      : ref_(ref), cam_(ref.camera), dmin_(dmin), dmax_(dmax), opt_(opt) {
+    STRATA_CHECK(!sources.empty() && static_cast<int>(sources.size()) <= kMaxSources,
+                 "patch_match needs 1..{} sources", kMaxSources);
+    Eigen::Matrix3d Kr_inv = Eigen::Matrix3d::Identity();
+    Kr_inv(0, 0) = 1.0 / cam_.fx;
+    Kr_inv(1, 1) = 1.0 / cam_.fy;
+    Kr_inv(0, 2) = -cam_.cx / cam_.fx;
+    Kr_inv(1, 2) = -cam_.cy / cam_.fy;
+    for (const ViewImage* s : sources) {
+      const auto& sc = s->camera;
+      Eigen::Matrix3d Ks = Eigen::Matrix3d::Identity();
+      Ks(0, 0) = sc.fx;
+      Ks(1, 1) = sc.fy;
+      Ks(0, 2) = sc.cx;
+      Ks(1, 2) = sc.cy;
+      const Eigen::Matrix3d R_rel = sc.pose.R * cam_.pose.R.transpose();
+      const Eigen::Vector3d t_rel = sc.pose.t - R_rel * cam_.pose.t;
+      sources_.push_back({Ks * R_rel * Kr_inv, Ks * t_rel, s});
+    }
+    best_k_ = std::min<int>(opt.best_k, static_cast<int>(sources_.size()));
+    cos_max_normal_ = std::cos(opt.max_normal_angle_deg * std::numbers::pi / 180.0);
+
+    const int w = cam_.width, h = cam_.height;
+    const auto n = static_cast<std::size_t>(w) * h;
+    depth_.assign(n, 0.f);
+    normal_.assign(n, Eigen::Vector3f::Zero());
+    cost_.assign(n, kMaxCost);
+    ref_ok_.assign(n, 0);
+    ref_mean_.assign(n, 0.f);
+    ref_inv_std_.assign(n, 0.f);
+    precompute_reference_windows();
+  }
+
+  DepthMap run() {
+    const int w = cam_.width, h = cam_.height;
+    // Random initialisation (Bleyer 2011 §2.2): depth uniform in inverse depth (even
+    // coverage of disparities), normal tilted randomly towards the camera.
+    tbb::parallel_for(tbb::blocked_range<int>(0, h), [&](const tbb::blocked_range<int>& r) {
+      for (int y = r.begin(); y < r.end(); ++y) {
+        Random rng{opt_.seed * 0x100000001B3ull + static_cast<std::uint64_t>(y) * 7919u};
+        for (int x = 0; x < w; ++x) {
+          const std::size_t i = index(x, y);
+          if (!ref_ok_[i]) continue;
+          depth_[i] = random_depth(rng);
+          normal_[i] = random_normal(x, y, rng);
+          cost_[i] = cost(x, y, depth_[i], normal_[i]);
+        }
+      }
+    });
+
+    for (int it = 0; it < opt_.iterations; ++it) {
+      check_cancelled();
+      for (int colour = 0; colour < 2; ++colour) {
+        tbb::parallel_for(tbb::blocked_range<int>(0, h), [&](const tbb::blocked_range<int>& r) {
+          for (int y = r.begin(); y < r.end(); ++y) {
+            Random rng{opt_.seed ^ (static_cast<std::uint64_t>(it * 2 + colour + 1) << 40) ^
+                       (static_cast<std::uint64_t>(y) * 0x9E3779B1u)};
+            for (int x = (y + colour) & 1; x < w; x += 2) update(x, y, it, rng);
+          }
+        });
+      }
+    }
+
+    DepthMap out;
+    out.resize(w, h);
+    for (std::size_t i = 0; i < depth_.size(); ++i) {
+      if (!ref_ok_[i] || cost_[i] > opt_.max_cost || depth_[i] <= 0) continue;
+      out.depth[i] = depth_[i];
+      for (int k = 0; k < 3; ++k) out.normal[3 * i + k] = normal_[i][k];
+      out.confidence[i] = std::clamp(1.0f - cost_[i], 0.0f, 1.0f);
+    }
+    return out;
+  }
+
+ private:
+  std::size_t index(int x, int y) const { return static_cast<std::size_t>(y) * cam_.width + x; }
+
+  Eigen::Vector3d ray(double x, double y) const {
+    return {(x - cam_.cx) / cam_.fx, (y - cam_.cy) / cam_.fy, 1.0};
+  }
+
+  // Mean and 1/std of every reference window (the reference side of NCC never
+  // changes); windows that leave the photo or are textureless are skipped.
+  void precompute_reference_windows() {
+    const int w = cam_.width, h = cam_.height, rad = opt_.window_radius, st = opt_.window_step;
+    tbb::parallel_for(tbb::blocked_range<int>(0, h), [&](const tbb::blocked_range<int>& r) {
+      for (int y = r.begin(); y < r.end(); ++y) {
+        for (int x = 0; x < w; ++x) {
+          if (x - rad < 0 || y - rad < 0 || x + rad >= w || y + rad >= h) continue;
+          double s = 0, ss = 0;
+          int n = 0;
+          bool ok = true;
+          for (int dy = -rad; dy <= rad && ok; dy += st) {
+            for (int dx = -rad; dx <= rad; dx += st) {
+              const float v = ref_.gray_at(x + dx, y + dy);
+              if (std::isnan(v)) {
+                ok = false;
+                break;
+              }
+              s += v;
+              ss += static_cast<double>(v) * v;
+              ++n;
+            }
+          }
+          if (!ok) continue;
+          const double mean = s / n, var = ss / n - mean * mean;
+          if (var < kMinVariance) continue;
+          const std::size_t i = index(x, y);
+          ref_ok_[i] = 1;
+          ref_mean_[i] = static_cast<float>(mean);
+          ref_inv_std_[i] = static_cast<float>(1.0 / std::sqrt(var));
+        }
+      }
+    });
+  }
+
+  double random_depth(Random& rng) const {
+    const double inv = 1.0 / dmax_ + rng.uniform() * (1.0 / dmin_ - 1.0 / dmax_);
+    return 1.0 / inv;
+  }
+
+  // A normal facing the camera, at most max_normal_angle from the viewing direction.
+  Eigen::Vector3f random_normal(int x, int y, Random& rng) const {
+    const Eigen::Vector3d view = -ray(x, y).normalized();
+    for (int attempt = 0; attempt < 16; ++attempt) {
+      Eigen::Vector3d n(rng.gaussian(), rng.gaussian(), rng.gaussian());
+      n = (view + 0.8 * n.normalized() * rng.uniform()).normalized();
+      if (n.dot(view) >= cos_max_normal_) return n.cast<float>();
+    }
+    return view.cast<float>();
+  }
+
+  bool normal_ok(int x, int y, const Eigen::Vector3f& n) const {
+    const Eigen::Vector3d view = -ray(x, y).normalized();
+    return n.cast<double>().dot(view) >= cos_max_normal_;
+  }
+
+  // Photometric cost of the plane (depth d at pixel (x, y), normal n), best-K mean.
+  float cost(int x, int y, double d, const Eigen::Vector3f& nf) const {
+    const std::size_t i = index(x, y);
+    if (!ref_ok_[i] || !(d > 0)) return kMaxCost;
+    const Eigen::Vector3d n = nf.cast<double>();
+    const Eigen::Vector3d r = ray(x, y);
+    const double c = d * n.dot(r);  // plane n.X = c, c < 0 for a plane facing the camera
+    if (std::abs(c) < 1e-9) return kMaxCost;
+    // n^T K_r^-1 as a row vector.
+    const Eigen::Vector3d m(n.x() / cam_.fx, n.y() / cam_.fy,
+                            n.z() - n.x() * cam_.cx / cam_.fx - n.y() * cam_.cy / cam_.fy);
+    std::array<float, kMaxSources> costs{};
+    const int rad = opt_.window_radius, st = opt_.window_step;
+    const float rmean = ref_mean_[i], rinv = ref_inv_std_[i];
+    for (std::size_t s = 0; s < sources_.size(); ++s) {
+      const Eigen::Matrix3d H = sources_[s].A + sources_[s].b * m.transpose() / c;
+      const Eigen::Vector3d hu = H.col(0), hv = H.col(1);
+      const Eigen::Vector3d h0 = H * Eigen::Vector3d(x - rad, y - rad, 1.0);
+      double sum_s = 0, sum_ss = 0, sum_rs = 0;
+      int count = 0;
+      bool ok = true;
+      for (int dy = 0; dy <= 2 * rad && ok; dy += st) {
+        Eigen::Vector3d q = h0 + dy * hv;
+        const float* ref_row = ref_.gray.data() + index(x - rad, y - rad + dy);
+        for (int dx = 0; dx <= 2 * rad; dx += st, q += st * hu) {
+          if (q.z() <= 0) {
+            ok = false;
+            break;
+          }
+          const float v = sample_bilinear(*sources_[s].image, q.x() / q.z(), q.y() / q.z());
+          if (std::isnan(v)) {
+            ok = false;
+            break;
+          }
+          const float rv = (ref_row[dx] - rmean) * rinv;  // standardised reference value
+          sum_s += v;
+          sum_ss += static_cast<double>(v) * v;
+          sum_rs += static_cast<double>(rv) * v;
+          ++count;
+        }
+      }
+      if (!ok || count == 0) {
+        costs[s] = kMaxCost;
+        continue;
+      }
+      const double mean_s = sum_s / count;
+      const double var_s = sum_ss / count - mean_s * mean_s;
+      if (var_s < kMinVariance) {
+        costs[s] = kMaxCost;
+        continue;
+      }
+      // NCC = mean(r_std * s) / std(s), since r_std has zero mean and unit variance.
+      const double ncc = (sum_rs / count) / std::sqrt(var_s);
+      costs[s] = static_cast<float>(1.0 - std::clamp(ncc, -1.0, 1.0));
+    }
+    const int ns = static_cast<int>(sources_.size());
+    std::partial_sort(costs.begin(), costs.begin() + best_k_, costs.begin() + ns);
+    float total = 0;
+    for (int k = 0; k < best_k_; ++k) total += costs[k];
+    return total / best_k_;
+  }
+
+  void try_hypothesis(int x, int y, double d, const Eigen::Vector3f& n) {
+    if (!(d >= dmin_ && d <= dmax_)) return;
+    const float c = cost(x, y, d, n);
+    const std::size_t i = index(x, y);
+    if (c < cost_[i]) {
+      cost_[i] = c;
+      depth_[i] = static_cast<float>(d);
+      normal_[i] = n;
+    }
+  }
+
+  void update(int x, int y, int iteration, Random& rng) {
+    const std::size_t i = index(x, y);
+    if (!ref_ok_[i]) return;
+    const int w = cam_.width, h = cam_.height;
+    // Spatial propagation: the planes of the other colour at odd offsets (near and
+    // far, Gipuma's pattern), each re-evaluated at this pixel: depth where the
+    // neighbour's plane meets this pixel's ray (Bleyer 2011 §2.3).
+    static constexpr std::array<std::array<int, 2>, 8> kOffsets{
+        {{-1, 0}, {1, 0}, {0, -1}, {0, 1}, {-5, 0}, {5, 0}, {0, -5}, {0, 5}}};
+    const Eigen::Vector3d r = ray(x, y);
+    for (const auto& o : kOffsets) {
+      const int nx = x + o[0], ny = y + o[1];
+      if (nx < 0 || ny < 0 || nx >= w || ny >= h) continue;
+      const std::size_t j = index(nx, ny);
+      if (!ref_ok_[j] || cost_[j] >= kMaxCost) continue;
+      const Eigen::Vector3d nn = normal_[j].cast<double>();
+      const double c = depth_[j] * nn.dot(ray(nx, ny));
+      const double denom = nn.dot(r);
+      if (std::abs(denom) < 1e-9) continue;
+      try_hypothesis(x, y, c / denom, normal_[j]);
+    }
+
+    // Refinement (Schönberger 2016 §4.3): perturbations that shrink with the
+    // iterations, plus one fresh random depth early on to escape local minima.
+    const double shrink = std::pow(0.5, iteration + 1);
+    const double d = depth_[i];
+    const Eigen::Vector3f n = normal_[i];
+    const double range = (dmax_ - dmin_) * shrink;
+    const double dp = std::clamp(d + (rng.uniform() - 0.5) * range, dmin_, dmax_);
+    Eigen::Vector3f np =
+        (n + static_cast<float>(0.5 * shrink) *
+                 Eigen::Vector3f(static_cast<float>(rng.gaussian()), static_cast<float>(rng.gaussian()),
+                                 static_cast<float>(rng.gaussian())))
+            .normalized();
+    const bool np_ok = normal_ok(x, y, np);
+    if (iteration < 2) try_hypothesis(x, y, random_depth(rng), n);
+    try_hypothesis(x, y, dp, n);
+    if (np_ok) {
+      try_hypothesis(x, y, d, np);
+      try_hypothesis(x, y, dp, np);
+    }
+  }
+
+  const ViewImage& ref_;
+  const PinholeCamera& cam_;
+  double dmin_, dmax_;
+  const PatchMatchOptions& opt_;
+  std::vector<SourceGeometry> sources_;
+  int best_k_ = 1;
+  double cos_max_normal_ = 0;
+  std::vector<float> depth_;
+  std::vector<Eigen::Vector3f> normal_;
+  std::vector<float> cost_;
+  std::vector<std::uint8_t> ref_ok_;
+  std::vector<float> ref_mean_, ref_inv_std_;
+};
+
+}  // namespace
+
+std::size_t DepthMap::valid_count() const {
+  return static_cast<std::size_t>(std::count_if(depth.begin(), depth.end(), [](float d) { return d > 0; }));
+}
+
+DepthMap patch_match(const ViewImage& ref, const std::vector<const ViewImage*>& sources,
+                     double depth_min, double depth_max, const PatchMatchOptions& opt) {
+  STRATA_CHECK(depth_min > 0 && depth_max > depth_min, "bad depth range [{}, {}]", depth_min,
+               depth_max);
+  Solver solver(ref, sources, depth_min, depth_max, opt);
+  return solver.run();
+}
+
+}  // namespace strata::dense

@@ -1,0 +1,117 @@
+// Source-view selection for multi-view stereo from the sparse reconstruction:
+// images that share many tracks at a useful triangulation angle (the criterion of
+// Goesele et al. 2007 and COLMAP's PatchMatch view selection, simplified).
+#include "core/error.hpp"
+#include "dense/internal.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+namespace strata::dense {
+namespace {
+
+// Weight of one shared point by its triangulation angle: full inside the
+// preferred range, falling off quadratically below it (depth too uncertain) and
+// smoothly above it (appearance changes too much for NCC).
+double angle_weight(double angle_deg, const ViewSelectionOptions& opt) {
+  if (angle_deg < opt.min_angle_deg) {
+    const double r = angle_deg / opt.min_angle_deg;
+    return r * r;
+  }
+  if (angle_deg > opt.max_angle_deg) {
+    const double d = (angle_deg - opt.max_angle_deg) / 10.0;
+    return std::exp(-d * d);
+  }
+  return 1.0;
+}
+
+double percentile(std::vector<double> v, double q) {
+  if (v.empty()) return 0;
+  const auto k = static_cast<std::size_t>(std::clamp(q, 0.0, 1.0) * (v.size() - 1));
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
+  return v[k];
+}
+
+}  // namespace
+
+std::vector<ViewNeighbours> select_views(const Reconstruction& rec, const ViewSelectionOptions& opt,
+                                         double depth_margin) {
+  const int n = static_cast<int>(rec.images.size());
+  std::vector<ViewNeighbours> out(static_cast<std::size_t>(n));
+  std::vector<Eigen::Vector3d> centres(static_cast<std::size_t>(n));
+  for (int i = 0; i < n; ++i) centres[i] = rec.images[i].pose.centre();
+
+  // Pairwise score and shared-point counts (dense: a layer has tens of photos).
+  std::vector<double> score(static_cast<std::size_t>(n) * n, 0.0);
+  std::vector<int> shared(static_cast<std::size_t>(n) * n, 0);
+  std::vector<std::vector<double>> depths(static_cast<std::size_t>(n));
+  std::vector<int> seen;
+  for (const auto& p : rec.points) {
+    seen.clear();
+    for (const auto& e : p.track) {
+      if (e.image < 0 || e.image >= n || !rec.images[e.image].registered) continue;
+      if (std::find(seen.begin(), seen.end(), e.image) == seen.end()) seen.push_back(e.image);
+    }
+    for (std::size_t a = 0; a < seen.size(); ++a) {
+      const int i = seen[a];
+      const double z = rec.images[i].pose.to_camera(p.X).z();
+      if (z > 0) depths[i].push_back(z);
+      const Eigen::Vector3d ri = (centres[i] - p.X).normalized();
+      for (std::size_t b = a + 1; b < seen.size(); ++b) {
+        const int j = seen[b];
+        const Eigen::Vector3d rj = (centres[j] - p.X).normalized();
+        const double angle =
+            std::acos(std::clamp(ri.dot(rj), -1.0, 1.0)) * 180.0 / std::numbers::pi;
+        const double w = angle_weight(angle, opt);
+        score[i * n + j] += w;
+        score[j * n + i] += w;
+        ++shared[i * n + j];
+        ++shared[j * n + i];
+      }
+    }
+  }
+
+  for (int i = 0; i < n; ++i) {
+    if (!rec.images[i].registered) continue;
+    std::vector<std::pair<double, int>> ranked;
+    for (int j = 0; j < n; ++j) {
+      if (j == i || !rec.images[j].registered) continue;
+      if (shared[i * n + j] < opt.min_shared_points || score[i * n + j] <= 0) continue;
+      ranked.emplace_back(score[i * n + j], j);
+    }
+    std::sort(ranked.begin(), ranked.end(), std::greater<>());
+    for (std::size_t k = 0; k < ranked.size() && static_cast<int>(k) < opt.max_neighbours; ++k) {
+      out[i].sources.push_back(ranked[k].second);
+    }
+
+    // Depth range: robust percentiles of the sparse depths, widened because the
+    // dense surface reaches where no sparse point was triangulated.
+    auto& d = depths[i];
+    if (d.size() < 3) {
+      d.clear();
+      const auto& intr = rec.groups.at(rec.images[i].group).intrinsics;
+      for (const auto& p : rec.points) {
+        const Eigen::Vector3d Xc = rec.images[i].pose.to_camera(p.X);
+        if (Xc.z() <= 0) continue;
+        const Eigen::Vector2d px = intr.to_pixel(Xc.head<2>() / Xc.z());
+        if (px.x() >= 0 && px.y() >= 0 && px.x() < intr.width && px.y() < intr.height) {
+          d.push_back(Xc.z());
+        }
+      }
+    }
+    if (d.size() < 3) {
+      out[i].sources.clear();  // no depth prior: cannot run stereo reliably
+      continue;
+    }
+    const double lo = percentile(d, 0.02), hi = percentile(d, 0.98), mid = percentile(d, 0.5);
+    const double widen = depth_margin * std::max(hi - lo, 0.2 * mid);
+    out[i].depth_min = std::max(lo - widen, 0.05 * mid);
+    out[i].depth_max = hi + widen;
+    d.clear();
+    d.shrink_to_fit();
+  }
+  return out;
+}
+
+}  // namespace strata::dense

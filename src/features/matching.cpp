@@ -1,0 +1,352 @@
+#include "features/matching.hpp"
+
+#include "core/error.hpp"
+#include "core/hash.hpp"
+#include "core/log.hpp"
+#include "core/progress.hpp"
+#include "core/resources.hpp"
+#include "features/cache_io.hpp"
+#include "features/descriptor_store.hpp"
+#include "features/parallel.hpp"
+
+#include <opencv2/calib3d.hpp>
+#include <opencv2/core.hpp>
+#include <opencv2/features2d.hpp>
+#include <opencv2/flann.hpp>
+
+#include <algorithm>
+#include <atomic>
+#include <memory>
+#include <mutex>
+
+namespace strata {
+namespace {
+
+// Bump when matching or verification changes its output (cache invalidation).
+constexpr int kMatchingVersion = 1;
+
+// Descriptors of one image plus, for FLANN, a kd-tree index over them, built
+// once and queried by every pair the image takes part in.
+struct ImageDescriptors {
+  cv::Mat descriptors;  // CV_32F; kept alive: the FLANN index points into it
+  std::unique_ptr<cv::flann::Index> index;
+};
+
+// Best and second-best neighbour of every query row in the train set.
+struct Knn2 {
+  std::vector<int> best;        // train row, -1 when fewer than 2 neighbours
+  std::vector<float> d1, d2;    // squared L2 distances
+};
+
+Knn2 knn2(const MatchingOptions& o, const ImageDescriptors& query,
+          const ImageDescriptors& train) {
+  const int n = query.descriptors.rows;
+  Knn2 r;
+  r.best.assign(n, -1);
+  r.d1.assign(n, 0.f);
+  r.d2.assign(n, 0.f);
+  if (n == 0 || train.descriptors.rows < 2) return r;
+  if (o.matcher == MatchingOptions::Matcher::flann) {
+    cv::Mat indices, dists;
+    // KD-tree search keeps its heap and visited set per call: concurrent queries
+    // on one index are safe.
+    train.index->knnSearch(query.descriptors, indices, dists, 2,
+                           cv::flann::SearchParams(o.flann_checks));
+    for (int i = 0; i < n; ++i) {
+      r.best[i] = indices.at<int>(i, 0);
+      r.d1[i] = dists.at<float>(i, 0);  // FLANN L2 reports squared distances
+      r.d2[i] = dists.at<float>(i, 1);
+    }
+  } else {
+    cv::BFMatcher matcher(cv::NORM_L2);
+    std::vector<std::vector<cv::DMatch>> m;
+    matcher.knnMatch(query.descriptors, train.descriptors, m, 2);
+    for (int i = 0; i < n; ++i) {
+      if (m[i].size() < 2) continue;
+      r.best[i] = m[i][0].trainIdx;
+      r.d1[i] = m[i][0].distance * m[i][0].distance;
+      r.d2[i] = m[i][1].distance * m[i][1].distance;
+    }
+  }
+  return r;
+}
+
+// Ratio test (Lowe 2004, sec. 7.1) in both directions and the mutual check.
+std::vector<std::pair<int, int>> putative_matches(const MatchingOptions& o,
+                                                  const ImageDescriptors& a,
+                                                  const ImageDescriptors& b) {
+  const float ratio2 = static_cast<float>(o.ratio * o.ratio);  // distances are squared
+  auto passes = [&](const Knn2& k, int i) {
+    return k.best[i] >= 0 && k.d1[i] < ratio2 * k.d2[i];
+  };
+  const Knn2 ab = knn2(o, a, b);
+  std::vector<std::pair<int, int>> out;
+  if (!o.mutual_check) {
+    for (int i = 0; i < static_cast<int>(ab.best.size()); ++i)
+      if (passes(ab, i)) out.emplace_back(i, ab.best[i]);
+    // Without the mutual check several a may claim one b: keep the closest.
+    std::vector<int> owner(b.descriptors.rows, -1);
+    for (const auto& [i, j] : out)
+      if (owner[j] < 0 || ab.d1[i] < ab.d1[owner[j]]) owner[j] = i;
+    std::erase_if(out, [&](const auto& m) { return owner[m.second] != m.first; });
+    return out;
+  }
+  const Knn2 ba = knn2(o, b, a);
+  for (int i = 0; i < static_cast<int>(ab.best.size()); ++i) {
+    if (!passes(ab, i)) continue;
+    const int j = ab.best[i];
+    if (passes(ba, j) && ba.best[j] == i) out.emplace_back(i, j);
+  }
+  return out;
+}
+
+std::vector<cv::Point2d> to_cv(const std::vector<Eigen::Vector2d>& p) {
+  std::vector<cv::Point2d> out;
+  out.reserve(p.size());
+  for (const auto& x : p) out.emplace_back(x.x(), x.y());
+  return out;
+}
+
+bool has_focal(const std::optional<Intrinsics>& k) { return k && k->fx > 0 && k->fy > 0; }
+
+// RANSAC verification (Hartley & Zisserman ch. 11; Nister 2004 for E).
+features::StoredMatches verify(const VerificationOptions& o, const ImageKeypoints& a,
+                               const ImageKeypoints& b,
+                               const std::vector<std::pair<int, int>>& putative,
+                               const std::optional<Intrinsics>& ka,
+                               const std::optional<Intrinsics>& kb) {
+  features::StoredMatches out;
+  out.putative = static_cast<int>(putative.size());
+  if (out.putative < o.min_inliers) return out;
+
+  std::vector<Eigen::Vector2d> pa, pb;
+  pa.reserve(putative.size());
+  pb.reserve(putative.size());
+  for (const auto& [i, j] : putative) {
+    pa.push_back(a.points[i]);
+    pb.push_back(b.points[j]);
+  }
+  const auto cva = to_cv(pa), cvb = to_cv(pb);
+
+  std::vector<std::uint8_t> mask;
+  TwoViewModel model = TwoViewModel::none;
+  if (has_focal(ka) && has_focal(kb)) {
+    std::vector<Eigen::Vector2d> na, nb;
+    na.reserve(pa.size());
+    nb.reserve(pb.size());
+    for (std::size_t m = 0; m < pa.size(); ++m) {
+      na.push_back(ka->to_normalised(pa[m]));
+      nb.push_back(kb->to_normalised(pb[m]));
+    }
+    // Pixel threshold to normalised units by the mean focal length.
+    const double focal = 0.25 * (ka->fx + ka->fy + kb->fx + kb->fy);
+    const cv::Mat E = cv::findEssentialMat(to_cv(na), to_cv(nb), cv::Mat::eye(3, 3, CV_64F),
+                                           cv::RANSAC, o.confidence, o.max_error_px / focal,
+                                           o.max_iterations, mask);
+    if (!E.empty()) model = TwoViewModel::essential;
+  } else {
+    const int method = o.fundamental_method == VerificationOptions::Method::magsac
+                           ? static_cast<int>(cv::USAC_MAGSAC)
+                           : static_cast<int>(cv::FM_RANSAC);
+    const cv::Mat F = cv::findFundamentalMat(cva, cvb, method, o.max_error_px, o.confidence,
+                                             o.max_iterations, mask);
+    if (!F.empty()) model = TwoViewModel::fundamental;
+  }
+  if (model == TwoViewModel::none || mask.size() != putative.size()) return out;
+
+  std::vector<int> inliers;
+  for (std::size_t m = 0; m < mask.size(); ++m)
+    if (mask[m]) inliers.push_back(static_cast<int>(m));
+  if (static_cast<int>(inliers.size()) < o.min_inliers) return out;
+
+  // Homography among the inliers: the planarity / pure-rotation test.
+  std::vector<cv::Point2d> ia, ib;
+  for (int m : inliers) {
+    ia.push_back(cva[m]);
+    ib.push_back(cvb[m]);
+  }
+  std::vector<std::uint8_t> hmask;
+  const cv::Mat H = cv::findHomography(ia, ib, cv::RANSAC, o.max_error_px, hmask,
+                                       o.max_iterations, o.confidence);
+  int h_inliers = 0;
+  if (!H.empty() && hmask.size() == inliers.size())
+    for (auto v : hmask) h_inliers += v ? 1 : 0;
+
+  if (model == TwoViewModel::fundamental &&
+      h_inliers >= o.planar_ratio * static_cast<double>(inliers.size())) {
+    // F is not determined by a plane (a 2-parameter family fits): outliers that
+    // lie on some epipolar line slip through. The homography is the sound model.
+    model = TwoViewModel::homography;
+    std::vector<int> kept;
+    for (std::size_t m = 0; m < inliers.size(); ++m)
+      if (hmask[m]) kept.push_back(inliers[m]);
+    inliers.swap(kept);
+    if (static_cast<int>(inliers.size()) < o.min_inliers) return out;
+  }
+
+  out.model = model;
+  out.homography_inliers = h_inliers;
+  out.matches.reserve(inliers.size());
+  for (int m : inliers) out.matches.push_back(putative[m]);
+  return out;
+}
+
+std::string prior_string(const std::optional<Intrinsics>& k) {
+  if (!has_focal(k)) return "none";
+  return fmt::format("{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g}", k->fx, k->fy, k->cx,
+                     k->cy, k->k1, k->k2);
+}
+
+}  // namespace
+
+void MatchingOptions::validate() const {
+  auto fail = [](const char* field, const std::string& why) {
+    throw InputError(fmt::format("matching: option {} {}", field, why));
+  };
+  if (flann_trees <= 0) fail("flann_trees", fmt::format("must be > 0 (got {})", flann_trees));
+  if (flann_checks <= 0)
+    fail("flann_checks", fmt::format("must be > 0 (got {})", flann_checks));
+  if (!(ratio > 0 && ratio <= 1)) fail("ratio", fmt::format("must be in (0, 1] (got {})", ratio));
+  if (num_threads < 0) fail("num_threads", fmt::format("must be >= 0 (got {})", num_threads));
+  const auto& v = verification;
+  if (!(v.max_error_px > 0))
+    fail("verification.max_error_px", fmt::format("must be > 0 pixels (got {})", v.max_error_px));
+  if (!(v.confidence > 0 && v.confidence < 1))
+    fail("verification.confidence", fmt::format("must be in (0, 1) (got {})", v.confidence));
+  if (v.max_iterations <= 0)
+    fail("verification.max_iterations", fmt::format("must be > 0 (got {})", v.max_iterations));
+  if (v.min_inliers < 8)
+    fail("verification.min_inliers",
+         fmt::format("must be >= 8, the points an F or H fit needs (got {})", v.min_inliers));
+  if (!(v.planar_ratio > 0 && v.planar_ratio <= 1))
+    fail("verification.planar_ratio", fmt::format("must be in (0, 1] (got {})", v.planar_ratio));
+}
+
+std::string MatchingOptions::fingerprint() const {
+  const auto& v = verification;
+  const std::string canonical = fmt::format(
+      "match v{} matcher={} trees={} checks={} ratio={:.9g} mutual={} fmethod={} "
+      "err={:.9g} conf={:.9g} iters={} min_inliers={} planar={:.9g}",
+      kMatchingVersion, static_cast<int>(matcher), flann_trees, flann_checks, ratio,
+      mutual_check ? 1 : 0, static_cast<int>(v.fundamental_method), v.max_error_px,
+      v.confidence, v.max_iterations, v.min_inliers, v.planar_ratio);
+  return sha256_hex(canonical).substr(0, 16);
+}
+
+std::vector<PairMatches> match_pairs(const MatchingOptions& options,
+                                     const std::vector<ImageKeypoints>& images,
+                                     const std::vector<ImagePair>& pairs,
+                                     const std::vector<std::optional<Intrinsics>>& priors,
+                                     const std::filesystem::path& cache_dir,
+                                     MatchingSummary* summary) {
+  options.validate();
+  STRATA_CHECK(!cache_dir.empty(), "match_pairs needs the features cache folder");
+  Stopwatch clock;
+  const int n = static_cast<int>(images.size());
+  for (const auto& [a, b] : pairs) {
+    if (a < 0 || b < 0 || a >= n || b >= n || a == b) {
+      throw InputError(
+          fmt::format("matching: pair ({}, {}) is not two distinct images of {}", a, b, n));
+    }
+  }
+  auto prior = [&](int i) -> std::optional<Intrinsics> {
+    return i < static_cast<int>(priors.size()) ? priors[i] : std::nullopt;
+  };
+  const std::string fingerprint = options.fingerprint();
+  auto pair_key = [&](int a, int b) {
+    return sha256_hex(fmt::format("{}|{}|{}|{}|{}", images[a].features_key,
+                                  images[b].features_key, fingerprint, prior_string(prior(a)),
+                                  prior_string(prior(b))));
+  };
+
+  // Pass 1: cached results. Only the images of uncached pairs need descriptors.
+  std::vector<std::optional<features::StoredMatches>> results(pairs.size());
+  std::vector<std::size_t> todo;
+  std::vector<char> needed(n, 0);
+  for (std::size_t p = 0; p < pairs.size(); ++p) {
+    const auto [a, b] = pairs[p];
+    results[p] = features::read_matches(features::matches_file(cache_dir, pair_key(a, b)));
+    if (!results[p]) {
+      todo.push_back(p);
+      needed[a] = needed[b] = 1;
+    }
+  }
+  const std::size_t from_cache = pairs.size() - todo.size();
+
+  std::vector<int> needed_list;
+  for (int i = 0; i < n; ++i)
+    if (needed[i]) needed_list.push_back(i);
+  std::vector<ImageDescriptors> descriptors(n);
+  features::parallel_for_index(needed_list.size(), options.num_threads, [&](std::size_t k) {
+    check_cancelled();
+    const int i = needed_list[k];
+    auto& d = descriptors[i];
+    d.descriptors = features::load_descriptors(cache_dir, images[i]);
+    if (options.matcher == MatchingOptions::Matcher::flann && d.descriptors.rows >= 2) {
+      d.index = std::make_unique<cv::flann::Index>(
+          d.descriptors, cv::flann::KDTreeIndexParams(options.flann_trees),
+          cvflann::FLANN_DIST_L2);
+    }
+  });
+
+  std::mutex time_mutex;
+  double matching_seconds = 0, verification_seconds = 0;
+  Progress progress("matching", todo.size());
+  features::parallel_for_index(todo.size(), options.num_threads, [&](std::size_t k) {
+    check_cancelled();
+    const std::size_t p = todo[k];
+    const auto [a, b] = pairs[p];
+    Stopwatch t_match;
+    const auto putative = putative_matches(options, descriptors[a], descriptors[b]);
+    const double dt_match = t_match.seconds();
+    Stopwatch t_verify;
+    auto verified = verify(options.verification, images[a], images[b], putative, prior(a),
+                           prior(b));
+    const double dt_verify = t_verify.seconds();
+    features::write_matches(features::matches_file(cache_dir, pair_key(a, b)), verified);
+    results[p] = std::move(verified);
+    {
+      std::lock_guard lock(time_mutex);
+      matching_seconds += dt_match;
+      verification_seconds += dt_verify;
+    }
+    progress.step();
+  });
+  progress.finish();
+
+  MatchingSummary s;
+  s.pairs = pairs.size();
+  s.from_cache = from_cache;
+  s.matching_seconds = matching_seconds;
+  s.verification_seconds = verification_seconds;
+  std::vector<PairMatches> out;
+  for (std::size_t p = 0; p < pairs.size(); ++p) {
+    auto& r = *results[p];
+    s.putative_matches += static_cast<std::size_t>(r.putative);
+    if (r.model == TwoViewModel::none) continue;
+    PairMatches m;
+    m.image_a = pairs[p].first;
+    m.image_b = pairs[p].second;
+    m.model = r.model;
+    m.homography_inliers = r.homography_inliers;
+    m.matches = std::move(r.matches);
+    s.inlier_matches += m.matches.size();
+    ++s.verified;
+    switch (m.model) {
+      case TwoViewModel::essential: ++s.essential; break;
+      case TwoViewModel::fundamental: ++s.fundamental; break;
+      case TwoViewModel::homography: ++s.homography; break;
+      case TwoViewModel::none: break;
+    }
+    out.push_back(std::move(m));
+  }
+  s.seconds = clock.seconds();
+  log::info("matching: {} pairs ({} from cache), {} verified ({} E, {} F, {} H), {} inliers, "
+            "{:.1f} s",
+            s.pairs, s.from_cache, s.verified, s.essential, s.fundamental, s.homography,
+            s.inlier_matches, s.seconds);
+  if (summary) *summary = s;
+  return out;
+}
+
+}  // namespace strata

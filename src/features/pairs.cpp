@@ -1,0 +1,163 @@
+// Pair selection. Small layers: every pair. Large layers: capture-order
+// neighbours plus a vocabulary-free image retrieval in which the strongest
+// descriptors of every photo vote, through one shared kd-tree, for the photos
+// holding their nearest neighbours (a flat "bag of nearest neighbours"; cost
+// about n k log(n k) for n photos of k descriptors, so nearly linear in n).
+#include "features/matching.hpp"
+
+#include "core/error.hpp"
+#include "core/log.hpp"
+#include "core/progress.hpp"
+#include "core/resources.hpp"
+#include "features/descriptor_store.hpp"
+#include "features/parallel.hpp"
+
+#include <opencv2/core.hpp>
+#include <opencv2/flann.hpp>
+
+#include <algorithm>
+#include <numeric>
+#include <set>
+
+namespace strata {
+namespace {
+
+ImagePair ordered(int a, int b) { return a < b ? ImagePair{a, b} : ImagePair{b, a}; }
+
+// Symmetric similarity between photos from descriptor votes (n x n, row-major).
+std::vector<float> retrieval_scores(const PairSelectionOptions& o,
+                                    const std::vector<ImageKeypoints>& images,
+                                    const std::filesystem::path& cache_dir) {
+  const int n = static_cast<int>(images.size());
+  std::vector<cv::Mat> subsets(n);
+  features::parallel_for_index(n, o.num_threads, [&](std::size_t i) {
+    check_cancelled();
+    // Keypoints are stored strongest first: the first rows are the subset.
+    subsets[i] = features::load_descriptors(cache_dir, images[i], o.retrieval_features);
+  });
+  cv::Mat all;
+  std::vector<int> owner;  // image of each row of `all`
+  for (int i = 0; i < n; ++i) {
+    if (subsets[i].empty()) continue;
+    all.push_back(subsets[i]);
+    owner.insert(owner.end(), subsets[i].rows, i);
+  }
+  std::vector<float> score(static_cast<std::size_t>(n) * n, 0.f);
+  if (all.rows < 2) return score;
+  cv::flann::Index index(all, cv::flann::KDTreeIndexParams(4), cvflann::FLANN_DIST_L2);
+  // +1: every descriptor finds itself first.
+  const int k = std::min(o.retrieval_knn + 1, all.rows);
+
+  features::parallel_for_index(n, o.num_threads, [&](std::size_t i) {
+    check_cancelled();
+    if (subsets[i].empty()) return;
+    cv::Mat indices, dists;
+    index.knnSearch(subsets[i], indices, dists, k, cv::flann::SearchParams(64));
+    std::vector<int> hits;
+    for (int r = 0; r < indices.rows; ++r) {
+      hits.clear();
+      for (int c = 0; c < k; ++c) {
+        const int row = indices.at<int>(r, c);
+        if (row < 0 || row >= static_cast<int>(owner.size())) continue;
+        const int j = owner[row];
+        if (j != static_cast<int>(i) && std::find(hits.begin(), hits.end(), j) == hits.end())
+          hits.push_back(j);
+      }
+      // A descriptor whose neighbours spread over many photos (repetitive
+      // texture: gravel, sieved soil) says less about any one of them.
+      const float w = hits.empty() ? 0.f : 1.f / static_cast<float>(hits.size());
+      for (int j : hits) score[i * n + j] += w;  // row i belongs to this task only
+    }
+  });
+  std::vector<float> sym(score.size());
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j) sym[i * n + j] = score[i * n + j] + score[j * n + i];
+  return sym;
+}
+
+}  // namespace
+
+void PairSelectionOptions::validate() const {
+  auto fail = [](const char* field, const std::string& why) {
+    throw InputError(fmt::format("pair selection: option {} {}", field, why));
+  };
+  if (exhaustive_limit < 2)
+    fail("exhaustive_limit", fmt::format("must be >= 2 (got {})", exhaustive_limit));
+  if (sequence_neighbours < 0)
+    fail("sequence_neighbours", fmt::format("must be >= 0 (got {})", sequence_neighbours));
+  if (retrieval_neighbours < 0)
+    fail("retrieval_neighbours", fmt::format("must be >= 0 (got {})", retrieval_neighbours));
+  if (sequence_neighbours == 0 && retrieval_neighbours == 0)
+    fail("sequence_neighbours",
+         "and retrieval_neighbours are both 0: large layers would get no pairs");
+  if (retrieval_features <= 0)
+    fail("retrieval_features", fmt::format("must be > 0 (got {})", retrieval_features));
+  if (retrieval_knn <= 0) fail("retrieval_knn", fmt::format("must be > 0 (got {})", retrieval_knn));
+  if (num_threads < 0) fail("num_threads", fmt::format("must be >= 0 (got {})", num_threads));
+}
+
+std::vector<ImagePair> select_pairs(const PairSelectionOptions& options,
+                                    const std::vector<ImageKeypoints>& images,
+                                    const std::filesystem::path& cache_dir,
+                                    const std::vector<double>& capture_times,
+                                    PairSelectionSummary* summary) {
+  options.validate();
+  Stopwatch clock;
+  const int n = static_cast<int>(images.size());
+  if (!capture_times.empty() && capture_times.size() != images.size()) {
+    throw InputError(fmt::format("pair selection: {} capture times for {} images",
+                                 capture_times.size(), images.size()));
+  }
+  PairSelectionSummary s;
+  s.images = images.size();
+  std::set<ImagePair> pairs;
+
+  if (n <= options.exhaustive_limit) {
+    for (int a = 0; a < n; ++a)
+      for (int b = a + 1; b < n; ++b) pairs.insert({a, b});
+  } else {
+    s.exhaustive = false;
+    // Capture order (stable: equal times keep input order).
+    std::vector<int> order(n);
+    std::iota(order.begin(), order.end(), 0);
+    if (!capture_times.empty()) {
+      std::stable_sort(order.begin(), order.end(),
+                       [&](int a, int b) { return capture_times[a] < capture_times[b]; });
+    }
+    for (int p = 0; p < n; ++p)
+      for (int q = p + 1; q <= std::min(n - 1, p + options.sequence_neighbours); ++q)
+        pairs.insert(ordered(order[p], order[q]));
+    s.sequence_pairs = pairs.size();
+
+    if (options.retrieval_neighbours > 0) {
+      STRATA_CHECK(!cache_dir.empty(), "retrieval needs the features cache folder");
+      const std::vector<float> score = retrieval_scores(options, images, cache_dir);
+      std::vector<int> candidates;
+      for (int i = 0; i < n; ++i) {
+        candidates.clear();
+        for (int j = 0; j < n; ++j)
+          if (j != i && score[i * n + j] > 0) candidates.push_back(j);
+        const int keep = std::min<int>(options.retrieval_neighbours, candidates.size());
+        std::partial_sort(candidates.begin(), candidates.begin() + keep, candidates.end(),
+                          [&](int a, int b) {
+                            const float sa = score[i * n + a], sb = score[i * n + b];
+                            return sa != sb ? sa > sb : a < b;
+                          });
+        for (int r = 0; r < keep; ++r) pairs.insert(ordered(i, candidates[r]));
+      }
+      s.retrieval_pairs = pairs.size() - s.sequence_pairs;
+    }
+  }
+  std::vector<ImagePair> out(pairs.begin(), pairs.end());
+  s.pairs = out.size();
+  s.seconds = clock.seconds();
+  log::info("pair selection: {} images, {} pairs ({}), {:.1f} s", s.images, s.pairs,
+            s.exhaustive ? "exhaustive"
+                         : fmt::format("{} by capture order, {} by retrieval", s.sequence_pairs,
+                                       s.retrieval_pairs),
+            s.seconds);
+  if (summary) *summary = s;
+  return out;
+}
+
+}  // namespace strata

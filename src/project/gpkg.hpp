@@ -1,0 +1,34 @@
+#pragma once
+// GeoPackage bookkeeping done with plain SQL, so that feature rows are written in
+// the same transaction as the rest of a command: spatial reference systems,
+// feature-table registration, and the GeoPackage binary geometry encoding.
+#include "project/database.hpp"
+
+#include <Eigen/Core>
+
+#include <cstdint>
+#include <vector>
+
+namespace strata {
+
+struct CrsInfo;
+
+// Inserts the CRS into gpkg_spatial_ref_sys (id = its EPSG code, or a private id
+// from 100000 up for CRSs without one) and returns the srs_id.
+int register_srs(Database& db, const CrsInfo& crs);
+
+// Registers strata's feature tables in gpkg_contents / gpkg_geometry_columns with
+// the site CRS. Idempotent: safe after every migration.
+void register_feature_tables(Database& db, int srs_id);
+
+// GeoPackage binary geometry (OGC 12-128 clause 2.1.3): header without envelope,
+// then little-endian ISO WKB.
+std::vector<std::uint8_t> gpkg_point_z(int srs_id, const Eigen::Vector3d& p);
+std::vector<std::uint8_t> gpkg_linestring_z(int srs_id, const std::vector<Eigen::Vector3d>& pts);
+std::vector<std::uint8_t> gpkg_polygon(int srs_id, const std::vector<Eigen::Vector2d>& ring);
+
+// Recomputes a feature table's extent in gpkg_contents from its e/n-style columns.
+void update_contents_extent(Database& db, const std::string& table, const std::string& x_col,
+                            const std::string& y_col);
+
+}  // namespace strata

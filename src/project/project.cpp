@@ -1,0 +1,182 @@
+#include "project/project.hpp"
+
+#include "core/error.hpp"
+#include "core/log.hpp"
+#include "crs/crs.hpp"
+#include "project/gpkg.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <string_view>
+#include <vector>
+
+namespace strata {
+namespace schema {
+const std::vector<std::pair<std::string_view, std::string_view>>& migration_files();
+}
+
+namespace fs = std::filesystem;
+namespace {
+
+// "0003_products.sql" -> 3
+int migration_number(std::string_view file) {
+  int n = 0;
+  for (char c : file) {
+    if (c < '0' || c > '9') break;
+    n = n * 10 + (c - '0');
+  }
+  return n;
+}
+
+int current_version(Database& db) {
+  const bool has_meta =
+      db.query_int("SELECT count(*) FROM sqlite_master WHERE type='table' AND name='strata_meta'")
+          .value_or(0) > 0;
+  if (!has_meta) return 0;
+  auto v = db.query_text("SELECT value FROM strata_meta WHERE key='schema_version'");
+  return v ? std::stoi(*v) : 0;
+}
+
+std::string now_iso() {
+  const auto now = std::chrono::system_clock::now();
+  const std::time_t t = std::chrono::system_clock::to_time_t(now);
+  std::tm tm{};
+  gmtime_r(&t, &tm);
+  char buf[32];
+  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
+  return buf;
+}
+
+}  // namespace
+
+int latest_schema_version() {
+  int v = 0;
+  for (const auto& [name, sql] : schema::migration_files()) v = std::max(v, migration_number(name));
+  return v;
+}
+
+int apply_migrations(Database& db) {
+  const int from = current_version(db);
+  const int latest = latest_schema_version();
+  if (from > latest) {
+    throw IoError(fmt::format(
+        "{}: schema version {} is newer than this strata understands ({}); update strata",
+        db.path().string(), from, latest));
+  }
+  auto files = schema::migration_files();
+  std::sort(files.begin(), files.end());
+  int applied = 0;
+  for (const auto& [name, sql] : files) {
+    const int n = migration_number(name);
+    if (n <= from) continue;
+    Transaction tx(db);
+    db.exec(sql);
+    db.prepare("INSERT OR REPLACE INTO strata_meta(key, value) VALUES ('schema_version', ?)")
+        .bind_all(std::to_string(n))
+        .run();
+    tx.commit();
+    ++applied;
+  }
+  return applied;
+}
+
+Project::Project(fs::path dir, std::unique_ptr<Database> db)
+    : dir_(std::move(dir)), db_(std::move(db)) {}
+
+Project Project::create(const fs::path& dir, const CreateOptions& options) {
+  const CrsInfo crs = describe_crs(options.crs);
+  require_site_crs(crs);
+  if (fs::exists(dir / kDatabaseName)) {
+    throw InputError(fmt::format("{}: already a strata project", dir.string()));
+  }
+  if (fs::exists(dir) && !fs::is_directory(dir)) {
+    throw InputError(fmt::format("{}: exists and is not a folder", dir.string()));
+  }
+  const bool dir_existed = fs::exists(dir);
+  // Build the database under a temporary name and rename it into place last, so a
+  // failure leaves no half-made project behind.
+  const fs::path tmp = dir / ".project.gpkg.tmp";
+  try {
+    fs::create_directories(dir);
+    fs::remove(tmp);
+    {
+      auto db = std::make_unique<Database>(tmp, true);
+      // GeoPackage identification (OGC 12-128, requirements 2 and 3).
+      db->exec("PRAGMA application_id = 1196444487");  // 'GPKG'
+      db->exec("PRAGMA user_version = 10200");          // GeoPackage 1.2.0
+      apply_migrations(*db);
+      Transaction tx(*db);
+      const int srs_id = register_srs(*db, crs);
+      const std::string name = options.name.empty() ? fs::absolute(dir).filename().string()
+                                                    : options.name;
+      const Eigen::Vector3d origin = options.origin.value_or(Eigen::Vector3d::Zero());
+      db->prepare(
+            "INSERT INTO site(id, name, crs, srs_id, origin_e, origin_n, origin_z, origin_set, "
+            "created_at) VALUES (1, ?, ?, ?, ?, ?, ?, ?, ?)")
+          .bind_all(name, crs.label(), srs_id, origin.x(), origin.y(), origin.z(),
+                    options.origin ? 1 : 0, now_iso())
+          .run();
+      register_feature_tables(*db, srs_id);
+      tx.commit();
+      db->exec("PRAGMA wal_checkpoint(TRUNCATE)");
+    }
+    fs::remove(fs::path(tmp.string() + "-wal"));
+    fs::remove(fs::path(tmp.string() + "-shm"));
+    for (const char* sub : {"media", "cache", "products"}) fs::create_directories(dir / sub);
+    fs::rename(tmp, dir / kDatabaseName);
+  } catch (...) {
+    std::error_code ec;
+    fs::remove(tmp, ec);
+    if (!dir_existed) fs::remove_all(dir, ec);
+    throw;
+  }
+  return open(dir);
+}
+
+Project Project::open(const fs::path& dir) {
+  const fs::path db_path = dir / kDatabaseName;
+  if (!fs::exists(db_path)) {
+    throw InputError(fmt::format("{}: not a strata project (no {}); create one with 'strata init'",
+                                 dir.string(), kDatabaseName));
+  }
+  auto db = std::make_unique<Database>(db_path, false);
+  const auto app_id = db->query_int("PRAGMA application_id").value_or(0);
+  if (app_id != 1196444487) {
+    throw InputError(fmt::format("{}: not a GeoPackage made by strata", db_path.string()));
+  }
+  const int before = current_version(*db);
+  const int applied = apply_migrations(*db);
+  if (applied > 0 && before > 0) {
+    log::info("upgraded project schema from version {} to {}", before, latest_schema_version());
+  }
+  Project p(dir, std::move(db));
+  if (applied > 0) register_feature_tables(p.db(), p.site().srs_id);
+  return p;
+}
+
+SiteInfo Project::site() {
+  auto st = db_->prepare(
+      "SELECT name, crs, srs_id, origin_e, origin_n, origin_z, origin_set FROM site WHERE id = 1");
+  if (!st.step()) throw IoError(fmt::format("{}: the site record is missing", database_path().string()));
+  SiteInfo s;
+  s.name = st.get_text(0);
+  s.crs = st.get_text(1);
+  s.srs_id = int(st.get_int(2));
+  s.origin = {st.get_double(3), st.get_double(4), st.get_double(5)};
+  s.origin_set = st.get_int(6) != 0;
+  return s;
+}
+
+void Project::set_origin_if_unset(const Eigen::Vector3d& near) {
+  if (site().origin_set) return;
+  const Eigen::Vector3d origin(std::floor(near.x() / 100.0) * 100.0,
+                               std::floor(near.y() / 100.0) * 100.0, std::floor(near.z()));
+  db_->prepare("UPDATE site SET origin_e = ?, origin_n = ?, origin_z = ?, origin_set = 1 WHERE id = 1")
+      .bind_all(origin.x(), origin.y(), origin.z())
+      .run();
+}
+
+int Project::schema_version() { return current_version(*db_); }
+
+}  // namespace strata

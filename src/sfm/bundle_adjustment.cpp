@@ -1,0 +1,365 @@
+#include "sfm/bundle_adjustment.hpp"
+
+#include "core/error.hpp"
+#include "core/log.hpp"
+#include "core/resources.hpp"
+#include "sfm/bundle_problem.hpp"
+#include "sfm/triangulation.hpp"
+
+#include <ceres/ceres.h>
+#include <Eigen/Geometry>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <memory>
+
+namespace strata {
+
+void BundleOptions::validate() const {
+  auto positive = [](double v, const char* name) {
+    if (!(v > 0) || !std::isfinite(v)) {
+      throw InputError(fmt::format("bundle adjustment option {} must be > 0, got {}", name, v));
+    }
+  };
+  positive(loss_scale_px, "loss_scale_px");
+  positive(keypoint_sigma_px, "keypoint_sigma_px");
+  positive(marker_sigma_px, "marker_sigma_px");
+  positive(function_tolerance, "function_tolerance");
+  positive(gradient_tolerance, "gradient_tolerance");
+  positive(parameter_tolerance, "parameter_tolerance");
+  if (max_iterations < 1) {
+    throw InputError(fmt::format("bundle adjustment option max_iterations must be >= 1, got {}",
+                                 max_iterations));
+  }
+  if (num_threads < 1) {
+    throw InputError(fmt::format("bundle adjustment option num_threads must be >= 1, got {}",
+                                 num_threads));
+  }
+}
+
+namespace sfm_detail {
+
+IntrinsicsBlock to_block(const Intrinsics& k) {
+  IntrinsicsBlock b{};
+  b[kFocal] = k.fx;
+  b[kCx] = k.cx;
+  b[kCy] = k.cy;
+  b[kK1] = k.k1;
+  b[kK2] = k.k2;
+  b[kAspect] = k.fx != 0 ? k.fy / k.fx : 1.0;
+  return b;
+}
+
+void from_block(const IntrinsicsBlock& b, Intrinsics& k) {
+  k.fx = b[kFocal];
+  k.fy = b[kFocal] * b[kAspect];
+  k.cx = b[kCx];
+  k.cy = b[kCy];
+  k.k1 = b[kK1];
+  k.k2 = b[kK2];
+}
+
+std::array<double, 3> to_angle_axis(const Eigen::Matrix3d& R) {
+  const Eigen::AngleAxisd aa(R);
+  const Eigen::Vector3d w = aa.axis() * aa.angle();
+  return {w.x(), w.y(), w.z()};
+}
+
+Eigen::Matrix3d from_angle_axis(const std::array<double, 3>& w) {
+  const Eigen::Vector3d v(w[0], w[1], w[2]);
+  const double angle = v.norm();
+  if (angle < 1e-15) return Eigen::Matrix3d::Identity();
+  return Eigen::AngleAxisd(angle, v / angle).toRotationMatrix();
+}
+
+void set_gauge(BaProblem& problem, int a, int b) {
+  problem.gauge_camera = a;
+  problem.gauge_scale_camera = b;
+  const auto& ca = problem.cameras[a];
+  const auto& cb = problem.cameras[b];
+  const Eigen::Matrix3d Ra = from_angle_axis(ca.rotation);
+  const Eigen::Matrix3d Rb = from_angle_axis(cb.rotation);
+  const Eigen::Vector3d Ca = -Ra.transpose() * Eigen::Vector3d(ca.translation.data());
+  const Eigen::Vector3d Cb = -Rb.transpose() * Eigen::Vector3d(cb.translation.data());
+  // Scaling by s about Ca changes t_b by -(s - 1) Rb (Cb - Ca): fix its largest entry.
+  const Eigen::Vector3d d = Rb * (Cb - Ca);
+  d.cwiseAbs().maxCoeff(&problem.gauge_scale_axis);
+}
+
+double reprojection_error_px(const BaProblem& problem, const BaObservation& obs) {
+  const auto& cam = problem.cameras[obs.camera];
+  const ReprojectionCost cost(obs.pixel, 1.0);
+  double r[2];
+  if (!cost(cam.rotation.data(), cam.translation.data(), problem.intrinsics[cam.group].data(),
+            problem.points[obs.point].data(), r)) {
+    return std::numeric_limits<double>::infinity();
+  }
+  return std::hypot(r[0], r[1]);
+}
+
+namespace {
+
+std::unique_ptr<ceres::LossFunction> make_loss(RobustLoss loss, double scale) {
+  switch (loss) {
+    case RobustLoss::none:
+      return nullptr;
+    case RobustLoss::huber:
+      return std::make_unique<ceres::HuberLoss>(scale);
+    case RobustLoss::cauchy:
+      return std::make_unique<ceres::CauchyLoss>(scale);
+  }
+  return nullptr;
+}
+
+}  // namespace
+
+BundleSummary solve_bundle(const BundleOptions& options, BaProblem& problem) {
+  Stopwatch clock;
+  BundleSummary summary;
+  ceres::Problem::Options problem_options;
+  problem_options.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  problem_options.manifold_ownership = ceres::TAKE_OWNERSHIP;
+  ceres::Problem ceres_problem(problem_options);
+
+  // Residuals are in units of sigma, so the loss scale is too.
+  const auto keypoint_loss =
+      make_loss(options.loss, options.loss_scale_px / options.keypoint_sigma_px);
+  const auto marker_loss = make_loss(options.loss, options.loss_scale_px / options.marker_sigma_px);
+
+  std::vector<char> camera_used(problem.cameras.size(), 0);
+  std::vector<char> group_used(problem.intrinsics.size(), 0);
+  std::vector<char> point_used(problem.points.size(), 0);
+  for (const auto& obs : problem.observations) {
+    auto& cam = problem.cameras[obs.camera];
+    if (!cam.variable && !problem.point_variable[obs.point]) continue;
+    const double sigma = obs.marker ? options.marker_sigma_px : options.keypoint_sigma_px;
+    auto* cost = new ceres::AutoDiffCostFunction<ReprojectionCost, 2, 3, 3, kIntrinsicsSize, 3>(
+        new ReprojectionCost(obs.pixel, sigma));
+    ceres_problem.AddResidualBlock(cost, obs.marker ? marker_loss.get() : keypoint_loss.get(),
+                                   cam.rotation.data(), cam.translation.data(),
+                                   problem.intrinsics[cam.group].data(),
+                                   problem.points[obs.point].data());
+    camera_used[obs.camera] = 1;
+    group_used[cam.group] = 1;
+    point_used[obs.point] = 1;
+    (obs.marker ? summary.marker_observations : summary.observations)++;
+  }
+  for (const auto& prior : problem.priors) {
+    auto* cost = new ceres::AutoDiffCostFunction<MarkerPriorCost, 3, 3>(
+        new MarkerPriorCost(prior.position, prior.sigma));
+    ceres_problem.AddResidualBlock(cost, nullptr, problem.points[prior.point].data());
+    point_used[prior.point] = 1;
+    ++summary.control_markers;
+  }
+  if (summary.observations + summary.marker_observations == 0) {
+    summary.message = "nothing to adjust";
+    return summary;
+  }
+
+  // Constant blocks: fixed cameras, fixed points, intrinsics as options say.
+  bool any_variable_camera = false;
+  for (std::size_t c = 0; c < problem.cameras.size(); ++c) {
+    if (!camera_used[c]) continue;
+    auto& cam = problem.cameras[c];
+    if (!cam.variable) {
+      ceres_problem.SetParameterBlockConstant(cam.rotation.data());
+      ceres_problem.SetParameterBlockConstant(cam.translation.data());
+    } else {
+      any_variable_camera = true;
+    }
+  }
+  for (std::size_t p = 0; p < problem.points.size(); ++p) {
+    if (point_used[p] && !problem.point_variable[p]) {
+      ceres_problem.SetParameterBlockConstant(problem.points[p].data());
+    }
+  }
+  std::vector<int> fixed_intrinsics;
+  const auto& refine = options.refine;
+  if (!refine.focal) fixed_intrinsics.push_back(kFocal);
+  if (!refine.principal_point) {
+    fixed_intrinsics.push_back(kCx);
+    fixed_intrinsics.push_back(kCy);
+  }
+  if (!refine.k1) fixed_intrinsics.push_back(kK1);
+  if (!refine.k2) fixed_intrinsics.push_back(kK2);
+  if (!refine.aspect_ratio) fixed_intrinsics.push_back(kAspect);
+  for (std::size_t g = 0; g < problem.intrinsics.size(); ++g) {
+    if (!group_used[g]) continue;
+    double* block = problem.intrinsics[g].data();
+    if (!problem.refine_intrinsics || !any_variable_camera ||
+        fixed_intrinsics.size() == std::size_t(kIntrinsicsSize)) {
+      ceres_problem.SetParameterBlockConstant(block);
+    } else if (!fixed_intrinsics.empty()) {
+      ceres_problem.SetManifold(block,
+                                new ceres::SubsetManifold(kIntrinsicsSize, fixed_intrinsics));
+    }
+  }
+
+  // Datum of an unreferenced problem.
+  if (problem.gauge_camera >= 0 && camera_used[problem.gauge_camera] &&
+      problem.cameras[problem.gauge_camera].variable) {
+    auto& cam = problem.cameras[problem.gauge_camera];
+    ceres_problem.SetParameterBlockConstant(cam.rotation.data());
+    ceres_problem.SetParameterBlockConstant(cam.translation.data());
+    summary.gauge_fixed = true;
+  }
+  if (problem.gauge_scale_camera >= 0 && camera_used[problem.gauge_scale_camera] &&
+      problem.cameras[problem.gauge_scale_camera].variable) {
+    ceres_problem.SetManifold(problem.cameras[problem.gauge_scale_camera].translation.data(),
+                              new ceres::SubsetManifold(3, {problem.gauge_scale_axis}));
+    summary.gauge_fixed = true;
+  }
+
+  ceres::Solver::Options solver_options;
+  const std::size_t n_cameras =
+      std::size_t(std::count(camera_used.begin(), camera_used.end(), char(1)));
+  // The reduced camera system is small for a layer (tens of photos): dense Schur is
+  // fastest there (COLMAP uses the same threshold idea).
+  if (n_cameras <= 60) {
+    solver_options.linear_solver_type = ceres::DENSE_SCHUR;
+  } else if (ceres::IsSparseLinearAlgebraLibraryTypeAvailable(ceres::SUITE_SPARSE)) {
+    solver_options.linear_solver_type = ceres::SPARSE_SCHUR;
+  } else {
+    solver_options.linear_solver_type = ceres::ITERATIVE_SCHUR;
+    solver_options.preconditioner_type = ceres::SCHUR_JACOBI;
+  }
+  solver_options.max_num_iterations = options.max_iterations;
+  solver_options.function_tolerance = options.function_tolerance;
+  solver_options.gradient_tolerance = options.gradient_tolerance;
+  solver_options.parameter_tolerance = options.parameter_tolerance;
+  solver_options.num_threads = options.num_threads;
+  solver_options.logging_type = ceres::SILENT;
+  solver_options.minimizer_progress_to_stdout = false;
+
+  ceres::Solver::Summary ceres_summary;
+  ceres::Solve(solver_options, &ceres_problem, &ceres_summary);
+
+  summary.iterations = int(ceres_summary.iterations.size());
+  summary.converged = ceres_summary.termination_type == ceres::CONVERGENCE;
+  summary.initial_cost = ceres_summary.initial_cost;
+  summary.final_cost = ceres_summary.final_cost;
+  summary.message = ceres_summary.BriefReport();
+  double sum2 = 0;
+  std::size_t n = 0;
+  for (const auto& obs : problem.observations) {
+    if (obs.marker) continue;
+    const double e = reprojection_error_px(problem, obs);
+    if (!std::isfinite(e)) continue;
+    sum2 += e * e;
+    ++n;
+  }
+  summary.rmse_px = n ? std::sqrt(sum2 / double(n)) : 0.0;
+  summary.seconds = clock.seconds();
+  return summary;
+}
+
+}  // namespace sfm_detail
+
+BundleSummary bundle_adjust(const BundleOptions& options, Reconstruction& rec,
+                            const std::vector<ImageKeypoints>& keypoints,
+                            const std::vector<MarkerConstraint>& markers,
+                            const std::vector<MarkerObservation>& observations) {
+  using namespace sfm_detail;
+  options.validate();
+  STRATA_CHECK(keypoints.size() == rec.images.size(), "{} keypoint sets for {} images",
+               keypoints.size(), rec.images.size());
+
+  BaProblem problem;
+  for (const auto& g : rec.groups) problem.intrinsics.push_back(to_block(g.intrinsics));
+  std::vector<int> camera_of_image(rec.images.size(), -1);
+  for (std::size_t i = 0; i < rec.images.size(); ++i) {
+    const auto& im = rec.images[i];
+    if (!im.registered) continue;
+    STRATA_CHECK(im.group >= 0 && std::size_t(im.group) < rec.groups.size());
+    BaCamera cam;
+    cam.rotation = to_angle_axis(im.pose.R);
+    cam.translation = {im.pose.t.x(), im.pose.t.y(), im.pose.t.z()};
+    cam.group = im.group;
+    camera_of_image[i] = int(problem.cameras.size());
+    problem.cameras.push_back(cam);
+  }
+  for (std::size_t p = 0; p < rec.points.size(); ++p) {
+    problem.points.push_back(rec.points[p].X);
+    problem.point_variable.push_back(1);
+    for (const auto& el : rec.points[p].track) {
+      STRATA_CHECK(el.image >= 0 && std::size_t(el.image) < rec.images.size());
+      const int cam = camera_of_image[el.image];
+      if (cam < 0) continue;
+      const auto& kps = keypoints[el.image].points;
+      STRATA_CHECK(el.keypoint >= 0 && std::size_t(el.keypoint) < kps.size());
+      problem.observations.push_back({cam, int(p), kps[el.keypoint], false});
+    }
+  }
+
+  // Control markers: a 3D point each, observed in images and tied to the survey.
+  std::map<std::string, std::vector<const MarkerObservation*>> seen;
+  for (const auto& o : observations) {
+    if (o.image >= 0 && std::size_t(o.image) < rec.images.size() && camera_of_image[o.image] >= 0) {
+      seen[o.marker].push_back(&o);
+    }
+  }
+  for (const auto& m : markers) {
+    if (!m.control) continue;
+    const auto it = seen.find(m.name);
+    if (it == seen.end()) continue;
+    if (!(m.sigma.minCoeff() > 0)) {
+      throw InputError(fmt::format("marker {}: sigma must be > 0 on every axis", m.name));
+    }
+    // Start from the photo triangulation (reconstruction frame) when there is one;
+    // otherwise from the survey (the frame must already be georeferenced).
+    Eigen::Vector3d start = m.position;
+    if (it->second.size() >= 2) {
+      std::vector<Camera> cams;
+      std::vector<Eigen::Vector2d> px;
+      for (const auto* o : it->second) {
+        cams.push_back({rec.groups[rec.images[o->image].group].intrinsics, rec.images[o->image].pose});
+        px.push_back(o->pixel);
+      }
+      const auto tri = triangulate_views(cams, px, TriangulationOptions{});
+      if (tri.ok) start = tri.X;
+    }
+    const int point = int(problem.points.size());
+    problem.points.push_back(start);
+    problem.point_variable.push_back(1);
+    for (const auto* o : it->second) {
+      problem.observations.push_back({camera_of_image[o->image], point, o->pixel, true});
+    }
+    problem.priors.push_back({point, m.position, m.sigma});
+  }
+
+  if (problem.priors.empty() && problem.cameras.size() >= 2) {
+    // Arbitrary frame: fix the datum on the first two registered images.
+    set_gauge(problem, 0, 1);
+  }
+
+  const BundleSummary summary = solve_bundle(options, problem);
+
+  for (std::size_t g = 0; g < rec.groups.size(); ++g) {
+    from_block(problem.intrinsics[g], rec.groups[g].intrinsics);
+  }
+  for (std::size_t i = 0; i < rec.images.size(); ++i) {
+    const int c = camera_of_image[i];
+    if (c < 0) continue;
+    rec.images[i].pose.R = from_angle_axis(problem.cameras[c].rotation);
+    rec.images[i].pose.t = Eigen::Vector3d(problem.cameras[c].translation.data());
+  }
+  for (std::size_t p = 0; p < rec.points.size(); ++p) {
+    rec.points[p].X = problem.points[p];
+  }
+  // Refresh the per-point mean reprojection error.
+  std::vector<double> sum(rec.points.size(), 0.0);
+  std::vector<int> count(rec.points.size(), 0);
+  for (const auto& obs : problem.observations) {
+    if (obs.marker) continue;
+    sum[obs.point] += reprojection_error_px(problem, obs);
+    ++count[obs.point];
+  }
+  for (std::size_t p = 0; p < rec.points.size(); ++p) {
+    rec.points[p].error_px = count[p] ? sum[p] / count[p] : 0.0;
+  }
+  return summary;
+}
+
+}  // namespace strata

@@ -1,0 +1,93 @@
+#pragma once
+// Residual functors of the bundle adjustment, templated on the scalar so Ceres can
+// differentiate them automatically (ceres::AutoDiffCostFunction wraps them in the .cpp).
+// Internal to sfm/ and its tests: no Ceres header is needed here, only the maths.
+//
+// Parameter blocks (all double):
+//   rotation[3]    angle-axis of the world->camera rotation R (radians, |w| = angle)
+//   translation[3] t of X_cam = R X_world + t (metres, reconstruction frame)
+//   intrinsics[6]  {f, cx, cy, k1, k2, aspect}: fx = f, fy = f * aspect (pixels);
+//                  the strata camera model of geometry/camera.hpp
+//   point[3]       X_world (metres)
+#include <Eigen/Core>
+
+#include <cmath>
+
+namespace strata::sfm_detail {
+
+enum IntrinsicIndex { kFocal = 0, kCx = 1, kCy = 2, kK1 = 3, kK2 = 4, kAspect = 5 };
+constexpr int kIntrinsicsSize = 6;
+
+// Rotates p by the angle-axis vector w (Rodrigues' formula):
+//   R p = p cos(th) + (k x p) sin(th) + k (k . p)(1 - cos(th)),  k = w / th.
+// Near th = 0 the first-order form R p = p + w x p keeps value and derivative exact
+// (the same trick as ceres::AngleAxisRotatePoint; sqrt is not differentiable at 0).
+template <typename T>
+void angle_axis_rotate(const T* w, const T* p, T* out) {
+  const T theta2 = w[0] * w[0] + w[1] * w[1] + w[2] * w[2];
+  if (theta2 > T(1e-30)) {
+    using std::cos;
+    using std::sin;
+    using std::sqrt;
+    const T theta = sqrt(theta2);
+    const T c = cos(theta), s = sin(theta);
+    const T k[3] = {w[0] / theta, w[1] / theta, w[2] / theta};
+    const T kxp[3] = {k[1] * p[2] - k[2] * p[1], k[2] * p[0] - k[0] * p[2],
+                      k[0] * p[1] - k[1] * p[0]};
+    const T kdp = k[0] * p[0] + k[1] * p[1] + k[2] * p[2];
+    for (int i = 0; i < 3; ++i) out[i] = p[i] * c + kxp[i] * s + k[i] * kdp * (T(1) - c);
+  } else {
+    const T wxp[3] = {w[1] * p[2] - w[2] * p[1], w[2] * p[0] - w[0] * p[2],
+                      w[0] * p[1] - w[1] * p[0]};
+    for (int i = 0; i < 3; ++i) out[i] = p[i] + wxp[i];
+  }
+}
+
+// Reprojection residual of one observation, in units of its standard deviation:
+//   r = (pi(K, k1, k2, R X + t) - observed) / sigma_px.
+// pi: x_n = X_c.xy / X_c.z, x_d = x_n (1 + k1 r^2 + k2 r^4), u = fx x_d + cx, v = fy y_d + cy.
+struct ReprojectionCost {
+  ReprojectionCost(const Eigen::Vector2d& observed_px, double sigma_px)
+      : u(observed_px.x()), v(observed_px.y()), inv_sigma(1.0 / sigma_px) {}
+
+  template <typename T>
+  bool operator()(const T* rotation, const T* translation, const T* intrinsics, const T* point,
+                  T* residual) const {
+    T xc[3];
+    angle_axis_rotate(rotation, point, xc);
+    xc[0] += translation[0];
+    xc[1] += translation[1];
+    xc[2] += translation[2];
+    // A point behind the camera has no projection: reject the step rather than
+    // let the division flip signs.
+    if (!(xc[2] > T(1e-12))) return false;
+    const T xn = xc[0] / xc[2], yn = xc[1] / xc[2];
+    const T r2 = xn * xn + yn * yn;
+    const T radial = T(1) + intrinsics[kK1] * r2 + intrinsics[kK2] * r2 * r2;
+    const T fx = intrinsics[kFocal];
+    const T fy = intrinsics[kFocal] * intrinsics[kAspect];
+    residual[0] = (fx * radial * xn + intrinsics[kCx] - T(u)) * T(inv_sigma);
+    residual[1] = (fy * radial * yn + intrinsics[kCy] - T(v)) * T(inv_sigma);
+    return true;
+  }
+
+  double u, v, inv_sigma;
+};
+
+// Prior on a surveyed control marker, per axis: r_i = (X_i - S_i) / sigma_i,
+// sigma in metres (E, N, Z). Together with the marker's reprojection residuals this
+// fits the photo geometry and the survey in one least-squares problem.
+struct MarkerPriorCost {
+  MarkerPriorCost(const Eigen::Vector3d& surveyed, const Eigen::Vector3d& sigma)
+      : s(surveyed), inv_sigma(sigma.cwiseInverse()) {}
+
+  template <typename T>
+  bool operator()(const T* point, T* residual) const {
+    for (int i = 0; i < 3; ++i) residual[i] = (point[i] - T(s[i])) * T(inv_sigma[i]);
+    return true;
+  }
+
+  Eigen::Vector3d s, inv_sigma;
+};
+
+}  // namespace strata::sfm_detail

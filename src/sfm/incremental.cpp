@@ -1,0 +1,696 @@
+#include "sfm/incremental.hpp"
+
+#include "core/error.hpp"
+#include "core/log.hpp"
+#include "core/progress.hpp"
+#include "core/resources.hpp"
+#include "sfm/bundle_problem.hpp"
+#include "sfm/quality.hpp"
+#include "sfm/tracks.hpp"
+#include "sfm/triangulation.hpp"
+
+#include <opencv2/calib3d.hpp>
+#include <opencv2/core.hpp>
+#include <opencv2/core/eigen.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <numeric>
+#include <set>
+
+namespace strata {
+
+void IncrementalOptions::validate() const {
+  auto fail = [](const char* name, auto value, const char* rule) {
+    throw InputError(fmt::format("incremental SfM option {} must be {}, got {}", name, rule, value));
+  };
+  if (init_min_inliers < 8) fail("init_min_inliers", init_min_inliers, ">= 8");
+  if (!(init_min_angle_deg > 0 && init_min_angle_deg < 90)) fail("init_min_angle_deg", init_min_angle_deg, "in (0, 90)");
+  if (!(init_max_homography_ratio > 0 && init_max_homography_ratio <= 1)) fail("init_max_homography_ratio", init_max_homography_ratio, "in (0, 1]");
+  if (init_max_candidates < 1) fail("init_max_candidates", init_max_candidates, ">= 1");
+  if (!(ransac_threshold_px > 0)) fail("ransac_threshold_px", ransac_threshold_px, "> 0");
+  if (!(ransac_confidence > 0 && ransac_confidence < 1)) fail("ransac_confidence", ransac_confidence, "in (0, 1)");
+  if (ransac_max_iterations < 10) fail("ransac_max_iterations", ransac_max_iterations, ">= 10");
+  if (resection_min_inliers < 4) fail("resection_min_inliers", resection_min_inliers, ">= 4");
+  if (!(resection_min_inlier_ratio >= 0 && resection_min_inlier_ratio <= 1)) fail("resection_min_inlier_ratio", resection_min_inlier_ratio, "in [0, 1]");
+  if (!(min_triangulation_angle_deg >= 0 && min_triangulation_angle_deg < 90)) fail("min_triangulation_angle_deg", min_triangulation_angle_deg, "in [0, 90)");
+  if (!(max_reprojection_px > 0)) fail("max_reprojection_px", max_reprojection_px, "> 0");
+  if (!(final_max_reprojection_px > 0)) fail("final_max_reprojection_px", final_max_reprojection_px, "> 0");
+  if (local_ba_images < 1) fail("local_ba_images", local_ba_images, ">= 1");
+  if (!(global_ba_growth > 1)) fail("global_ba_growth", global_ba_growth, "> 1");
+  if (calibration_min_images < 2) fail("calibration_min_images", calibration_min_images, ">= 2");
+  if (principal_point_min_images < 2) fail("principal_point_min_images", principal_point_min_images, ">= 2");
+  if (final_refinement_passes < 1) fail("final_refinement_passes", final_refinement_passes, ">= 1");
+  bundle.validate();
+}
+
+namespace {
+
+using namespace sfm_detail;
+
+struct Track {
+  std::vector<TrackElement> elements;
+  std::vector<char> inlier;  // per element: usable (not rejected as an outlier)
+  bool has_point = false;
+  Eigen::Vector3d X = Eigen::Vector3d::Zero();
+};
+
+struct TwoViewGeometry {
+  bool ok = false;
+  int inliers = 0;
+  double homography_ratio = 1;
+  double median_angle_deg = 0;
+  Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d t = Eigen::Vector3d::Zero();
+};
+
+class IncrementalMapper {
+ public:
+  IncrementalMapper(const IncrementalOptions& options, const std::vector<CameraGroup>& groups,
+                    const std::vector<ImageInput>& images,
+                    const std::vector<ImageKeypoints>& keypoints,
+                    const std::vector<PairMatches>& matches)
+      : opt_(options), groups_(groups), images_(images), keypoints_(keypoints), matches_(matches) {}
+
+  Reconstruction run(IncrementalSummary& summary);
+
+ private:
+  // --- setup
+  void prepare_intrinsics();
+  void build_track_index(IncrementalSummary& summary);
+  // --- geometry helpers
+  const Intrinsics& intrinsics_of(int image) const { return intr_[images_[image].group]; }
+  Eigen::Vector2d pixel(const TrackElement& e) const { return keypoints_[e.image].points[e.keypoint]; }
+  Eigen::Vector2d normalised(const TrackElement& e) const {
+    return intrinsics_of(e.image).to_normalised(pixel(e));
+  }
+  double focal_of(int image) const { return intrinsics_of(image).fx; }
+  Camera camera(int image) const { return Camera{intrinsics_of(image), poses_[image]}; }
+  double error_px(const Track& t, std::size_t k) const;
+  // --- stages
+  TwoViewGeometry two_view(const PairMatches& pair) const;
+  std::pair<int, int> initialise();
+  bool try_register(int image);
+  int register_next();
+  bool triangulate_track(Track& t, double max_error_px);
+  std::size_t triangulate_image(int image);
+  std::size_t retriangulate_all();
+  std::size_t complete_tracks(double max_error_px);
+  std::size_t filter_points(const std::vector<int>& tracks, double max_error_px);
+  std::vector<int> all_point_tracks() const;
+  void adjust(const std::vector<int>& variable_images, bool global);
+  void local_adjust(int image);
+  void global_adjust(double max_error_px);
+  Reconstruction result() const;
+
+  const IncrementalOptions& opt_;
+  const std::vector<CameraGroup>& groups_;
+  const std::vector<ImageInput>& images_;
+  const std::vector<ImageKeypoints>& keypoints_;
+  const std::vector<PairMatches>& matches_;
+
+  std::vector<Intrinsics> intr_;
+  std::vector<Track> tracks_;
+  std::vector<std::vector<int>> track_of_;     // [image][keypoint] -> track or -1
+  std::vector<std::vector<int>> image_tracks_; // [image] -> tracks seen in it
+  std::vector<char> registered_;
+  std::vector<Pose> poses_;
+  std::vector<int> failed_at_;  // registered count at the last failed attempt, -1 if none
+  int n_registered_ = 0;
+  std::pair<int, int> init_pair_{-1, -1};
+  int local_count_ = 0, global_count_ = 0;
+  std::size_t filtered_ = 0;
+};
+
+void IncrementalMapper::prepare_intrinsics() {
+  for (std::size_t g = 0; g < groups_.size(); ++g) {
+    Intrinsics k = groups_[g].intrinsics;
+    if (k.width <= 0 || k.height <= 0) {
+      throw InputError(fmt::format("camera group {}: image size {}x{} is not valid", g, k.width,
+                                   k.height));
+    }
+    if (!(k.fx > 0) || !(k.fy > 0)) {
+      // No EXIF focal: a common field of view (about 45 degrees across the long side);
+      // self-calibration takes it from there.
+      k.fx = k.fy = 1.2 * std::max(k.width, k.height);
+      k.cx = 0.5 * (k.width - 1);  // (0,0) is the centre of the top-left pixel
+      k.cy = 0.5 * (k.height - 1);
+    }
+    intr_.push_back(k);
+  }
+}
+
+void IncrementalMapper::build_track_index(IncrementalSummary& summary) {
+  TrackStatistics stats;
+  auto raw = build_tracks(keypoints_, matches_, &stats);
+  summary.tracks = stats.tracks;
+  summary.inconsistent_tracks = stats.inconsistent_tracks;
+  track_of_.resize(images_.size());
+  image_tracks_.resize(images_.size());
+  for (std::size_t i = 0; i < images_.size(); ++i) {
+    track_of_[i].assign(keypoints_[i].points.size(), -1);
+  }
+  tracks_.reserve(raw.size());
+  for (auto& elements : raw) {
+    const int id = int(tracks_.size());
+    for (const auto& e : elements) {
+      track_of_[e.image][e.keypoint] = id;
+      image_tracks_[e.image].push_back(id);
+    }
+    Track t;
+    t.inlier.assign(elements.size(), 1);
+    t.elements = std::move(elements);
+    tracks_.push_back(std::move(t));
+  }
+}
+
+double IncrementalMapper::error_px(const Track& t, std::size_t k) const {
+  const auto& e = t.elements[k];
+  const auto proj = camera(e.image).project(t.X);
+  if (!proj) return std::numeric_limits<double>::infinity();
+  return (*proj - pixel(e)).norm();
+}
+
+TwoViewGeometry IncrementalMapper::two_view(const PairMatches& pair) const {
+  TwoViewGeometry g;
+  std::vector<cv::Point2d> pa, pb;
+  for (const auto& [ka, kb] : pair.matches) {
+    const int ta = track_of_[pair.image_a][ka];
+    if (ta < 0 || ta != track_of_[pair.image_b][kb]) continue;
+    const Eigen::Vector2d a = normalised({pair.image_a, ka});
+    const Eigen::Vector2d b = normalised({pair.image_b, kb});
+    pa.emplace_back(a.x(), a.y());
+    pb.emplace_back(b.x(), b.y());
+  }
+  if (int(pa.size()) < opt_.init_min_inliers) return g;
+  const double threshold =
+      opt_.ransac_threshold_px / (0.5 * (focal_of(pair.image_a) + focal_of(pair.image_b)));
+  cv::Mat mask;
+  const cv::Mat E = cv::findEssentialMat(pa, pb, 1.0, cv::Point2d(0, 0), cv::RANSAC,
+                                         opt_.ransac_confidence, threshold, mask);
+  if (E.rows != 3 || E.cols != 3) return g;  // several solutions stacked or none
+  cv::Mat R, t;
+  g.inliers = cv::recoverPose(E, pa, pb, R, t, 1.0, cv::Point2d(0, 0), mask);
+  if (g.inliers < opt_.init_min_inliers) return g;
+  cv::Mat hmask;
+  cv::findHomography(pa, pb, cv::RANSAC, threshold, hmask, opt_.ransac_max_iterations,
+                     opt_.ransac_confidence);
+  g.homography_ratio = hmask.empty() ? 0.0 : double(cv::countNonZero(hmask)) / g.inliers;
+  cv::cv2eigen(R, g.R);
+  cv::cv2eigen(t, g.t);
+  // Median triangulation angle of the inliers with P1 = [I|0], P2 = [R|t].
+  const std::vector<Pose> poses{Pose{}, Pose{g.R, g.t}};
+  const std::vector<Eigen::Vector3d> centres{Eigen::Vector3d::Zero(), poses[1].centre()};
+  std::vector<double> angles;
+  for (int i = 0; i < int(pa.size()); ++i) {
+    if (!mask.at<uchar>(i)) continue;
+    const Eigen::Vector3d X = triangulate_dlt(
+        poses, {Eigen::Vector2d(pa[i].x, pa[i].y), Eigen::Vector2d(pb[i].x, pb[i].y)});
+    if (!X.allFinite() || X.z() <= 0 || poses[1].to_camera(X).z() <= 0) continue;
+    angles.push_back(max_triangulation_angle_deg(X, centres));
+  }
+  if (angles.empty()) return g;
+  std::nth_element(angles.begin(), angles.begin() + angles.size() / 2, angles.end());
+  g.median_angle_deg = angles[angles.size() / 2];
+  g.ok = true;
+  return g;
+}
+
+std::pair<int, int> IncrementalMapper::initialise() {
+  // Pairs by decreasing number of track-consistent matches.
+  std::vector<std::pair<std::size_t, int>> order;
+  for (int i = 0; i < int(matches_.size()); ++i) {
+    order.emplace_back(matches_[i].matches.size(), i);
+  }
+  std::sort(order.rbegin(), order.rend());
+  if (int(order.size()) > opt_.init_max_candidates) order.resize(opt_.init_max_candidates);
+
+  std::vector<std::pair<int, TwoViewGeometry>> candidates;
+  for (const auto& [n, i] : order) {
+    check_cancelled();
+    auto g = two_view(matches_[i]);
+    if (g.ok) candidates.emplace_back(i, g);
+  }
+  // Strict criteria first; relaxed ones (with a warning) before giving up.
+  int best = -1;
+  double best_score = 0;
+  for (int pass = 0; pass < 2 && best < 0; ++pass) {
+    const double min_angle = pass == 0 ? opt_.init_min_angle_deg : 0.5 * opt_.init_min_angle_deg;
+    const double max_h = pass == 0 ? opt_.init_max_homography_ratio : 0.95;
+    for (int c = 0; c < int(candidates.size()); ++c) {
+      const auto& g = candidates[c].second;
+      if (g.median_angle_deg < min_angle || g.homography_ratio > max_h) continue;
+      // Many inliers, with a bonus for baseline up to twice the minimum angle.
+      const double score = g.inliers * std::min(g.median_angle_deg / (2 * min_angle), 1.0);
+      if (score > best_score) {
+        best_score = score;
+        best = c;
+      }
+    }
+    if (best >= 0 && pass == 1) {
+      log::warn("sfm: no initial pair meets the strict criteria; using a weaker one");
+    }
+  }
+  if (best < 0) {
+    throw ProcessingError(fmt::format(
+        "sfm: no well-conditioned initial image pair among {} candidates (need >= {} "
+        "inliers, median triangulation angle >= {} deg, homography ratio <= {}): the photos "
+        "may overlap too little or be taken from one spot",
+        order.size(), opt_.init_min_inliers, opt_.init_min_angle_deg,
+        opt_.init_max_homography_ratio));
+  }
+  const auto& pair = matches_[candidates[best].first];
+  const auto& g = candidates[best].second;
+  const int a = pair.image_a, b = pair.image_b;
+  poses_[a] = Pose{};
+  poses_[b] = Pose{g.R, g.t.normalized()};
+  registered_[a] = registered_[b] = 1;
+  n_registered_ = 2;
+  log::debug("sfm: initial pair {} / {}: {} inliers, median angle {:.1f} deg, H ratio {:.2f}",
+             images_[a].name, images_[b].name, g.inliers, g.median_angle_deg, g.homography_ratio);
+  return {a, b};
+}
+
+bool IncrementalMapper::triangulate_track(Track& t, double max_error_px) {
+  std::vector<std::size_t> use;
+  for (std::size_t k = 0; k < t.elements.size(); ++k) {
+    if (t.inlier[k] && registered_[t.elements[k].image]) use.push_back(k);
+  }
+  // Two rounds: the linear solution from every view, then without views it fits badly.
+  for (int round = 0; round < 2; ++round) {
+    if (use.size() < 2) return false;
+    std::vector<Pose> poses;
+    std::vector<Eigen::Vector2d> xn;
+    for (auto k : use) {
+      poses.push_back(poses_[t.elements[k].image]);
+      xn.push_back(normalised(t.elements[k]));
+    }
+    const Eigen::Vector3d X = triangulate_dlt(poses, xn);
+    if (!X.allFinite()) return false;
+    t.X = X;
+    std::vector<std::size_t> good;
+    std::vector<Eigen::Vector3d> centres;
+    for (auto k : use) {
+      if (error_px(t, k) <= max_error_px) {
+        good.push_back(k);
+        centres.push_back(poses_[t.elements[k].image].centre());
+      }
+    }
+    if (good.size() == use.size()) {
+      if (max_triangulation_angle_deg(X, centres) < opt_.min_triangulation_angle_deg) return false;
+      t.has_point = true;
+      return true;
+    }
+    use = std::move(good);
+  }
+  return false;
+}
+
+std::size_t IncrementalMapper::triangulate_image(int image) {
+  std::size_t n = 0;
+  for (int id : image_tracks_[image]) {
+    auto& t = tracks_[id];
+    if (t.has_point) continue;
+    if (triangulate_track(t, opt_.max_reprojection_px)) ++n;
+  }
+  return n;
+}
+
+std::size_t IncrementalMapper::retriangulate_all() {
+  std::size_t n = 0;
+  for (auto& t : tracks_) {
+    if (t.has_point) continue;
+    // Give rejected observations another chance with the improved cameras.
+    std::fill(t.inlier.begin(), t.inlier.end(), 1);
+    if (triangulate_track(t, opt_.max_reprojection_px)) ++n;
+  }
+  return n;
+}
+
+std::size_t IncrementalMapper::complete_tracks(double max_error_px) {
+  // Observations rejected earlier (or in images registered after the point was made)
+  // rejoin their point when they now fit.
+  std::size_t n = 0;
+  for (auto& t : tracks_) {
+    if (!t.has_point) continue;
+    for (std::size_t k = 0; k < t.elements.size(); ++k) {
+      if (!t.inlier[k] && registered_[t.elements[k].image] && error_px(t, k) <= max_error_px) {
+        t.inlier[k] = 1;
+        ++n;
+      }
+    }
+  }
+  return n;
+}
+
+std::vector<int> IncrementalMapper::all_point_tracks() const {
+  std::vector<int> ids;
+  for (int i = 0; i < int(tracks_.size()); ++i) {
+    if (tracks_[i].has_point) ids.push_back(i);
+  }
+  return ids;
+}
+
+std::size_t IncrementalMapper::filter_points(const std::vector<int>& ids, double max_error_px) {
+  std::size_t removed = 0;
+  for (int id : ids) {
+    auto& t = tracks_[id];
+    if (!t.has_point) continue;
+    std::vector<Eigen::Vector3d> centres;
+    for (std::size_t k = 0; k < t.elements.size(); ++k) {
+      if (!t.inlier[k] || !registered_[t.elements[k].image]) continue;
+      if (error_px(t, k) > max_error_px) {
+        t.inlier[k] = 0;
+        ++removed;
+      } else {
+        centres.push_back(poses_[t.elements[k].image].centre());
+      }
+    }
+    // A point needs two good rays at a sufficient angle (Schoenberger & Frahm 2016,
+    // sec. 4.5: filter by reprojection error and triangulation angle).
+    if (centres.size() < 2 ||
+        max_triangulation_angle_deg(t.X, centres) < opt_.min_triangulation_angle_deg) {
+      t.has_point = false;
+    }
+  }
+  filtered_ += removed;
+  return removed;
+}
+
+bool IncrementalMapper::try_register(int image) {
+  std::vector<cv::Point3d> object;
+  std::vector<cv::Point2d> image_points;
+  std::vector<int> which;  // track of each correspondence
+  for (int id : image_tracks_[image]) {
+    const auto& t = tracks_[id];
+    if (!t.has_point) continue;
+    for (const auto& e : t.elements) {
+      if (e.image != image) continue;
+      const Eigen::Vector2d xn = normalised(e);
+      object.emplace_back(t.X.x(), t.X.y(), t.X.z());
+      image_points.emplace_back(xn.x(), xn.y());
+      which.push_back(id);
+    }
+  }
+  if (int(object.size()) < opt_.resection_min_inliers) return false;
+  // Normalised coordinates with K = I: the threshold is in focal units.
+  const double threshold = opt_.ransac_threshold_px / focal_of(image);
+  cv::Mat rvec, tvec;
+  std::vector<int> inliers;
+  const cv::Mat K = cv::Mat::eye(3, 3, CV_64F);
+  bool ok = false;
+  try {
+    ok = cv::solvePnPRansac(object, image_points, K, cv::noArray(), rvec, tvec, false,
+                            opt_.ransac_max_iterations, float(threshold), opt_.ransac_confidence,
+                            inliers, cv::SOLVEPNP_AP3P);
+  } catch (const cv::Exception& e) {
+    log::debug("sfm: resection of {} failed in OpenCV: {}", images_[image].name, e.what());
+    return false;
+  }
+  if (!ok || int(inliers.size()) < opt_.resection_min_inliers ||
+      double(inliers.size()) < opt_.resection_min_inlier_ratio * double(object.size())) {
+    return false;
+  }
+  // Levenberg-Marquardt on the inliers (the minimal-sample pose is noisy).
+  std::vector<cv::Point3d> in_obj;
+  std::vector<cv::Point2d> in_img;
+  for (int i : inliers) {
+    in_obj.push_back(object[i]);
+    in_img.push_back(image_points[i]);
+  }
+  cv::solvePnPRefineLM(in_obj, in_img, K, cv::noArray(), rvec, tvec);
+  cv::Mat Rcv;
+  cv::Rodrigues(rvec, Rcv);
+  Eigen::Matrix3d R;
+  Eigen::Vector3d t;
+  cv::cv2eigen(Rcv, R);
+  cv::cv2eigen(tvec, t);
+  poses_[image] = Pose{R, t};
+  registered_[image] = 1;
+  ++n_registered_;
+  // Observations of existing points in the new image join only when they fit.
+  for (int id : image_tracks_[image]) {
+    auto& tr = tracks_[id];
+    if (!tr.has_point) continue;
+    for (std::size_t k = 0; k < tr.elements.size(); ++k) {
+      if (tr.elements[k].image == image && error_px(tr, k) > opt_.max_reprojection_px) {
+        tr.inlier[k] = 0;
+      }
+    }
+  }
+  return true;
+}
+
+int IncrementalMapper::register_next() {
+  // Next best images: most visible triangulated tracks (Snavely et al. 2006).
+  std::vector<std::pair<int, int>> ranked;
+  for (int i = 0; i < int(images_.size()); ++i) {
+    if (registered_[i] || failed_at_[i] == n_registered_) continue;
+    int visible = 0;
+    for (int id : image_tracks_[i]) visible += tracks_[id].has_point ? 1 : 0;
+    if (visible >= opt_.resection_min_inliers) ranked.emplace_back(visible, i);
+  }
+  std::sort(ranked.rbegin(), ranked.rend());
+  for (const auto& [visible, image] : ranked) {
+    check_cancelled();
+    if (try_register(image)) return image;
+    failed_at_[image] = n_registered_;
+  }
+  return -1;
+}
+
+void IncrementalMapper::adjust(const std::vector<int>& variable_images, bool global) {
+  BaProblem problem;
+  for (const auto& k : intr_) problem.intrinsics.push_back(to_block(k));
+  std::vector<int> camera_of(images_.size(), -1);
+  std::vector<int> image_of_camera;
+  std::vector<char> variable(images_.size(), 0);
+  for (int i : variable_images) variable[i] = 1;
+  auto add_camera = [&](int image) {
+    if (camera_of[image] >= 0) return camera_of[image];
+    BaCamera cam;
+    cam.rotation = to_angle_axis(poses_[image].R);
+    const Eigen::Vector3d& t = poses_[image].t;
+    cam.translation = {t.x(), t.y(), t.z()};
+    cam.group = images_[image].group;
+    cam.variable = variable[image];
+    camera_of[image] = int(problem.cameras.size());
+    image_of_camera.push_back(image);
+    problem.cameras.push_back(cam);
+    return camera_of[image];
+  };
+  for (int i : variable_images) add_camera(i);
+
+  // Points seen by a variable image, with all their registered observations.
+  std::vector<int> point_tracks;
+  std::set<int> chosen;
+  for (int i : variable_images) {
+    for (int id : image_tracks_[i]) {
+      if (tracks_[id].has_point && chosen.insert(id).second) point_tracks.push_back(id);
+    }
+  }
+  for (int id : point_tracks) {
+    const auto& t = tracks_[id];
+    const int p = int(problem.points.size());
+    problem.points.push_back(t.X);
+    problem.point_variable.push_back(1);
+    for (std::size_t k = 0; k < t.elements.size(); ++k) {
+      const auto& e = t.elements[k];
+      if (!t.inlier[k] || !registered_[e.image]) continue;
+      problem.observations.push_back({add_camera(e.image), p, pixel(e), false});
+    }
+  }
+  const int n_constant = int(problem.cameras.size() - variable_images.size());
+  if (global || n_constant < 2) {
+    const int a = add_camera(init_pair_.first), b = add_camera(init_pair_.second);
+    set_gauge(problem, a, b);
+  }
+  // Self-calibration in global adjustments once enough views constrain it.
+  BundleOptions bo = opt_.bundle;
+  problem.refine_intrinsics = global && n_registered_ >= opt_.calibration_min_images;
+  if (n_registered_ < opt_.principal_point_min_images) bo.refine.principal_point = false;
+
+  const auto s = solve_bundle(bo, problem);
+  (global ? global_count_ : local_count_)++;
+
+  for (std::size_t g = 0; g < intr_.size(); ++g) from_block(problem.intrinsics[g], intr_[g]);
+  for (std::size_t c = 0; c < problem.cameras.size(); ++c) {
+    if (!problem.cameras[c].variable) continue;
+    const int image = image_of_camera[c];
+    poses_[image].R = from_angle_axis(problem.cameras[c].rotation);
+    poses_[image].t = Eigen::Vector3d(problem.cameras[c].translation.data());
+  }
+  for (std::size_t p = 0; p < point_tracks.size(); ++p) tracks_[point_tracks[p]].X = problem.points[p];
+  log::debug("sfm: {} BA over {} images: rmse {:.3f} px, {} iterations", global ? "global" : "local",
+             variable_images.size(), s.rmse_px, s.iterations);
+  filter_points(point_tracks, opt_.max_reprojection_px);
+}
+
+void IncrementalMapper::local_adjust(int image) {
+  // The new image and the registered images sharing the most points with it.
+  std::map<int, int> shared;
+  for (int id : image_tracks_[image]) {
+    const auto& t = tracks_[id];
+    if (!t.has_point) continue;
+    for (std::size_t k = 0; k < t.elements.size(); ++k) {
+      const int other = t.elements[k].image;
+      if (other != image && registered_[other] && t.inlier[k]) ++shared[other];
+    }
+  }
+  std::vector<std::pair<int, int>> ranked;
+  for (const auto& [other, n] : shared) ranked.emplace_back(n, other);
+  std::sort(ranked.rbegin(), ranked.rend());
+  std::vector<int> variable{image};
+  for (const auto& [n, other] : ranked) {
+    if (int(variable.size()) >= opt_.local_ba_images) break;
+    variable.push_back(other);
+  }
+  adjust(variable, false);
+}
+
+void IncrementalMapper::global_adjust(double max_error_px) {
+  std::vector<int> all;
+  for (int i = 0; i < int(images_.size()); ++i) {
+    if (registered_[i]) all.push_back(i);
+  }
+  adjust(all, true);
+  complete_tracks(max_error_px);
+  filter_points(all_point_tracks(), max_error_px);
+  retriangulate_all();
+}
+
+Reconstruction IncrementalMapper::run(IncrementalSummary& summary) {
+  Stopwatch clock;
+  prepare_intrinsics();
+  build_track_index(summary);
+  registered_.assign(images_.size(), 0);
+  poses_.assign(images_.size(), Pose{});
+  failed_at_.assign(images_.size(), -1);
+  Progress progress("aligning photos", images_.size());
+
+  init_pair_ = initialise();
+  triangulate_image(init_pair_.second);
+  global_adjust(opt_.max_reprojection_px);
+  progress.step(2);
+
+  int last_global = n_registered_;
+  while (n_registered_ < int(images_.size())) {
+    check_cancelled();
+    const int image = register_next();
+    if (image < 0) {
+      // Stuck: a global refinement may add points that let another image in.
+      if (last_global == n_registered_) break;
+      global_adjust(opt_.max_reprojection_px);
+      last_global = n_registered_;
+      continue;
+    }
+    progress.step();
+    triangulate_image(image);
+    local_adjust(image);
+    if (n_registered_ < opt_.early_global_images ||
+        n_registered_ >= opt_.global_ba_growth * last_global) {
+      global_adjust(opt_.max_reprojection_px);
+      last_global = n_registered_;
+    }
+  }
+  // Final refinement with a gate that tightens to the calibrated model's level.
+  for (int pass = 0; pass < opt_.final_refinement_passes; ++pass) {
+    check_cancelled();
+    const double gate = pass == 0 ? opt_.max_reprojection_px : opt_.final_max_reprojection_px;
+    global_adjust(gate);
+  }
+  // Last adjustment after the final filtering, so the points removed do not bias it.
+  {
+    std::vector<int> all;
+    for (int i = 0; i < int(images_.size()); ++i) {
+      if (registered_[i]) all.push_back(i);
+    }
+    adjust(all, true);
+    filter_points(all_point_tracks(), opt_.final_max_reprojection_px);
+  }
+  progress.finish();
+
+  Reconstruction rec = result();
+  summary.images = images_.size();
+  summary.registered = std::size_t(n_registered_);
+  summary.initial_pair = init_pair_;
+  summary.points = rec.points.size();
+  summary.observations = 0;
+  for (const auto& p : rec.points) summary.observations += p.track.size();
+  summary.reprojection_rmse_px = reprojection_rmse_px(rec, keypoints_);
+  summary.local_adjustments = local_count_;
+  summary.global_adjustments = global_count_;
+  summary.filtered_observations = filtered_;
+  for (std::size_t i = 0; i < images_.size(); ++i) {
+    if (!registered_[i]) summary.unregistered.push_back(images_[i].name);
+  }
+  summary.seconds = clock.seconds();
+  return rec;
+}
+
+Reconstruction IncrementalMapper::result() const {
+  Reconstruction rec;
+  rec.groups = groups_;
+  for (std::size_t g = 0; g < groups_.size(); ++g) rec.groups[g].intrinsics = intr_[g];
+  for (std::size_t i = 0; i < images_.size(); ++i) {
+    RegisteredImage im;
+    im.name = images_[i].name;
+    im.group = images_[i].group;
+    im.registered = registered_[i];
+    if (registered_[i]) im.pose = poses_[i];
+    rec.images.push_back(im);
+  }
+  for (const auto& t : tracks_) {
+    if (!t.has_point) continue;
+    SparsePoint p;
+    p.X = t.X;
+    double sum = 0;
+    for (std::size_t k = 0; k < t.elements.size(); ++k) {
+      if (!t.inlier[k] || !registered_[t.elements[k].image]) continue;
+      p.track.push_back(t.elements[k]);
+      sum += error_px(t, k);
+    }
+    if (p.track.size() < 2) continue;
+    p.error_px = sum / double(p.track.size());
+    const auto& first = p.track.front();
+    const auto& colours = keypoints_[first.image].colours;
+    if (colours.size() >= 3 * (std::size_t(first.keypoint) + 1)) {
+      for (int c = 0; c < 3; ++c) p.colour[c] = colours[3 * first.keypoint + c];
+    }
+    rec.points.push_back(std::move(p));
+  }
+  return rec;
+}
+
+}  // namespace
+
+Reconstruction reconstruct_incremental(const IncrementalOptions& options,
+                                       const std::vector<CameraGroup>& groups,
+                                       const std::vector<ImageInput>& images,
+                                       const std::vector<ImageKeypoints>& keypoints,
+                                       const std::vector<PairMatches>& matches,
+                                       IncrementalSummary* summary) {
+  options.validate();
+  STRATA_CHECK(keypoints.size() == images.size(), "{} keypoint sets for {} images",
+               keypoints.size(), images.size());
+  for (const auto& im : images) {
+    if (im.group < 0 || std::size_t(im.group) >= groups.size()) {
+      throw InputError(fmt::format("image {}: camera group {} does not exist ({} groups)",
+                                   im.name, im.group, groups.size()));
+    }
+  }
+  if (images.size() < 2) {
+    throw ProcessingError(fmt::format("sfm: {} image(s); at least 2 are needed", images.size()));
+  }
+  IncrementalSummary local;
+  IncrementalMapper mapper(options, groups, images, keypoints, matches);
+  Reconstruction rec = mapper.run(local);
+  if (local.registered < images.size()) {
+    log::warn("sfm: {} of {} images registered", local.registered, images.size());
+  }
+  if (summary) *summary = local;
+  return rec;
+}
+
+}  // namespace strata

@@ -1,0 +1,93 @@
+#pragma once
+// Incremental structure from motion (Snavely et al. 2006 "Photo tourism";
+// Schoenberger & Frahm 2016 "Structure-from-motion revisited"): tracks from verified
+// pairwise matches, a well-conditioned initial pair, then one image at a time by
+// robust resection, triangulation, outlier filtering and bundle adjustment with
+// self-calibration of each camera group.
+#include "features/types.hpp"
+#include "sfm/bundle_adjustment.hpp"
+#include "sfm/reconstruction.hpp"
+
+#include <cstddef>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace strata {
+
+struct IncrementalOptions {
+  // --- initial pair -------------------------------------------------------------
+  int init_min_inliers = 50;               // essential-matrix inliers of the pair
+  double init_min_angle_deg = 4.0;         // degrees: median triangulation angle of the pair
+  // H inliers / E inliers above this mean the pair is explained by a homography
+  // (pure rotation or a flat scene at small baseline): its depth is unreliable.
+  double init_max_homography_ratio = 0.8;
+  int init_max_candidates = 40;            // pairs examined, by decreasing match count
+
+  // --- robust estimation --------------------------------------------------------
+  // pixels: RANSAC inlier threshold for the essential matrix, homography and PnP.
+  // Generous, because the lens distortion is unknown until the first adjustments.
+  double ransac_threshold_px = 4.0;
+  double ransac_confidence = 0.9999;       // probability of drawing one clean sample
+  int ransac_max_iterations = 2000;
+
+  // --- resection ----------------------------------------------------------------
+  int resection_min_inliers = 15;          // 2D-3D inliers to accept a new image
+  double resection_min_inlier_ratio = 0.2; // inliers / candidate correspondences
+
+  // --- triangulation and filtering ----------------------------------------------
+  double min_triangulation_angle_deg = 1.5;  // degrees: largest ray angle of a point
+  double max_reprojection_px = 4.0;          // pixels: observations beyond are outliers
+  // pixels: the same, applied after the final global adjustment (the model is
+  // calibrated then, so the gate can be tighter).
+  double final_max_reprojection_px = 2.0;
+
+  // --- bundle adjustment --------------------------------------------------------
+  BundleOptions bundle;  // robust loss, tolerances, which intrinsics to refine
+  int local_ba_images = 6;        // the new image and its best connected neighbours
+  // A global adjustment runs when the registered count has grown by this factor
+  // since the last one (and for every image while fewer than `early_global_images`).
+  double global_ba_growth = 1.25;
+  int early_global_images = 8;
+  // Intrinsics stay fixed until this many images are registered (a two-view
+  // geometry cannot separate focal length from depth).
+  int calibration_min_images = 3;
+  // The principal point is refined only from this many images on (it trades off
+  // against camera tilt and needs varied viewing directions).
+  int principal_point_min_images = 6;
+  int final_refinement_passes = 3;  // global BA / filter / retriangulate rounds at the end
+
+  // Throws InputError naming the first invalid field.
+  void validate() const;
+};
+
+struct IncrementalSummary {
+  std::size_t images = 0;
+  std::size_t registered = 0;
+  std::pair<int, int> initial_pair{-1, -1};
+  std::size_t tracks = 0;
+  std::size_t inconsistent_tracks = 0;   // dropped: two keypoints of one image
+  std::size_t points = 0;
+  std::size_t observations = 0;          // in the final points' tracks
+  double reprojection_rmse_px = 0;
+  int local_adjustments = 0;
+  int global_adjustments = 0;
+  std::size_t filtered_observations = 0; // outlier observations removed over the run
+  std::vector<std::string> unregistered; // image names that could not be placed
+  double seconds = 0;
+};
+
+// Reconstructs one layer. `groups` hold the initial intrinsics (a group with fx <= 0
+// gets the default prior f = 1.2 x long side, principal point at the centre);
+// `keypoints[i]` belongs to `images[i]`; `matches` are verified pairwise inliers.
+// The result is in an arbitrary frame (georeferenced = false): the first image of the
+// initial pair at the origin, the baseline to the second of unit length.
+// Throws ProcessingError when no initial pair can be found; Cancelled on request.
+Reconstruction reconstruct_incremental(const IncrementalOptions& options,
+                                       const std::vector<CameraGroup>& groups,
+                                       const std::vector<ImageInput>& images,
+                                       const std::vector<ImageKeypoints>& keypoints,
+                                       const std::vector<PairMatches>& matches,
+                                       IncrementalSummary* summary = nullptr);
+
+}  // namespace strata

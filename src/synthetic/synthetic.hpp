@@ -1,0 +1,89 @@
+#pragma once
+// Synthetic excavations with known truth: the example dataset and the test bed.
+//
+// generate_excavation() builds a trench in a projected CRS, excavates it in K
+// stages, photographs every recorded surface with a hand-held camera (JPEG + EXIF)
+// and writes the truth beside the photos: cameras, surface rasters, marker
+// coordinates, unit volumes and the Harris matrix of the scene. The output layout
+// is documented in docs/synthetic.md; other modules and the README rely on it.
+//
+// Public surface: Options (validated once), Summary, one entry function. The
+// scene, the renderer and the writers are internal (strata::synthetic).
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace strata {
+
+struct SyntheticExcavationOptions {
+  // Preset sizes: `small` is the test scene (4 layers x 12 photos at 800 x 533),
+  // `full` the example dataset (4 layers x 40 photos at 2400 x 1600).
+  enum class Size { small, full };
+  static SyntheticExcavationOptions preset(Size size);
+
+  std::uint64_t seed = 1;  // every random choice derives from it: same seed, same bytes
+
+  struct Site {
+    int epsg = 32636;              // projected CRS of every coordinate written
+    double origin_e = 734000.0;    // metres; the site frame is CRS minus this origin
+    double origin_n = 4174000.0;   // metres
+    double origin_z = 1450.0;      // metres
+    double trench_size_e = 4.0;    // metres along easting
+    double trench_size_n = 3.0;    // metres along northing
+    int stages = 3;                // units removed; layers recorded = stages + 1
+    double min_unit_thickness = 0.05;  // metres, thinnest part of a removed unit
+    double max_unit_thickness = 0.30;  // metres, thickest part of a removed unit
+    int markers = 8;               // coded targets around the trench (6..12)
+    int check_markers = 2;         // of which check points (the rest are control)
+    double marker_size = 0.15;     // metres, printed square including its white border
+    double survey_sigma = 0.003;   // metres, Gaussian noise of the 'surveyed' markers
+  } site;
+
+  struct Photos {
+    int per_layer = 12;            // photos of each recorded surface
+    int width = 800;               // pixels
+    int height = 533;              // pixels
+    double focal_ratio = 0.9;      // fx / width (0.8..1.0: a 'normal' lens)
+    double sensor_width_mm = 23.5; // APS-C; sets EXIF FocalLength and 35 mm equivalent
+    int jpeg_quality = 92;         // 1..100
+    double noise_sigma = 1.5;      // 8-bit grey levels of read noise (shot noise added)
+  } photos;
+
+  struct Render {
+    double height_cell = 0.004;    // metres, height-field node spacing (2..5 mm)
+    double texel = 0.003;          // metres, baked surface texture resolution
+    int edge_samples = 4;          // extra rays per pixel on depth edges (0 = none)
+    double truth_cell = 0.005;     // metres, cell of the truth surface GeoTIFFs
+    int threads = 0;               // 0 = all cores
+  } render;
+
+  // Throws InputError naming the first invalid field and its value.
+  void validate() const;
+};
+
+struct SyntheticExcavationSummary {
+  struct UnitVolume {
+    std::string unit;            // unit code, e.g. "101"
+    double volume_m3 = 0;        // volume removed in its stage
+    double area_m2 = 0;          // horizontal area where more than 1 mm was removed
+    double mean_thickness_m = 0; // volume / area
+    double max_thickness_m = 0;
+  };
+  std::filesystem::path out_dir;
+  int layers = 0;
+  int photos = 0;
+  int markers = 0;
+  int marker_observations = 0;   // lines of gcp_list.txt
+  std::vector<UnitVolume> units; // one per removed unit, in excavation order
+  double seconds = 0;            // wall-clock time of the whole generation
+};
+
+// Writes the synthetic excavation into out_dir, which must not exist or be empty.
+// The files are written into a sibling folder first and moved into place at the
+// end, so a failure or Ctrl-C leaves out_dir as it was. Throws InputError for
+// invalid options or a non-empty out_dir, IoError when a file cannot be written.
+SyntheticExcavationSummary generate_excavation(const SyntheticExcavationOptions& options,
+                                               const std::filesystem::path& out_dir);
+
+}  // namespace strata

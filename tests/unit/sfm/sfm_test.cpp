@@ -1,0 +1,263 @@
+// Structure from motion on synthetic layers with known truth.
+#include "core/error.hpp"
+#include "geometry/similarity.hpp"
+#include "sfm/bundle_adjustment.hpp"
+#include "sfm/incremental.hpp"
+#include "sfm/quality.hpp"
+#include "sfm/tracks.hpp"
+#include "sfm/triangulation.hpp"
+#include "unit/sfm/synthetic_scene.hpp"
+
+#include <gtest/gtest.h>
+#include <Eigen/Geometry>
+
+#include <cmath>
+#include <cstdio>
+#include <random>
+
+namespace strata {
+namespace {
+
+using test::make_scene;
+using test::SceneOptions;
+using test::SyntheticScene;
+
+// --- tolerances ------------------------------------------------------------------
+// 0.3 px keypoint noise at f = 1380 px and 1.6-2.4 m depth is about 0.4 mm on the
+// ground per ray; with hundreds of points per photo a camera centre is determined to
+// a fraction of a millimetre, so 2 mm leaves room for the calibration trade-offs.
+constexpr double kCentreTolM = 0.002;
+// Focal length from self-calibration with oblique, rolled views: 0.5 %.
+constexpr double kFocalRelTol = 0.005;
+// Principal point: correlated with camera tilt; a few pixels still proves recovery
+// from a 17 px offset.
+constexpr double kPrincipalPointTolPx = 3.0;
+// The 2D reprojection error of noise sigma per axis has RMS sigma*sqrt(2); the
+// adjustment absorbs a little of it, outliers are filtered: allow 20 % above.
+constexpr double kRmseFactor = 1.2;
+// Noise-free scene: everything exact up to solver tolerances (1e-10 relative).
+constexpr double kExactRelTol = 1e-6;
+
+struct Alignment {
+  double max_centre_error = 0;  // metres, after the similarity
+  double rms_centre_error = 0;
+  Similarity3 s;
+};
+
+// Similarity from the recovered to the true camera centres (Umeyama), residuals.
+Alignment align_to_truth(const Reconstruction& rec, const SyntheticScene& scene) {
+  std::vector<Eigen::Vector3d> src, dst;
+  for (std::size_t i = 0; i < rec.images.size(); ++i) {
+    if (!rec.images[i].registered) continue;
+    src.push_back(rec.images[i].pose.centre());
+    dst.push_back(scene.poses[i].centre());
+  }
+  Alignment a;
+  a.s = fit_similarity(src, dst);
+  double sum2 = 0;
+  for (std::size_t i = 0; i < src.size(); ++i) {
+    const double e = (a.s.apply(src[i]) - dst[i]).norm();
+    a.max_centre_error = std::max(a.max_centre_error, e);
+    sum2 += e * e;
+  }
+  a.rms_centre_error = std::sqrt(sum2 / double(src.size()));
+  return a;
+}
+
+std::size_t count_registered(const Reconstruction& rec) {
+  std::size_t n = 0;
+  for (const auto& im : rec.images) n += im.registered ? 1 : 0;
+  return n;
+}
+
+Reconstruction run(const SyntheticScene& scene, IncrementalSummary* summary,
+                   IncrementalOptions options = {}) {
+  return reconstruct_incremental(options, scene.groups, scene.images, scene.keypoints,
+                                 scene.matches, summary);
+}
+
+// --- tracks -------------------------------------------------------------------------
+
+TEST(Tracks, UnionFindJoinsChainsAndDropsInconsistentTracks) {
+  std::vector<ImageKeypoints> kps(3);
+  for (auto& k : kps) k.points.assign(4, Eigen::Vector2d::Zero());
+  // 0:0 - 1:0 - 2:0 is a clean track of 3; 0:1 - 1:1 - 2:1 - 0:2 holds two keypoints
+  // of image 0 and must be dropped; 0:3 - 1:3 is a clean pair.
+  std::vector<PairMatches> matches(3);
+  matches[0] = {0, 1, {{0, 0}, {1, 1}, {3, 3}}, TwoViewModel::essential};
+  matches[1] = {1, 2, {{0, 0}, {1, 1}}, TwoViewModel::essential};
+  matches[2] = {0, 2, {{2, 1}}, TwoViewModel::essential};
+  TrackStatistics stats;
+  const auto tracks = build_tracks(kps, matches, &stats);
+  EXPECT_EQ(stats.tracks, 2u);
+  EXPECT_EQ(stats.inconsistent_tracks, 1u);
+  ASSERT_EQ(tracks.size(), 2u);
+  EXPECT_EQ(tracks[0].size(), 3u);
+  EXPECT_EQ(tracks[1].size(), 2u);
+  EXPECT_EQ(tracks[1][0].keypoint, 3);
+}
+
+// --- triangulation ------------------------------------------------------------------
+
+TEST(Triangulation, ExactFromThreeViewsAndRefusesNarrowRays) {
+  const SyntheticScene scene = make_scene({.cameras = 6, .points = 10, .noise_px = 0});
+  const Eigen::Vector3d X(0.2, -0.1, 0.05);
+  std::vector<Camera> cams;
+  std::vector<Eigen::Vector2d> px;
+  for (int i = 0; i < 3; ++i) {
+    cams.push_back({scene.truth, scene.poses[i]});
+    px.push_back(*cams.back().project(X));
+  }
+  const auto r = triangulate_views(cams, px, {});
+  ASSERT_TRUE(r.ok);
+  EXPECT_LT((r.X - X).norm(), 1e-9);
+  // Two cameras 1 mm apart: rays almost parallel, refused by the angle check.
+  std::vector<Camera> close{cams[0], cams[0]};
+  close[1].pose = Pose::from_centre(cams[0].pose.R, cams[0].pose.centre() + Eigen::Vector3d(0.001, 0, 0));
+  const auto narrow = triangulate_views(close, {*close[0].project(X), *close[1].project(X)}, {});
+  EXPECT_FALSE(narrow.ok);
+  EXPECT_LT(narrow.max_angle_deg, 0.1);
+}
+
+// --- options ------------------------------------------------------------------------
+
+TEST(IncrementalOptions, RefusesInvalidFieldsByName) {
+  IncrementalOptions o;
+  o.min_triangulation_angle_deg = -1;
+  try {
+    o.validate();
+    FAIL() << "expected InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("min_triangulation_angle_deg"), std::string::npos);
+  }
+  IncrementalOptions b;
+  b.bundle.loss_scale_px = 0;
+  EXPECT_THROW(b.validate(), InputError);
+}
+
+// --- incremental reconstruction -----------------------------------------------------
+
+TEST(Incremental, NoisySceneRegistersAllAndRecoversCamerasAndIntrinsics) {
+  const SyntheticScene scene = make_scene({});
+  IncrementalSummary summary;
+  const Reconstruction rec = run(scene, &summary);
+
+  EXPECT_EQ(count_registered(rec), scene.images.size());
+  EXPECT_EQ(summary.registered, scene.images.size());
+  EXPECT_TRUE(summary.unregistered.empty());
+  EXPECT_FALSE(rec.georeferenced);
+
+  const Alignment a = align_to_truth(rec, scene);
+  const auto& k = rec.groups[0].intrinsics;
+  const double focal_err = std::abs(k.fx / scene.truth.fx - 1.0);
+  const double noise_rms = 0.3 * std::sqrt(2.0);
+  std::printf(
+      "[ figures  ] %zu/%zu registered, %zu points, %zu obs, rmse %.3f px, centres max %.2f mm "
+      "rms %.2f mm, focal err %.3f %%, pp (%.2f, %.2f) vs (%.2f, %.2f), k1 %.4f (%.4f), "
+      "k2 %.4f (%.4f), %d local / %d global BA, %.2f s\n",
+      summary.registered, summary.images, summary.points, summary.observations,
+      summary.reprojection_rmse_px, a.max_centre_error * 1e3, a.rms_centre_error * 1e3,
+      focal_err * 100, k.cx, k.cy, scene.truth.cx, scene.truth.cy, k.k1, scene.truth.k1, k.k2,
+      scene.truth.k2, summary.local_adjustments, summary.global_adjustments, summary.seconds);
+
+  EXPECT_LT(a.max_centre_error, kCentreTolM);
+  EXPECT_LT(focal_err, kFocalRelTol);
+  EXPECT_NEAR(k.fy / k.fx, 1.0, 1e-12) << "one focal: fy follows fx";
+  EXPECT_NEAR(k.cx, scene.truth.cx, kPrincipalPointTolPx);
+  EXPECT_NEAR(k.cy, scene.truth.cy, kPrincipalPointTolPx);
+  EXPECT_LT(summary.reprojection_rmse_px, kRmseFactor * noise_rms);
+  EXPECT_GT(summary.reprojection_rmse_px, 0.5 * noise_rms) << "suspiciously low: overfitting?";
+  EXPECT_NEAR(summary.reprojection_rmse_px, reprojection_rmse_px(rec, scene.keypoints), 1e-12);
+  // Most true points come back (some are dropped with the wrong matches' tracks).
+  EXPECT_GT(summary.points, std::size_t(0.7 * scene.points.size()));
+}
+
+TEST(Incremental, NoiseFreeSceneIsRecoveredExactly) {
+  const SyntheticScene scene =
+      make_scene({.noise_px = 0.0, .outlier_fraction = 0.0, .marker_noise_px = 0.0, .seed = 21});
+  IncrementalOptions options;
+  options.bundle.function_tolerance = 1e-14;
+  options.bundle.parameter_tolerance = 1e-14;
+  options.bundle.gradient_tolerance = 1e-16;
+  options.bundle.max_iterations = 200;
+  IncrementalSummary summary;
+  const Reconstruction rec = run(scene, &summary, options);
+  ASSERT_EQ(count_registered(rec), scene.images.size());
+  const Alignment a = align_to_truth(rec, scene);
+  const double scene_size = 4.0;  // metres
+  const auto& k = rec.groups[0].intrinsics;
+  std::printf("[ figures  ] noise-free: centres max rel %.2e, focal rel %.2e, pp err %.2e px, rmse %.2e px\n",
+              a.max_centre_error / scene_size, std::abs(k.fx / scene.truth.fx - 1),
+              std::hypot(k.cx - scene.truth.cx, k.cy - scene.truth.cy), summary.reprojection_rmse_px);
+  EXPECT_LT(a.max_centre_error / scene_size, kExactRelTol);
+  EXPECT_LT(std::abs(k.fx / scene.truth.fx - 1), kExactRelTol);
+  EXPECT_NEAR(k.cx, scene.truth.cx, kExactRelTol * scene.truth.fx);
+  EXPECT_NEAR(k.cy, scene.truth.cy, kExactRelTol * scene.truth.fx);
+  EXPECT_NEAR(k.k1, scene.truth.k1, kExactRelTol * 10);
+  EXPECT_LT(summary.reprojection_rmse_px, kExactRelTol);
+}
+
+TEST(Incremental, RefusesWhenNoPairOverlaps) {
+  SyntheticScene scene = make_scene({.cameras = 4, .points = 300});
+  scene.matches.clear();
+  EXPECT_THROW(run(scene, nullptr), ProcessingError);
+}
+
+// --- bundle adjustment on a Reconstruction ------------------------------------------
+
+TEST(BundleAdjust, RefinesPerturbedTruthAndKeepsTheGauge) {
+  const SyntheticScene scene = make_scene({.cameras = 12, .points = 1200, .outlier_fraction = 0});
+  Reconstruction rec = scene.truth_reconstruction();
+  std::mt19937 rng(5);
+  std::normal_distribution<double> n(0.0, 1.0);
+  for (std::size_t i = 2; i < rec.images.size(); ++i) {  // the gauge images stay true
+    auto& pose = rec.images[i].pose;
+    pose = Pose::from_centre(pose.R, pose.centre() + 0.01 * Eigen::Vector3d(n(rng), n(rng), n(rng)));
+  }
+  for (auto& p : rec.points) p.X += 0.005 * Eigen::Vector3d(n(rng), n(rng), n(rng));
+  rec.groups[0].intrinsics.fx *= 1.01;
+  rec.groups[0].intrinsics.fy *= 1.01;
+  const Pose first = rec.images[0].pose;
+
+  BundleOptions options;
+  const BundleSummary s = bundle_adjust(options, rec, scene.keypoints);
+  EXPECT_TRUE(s.gauge_fixed);
+  EXPECT_EQ(s.control_markers, 0u);
+  EXPECT_LT(s.rmse_px, kRmseFactor * 0.3 * std::sqrt(2.0));
+  EXPECT_LT((rec.images[0].pose.t - first.t).norm(), 1e-15);
+  EXPECT_LT(std::abs(rec.groups[0].intrinsics.fx / scene.truth.fx - 1), kFocalRelTol);
+  const Alignment a = align_to_truth(rec, scene);
+  EXPECT_LT(a.max_centre_error, kCentreTolM);
+}
+
+TEST(BundleAdjust, FixedIntrinsicsStayFixed) {
+  const SyntheticScene scene = make_scene({.cameras = 8, .points = 600, .outlier_fraction = 0});
+  Reconstruction rec = scene.truth_reconstruction();
+  rec.groups[0].intrinsics.fx *= 1.02;
+  rec.groups[0].intrinsics.fy *= 1.02;
+  const Intrinsics before = rec.groups[0].intrinsics;
+  BundleOptions options;
+  options.refine = {false, false, false, false, false};
+  bundle_adjust(options, rec, scene.keypoints);
+  EXPECT_EQ(rec.groups[0].intrinsics.fx, before.fx);
+  EXPECT_EQ(rec.groups[0].intrinsics.cx, before.cx);
+  EXPECT_EQ(rec.groups[0].intrinsics.k1, before.k1);
+}
+
+// --- quality ------------------------------------------------------------------------
+
+TEST(Quality, FiguresOfTheTruth) {
+  const SyntheticScene scene = make_scene({.cameras = 8, .points = 600, .noise_px = 0});
+  const Reconstruction rec = scene.truth_reconstruction();
+  const auto q = measure_quality(rec, scene.keypoints);
+  EXPECT_EQ(q.registered_images, 8u);
+  EXPECT_EQ(q.total_images, 8u);
+  EXPECT_LT(q.reprojection_rmse_px, 1e-9);
+  // Depth about 1.6-2.6 m over f = 1380 px: 1.2-1.9 mm per pixel.
+  EXPECT_GT(q.gsd_m, 0.0011);
+  EXPECT_LT(q.gsd_m, 0.0020);
+  EXPECT_GT(q.mean_track_length, 2.0);
+}
+
+}  // namespace
+}  // namespace strata
