@@ -86,8 +86,17 @@ CrsInfo describe_crs(const std::string& text) {
     // A PROJ string or WKT without an id: ask PROJ for the equivalent EPSG entry.
     int* confidence = nullptr;
     PJ_OBJ_LIST* matches = proj_identify(ctx.get(), crs.get(), "EPSG", nullptr, &confidence);
-    if (matches && proj_list_get_count(matches) > 0 && confidence && confidence[0] >= 90) {
-      PjPtr best(proj_list_get(ctx.get(), matches, 0));
+    // PROJ strings carry no axis order and name no datum ensemble, so PROJ gives
+    // its best match 70 % confidence; accept it when the two are equivalent.
+    PjPtr best;
+    if (matches && proj_list_get_count(matches) > 0 && confidence) {
+      best.reset(proj_list_get(ctx.get(), matches, 0));
+      const bool equivalent =
+          proj_is_equivalent_to_with_ctx(ctx.get(), best.get(), crs.get(),
+                                          PJ_COMP_EQUIVALENT_EXCEPT_AXIS_ORDER_GEOGCRS) != 0;
+      if (!(confidence[0] >= 90 || (confidence[0] >= 70 && equivalent))) best.reset();
+    }
+    if (best) {
       info.authority = "EPSG";
       info.code = std::atoi(proj_get_id_code(best.get(), 0));
       info.name = proj_get_name(best.get());

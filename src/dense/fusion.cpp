@@ -282,7 +282,7 @@ DenseMesh TsdfVolume::points_from_mesh(const DenseMesh& full_mesh) const {
                           g[k] = sampler.wsSample(a) - sampler.wsSample(b);
                         }
                         const double n = g.norm();
-                        mesh.normals[i] = n > 0 ? (g / n).cast<float>() : Eigen::Vector3f::UnitZ();
+                        mesh.normals[i] = n > 0 ? Eigen::Vector3f((g / n).cast<float>()) : Eigen::Vector3f::UnitZ();
                       }
                     });
   return mesh;

@@ -189,6 +189,8 @@ void Scene::layout(std::uint64_t seed) {
     return std::array<double, 4>{amp, k * std::cos(dir), k * std::sin(dir), rng.uniform(0, 2 * kPi)};
   };
   for (int i = 0; i < 3; ++i) ground_waves_.push_back(random_wave(0.01, 0.03, 3.0, 8.0));
+  ground_slope_bound_ = std::hypot(gsx_, gsy_);
+  for (const auto& w : ground_waves_) ground_slope_bound_ += w[0] * std::hypot(w[1], w[2]);
   // Unit thickness fields: a mean level and three waves of 1.5-5 m wavelength.
   unit_mean_.assign(std::size_t(stages_ + 1), 0.5);
   unit_waves_.resize(std::size_t(stages_ + 1));
@@ -400,6 +402,7 @@ void Scene::build_surfaces() {
   tiles_x_ = (proto.nx - 2) / kTile + 1;
   tiles_y_ = (proto.ny - 2) / kTile + 1;
   tile_max_.assign(std::size_t(layers()), std::vector<float>(std::size_t(tiles_x_ * tiles_y_)));
+  surface_max_.assign(std::size_t(layers()), -1e30f);
   for (int k = 0; k < layers(); ++k) {
     const HeightGrid& g = surfaces_[std::size_t(k)];
     for (int ty = 0; ty < tiles_y_; ++ty)
@@ -408,6 +411,7 @@ void Scene::build_surfaces() {
         for (int j = ty * kTile; j <= std::min((ty + 1) * kTile, g.ny - 1); ++j)
           for (int i = tx * kTile; i <= std::min((tx + 1) * kTile, g.nx - 1); ++i) mx = std::max(mx, g.node(i, j));
         tile_max_[std::size_t(k)][std::size_t(ty * tiles_x_ + tx)] = mx;
+        surface_max_[std::size_t(k)] = std::max(surface_max_[std::size_t(k)], mx);
       }
   }
 }
@@ -503,28 +507,30 @@ Rgb Scene::albedo(const Material& m, double u, double v, double fp) const {
   return c;
 }
 
-Rgb Scene::marker_albedo(double x, double y, double fp, const Rgb& under) const {
-  constexpr float kPaperWhite = 0.82f, kInkBlack = 0.035f;  // matte print reflectance
+Scene::Print Scene::marker_print(double x, double y, double fp) const {
+  constexpr double kPaperWhite = 0.82, kInkBlack = 0.035;  // matte print reflectance
+  Print print;
   for (const auto& m : markers_) {
     const double dx = x - m.centre.x(), dy = y - m.centre.y(), half = 0.5 * m.size;
     if (std::abs(dx) > 0.75 * m.size + fp || std::abs(dy) > 0.75 * m.size + fp) continue;
     const double ca = std::cos(m.yaw), sa = std::sin(m.yaw);
     const double cell = m.size / 8.0;
-    double covered = 0, refl = 0;
+    double refl = 0;
     // 2 x 2 samples over the footprint: antialiased edges of the printed cells.
     for (int s = 0; s < 4; ++s) {
       const double ox = (s & 1 ? 0.25 : -0.25) * fp, oy = (s & 2 ? 0.25 : -0.25) * fp;
       const double a = ca * (dx + ox) + sa * (dy + oy), b = -sa * (dx + ox) + ca * (dy + oy);
       if (std::abs(a) >= half || std::abs(b) >= half) continue;
       const int col = std::clamp(int((a + half) / cell), 0, 7), row = std::clamp(int((half - b) / cell), 0, 7);
-      covered += 0.25;
+      print.coverage += 0.25;
       refl += 0.25 * (m.white[std::size_t(row * 8 + col)] ? kPaperWhite : kInkBlack);
     }
-    if (covered <= 0) continue;
-    const Rgb paper{float(refl / covered), float(refl / covered), float(refl / covered)};
-    return lerp(under, paper, covered);
+    if (print.coverage > 0) {
+      print.reflectance = refl / print.coverage;
+      return print;
+    }
   }
-  return under;
+  return print;
 }
 
 }  // namespace strata::synthetic

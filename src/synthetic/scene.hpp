@@ -109,6 +109,9 @@ class Scene {
   int tile_size() const { return kTile; }
   int tiles_x() const { return tiles_x_; }
   int tiles_y() const { return tiles_y_; }
+  float surface_max(int layer) const { return surface_max_.at(std::size_t(layer)); }
+  // Upper bound of |grad ground_smooth|, for conservative ray marching.
+  double ground_slope_bound() const { return ground_slope_bound_; }
 
   // The ground beyond the fine grid: smooth, analytic (no micro-relief).
   double ground_smooth(double x, double y) const;
@@ -126,8 +129,13 @@ class Scene {
   // Linear reflectance of material `m` at texture coordinates (u, v) in metres,
   // band-limited to `footprint` metres.
   Rgb albedo(const Material& m, double u, double v, double footprint) const;
-  // Reflectance of a printed marker under (x, y), blended with `under`.
-  Rgb marker_albedo(double x, double y, double footprint, const Rgb& under) const;
+  // The printed target under (x, y), if any: how much of the footprint it covers
+  // and its mean reflectance there (grey: white paper, black ink).
+  struct Print {
+    double coverage = 0;     // 0..1
+    double reflectance = 0;  // linear, over the covered part
+  };
+  Print marker_print(double x, double y, double footprint) const;
 
   const std::vector<MarkerTarget>& markers() const { return markers_; }
   const std::vector<Stone>& stones() const { return stones_; }
@@ -171,6 +179,8 @@ class Scene {
   std::vector<HeightGrid> surfaces_;
   std::vector<std::vector<float>> tile_max_;
   int tiles_x_ = 0, tiles_y_ = 0;
+  std::vector<float> surface_max_;
+  double ground_slope_bound_ = 0;
   std::vector<UnitRecord> units_;
   std::vector<RelationRecord> relations_;
 };

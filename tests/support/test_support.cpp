@@ -16,9 +16,12 @@ namespace fs = std::filesystem;
 namespace strata::test {
 namespace {
 fs::path env_path(const char* name) {
-  const char* v = std::getenv(name);
-  if (!v) throw std::runtime_error(std::string("test environment variable missing: ") + name);
-  return v;
+  if (const char* v = std::getenv(name)) return v;
+  const std::string n = name;
+  if (n == "STRATA_SOURCE_DIR") return STRATA_SOURCE_DIR;
+  if (n == "STRATA_BINARY_DIR") return STRATA_BINARY_DIR;
+  if (n == "STRATA_EXE") return STRATA_EXE;
+  throw std::runtime_error("unknown test path " + n);
 }
 std::string slurp_fd(int fd) {
   std::string s;

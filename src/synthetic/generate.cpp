@@ -1,0 +1,414 @@
+// generate_excavation(): orchestration of the synthetic dataset. The maths lives in
+// scene.cpp (geometry, materials), render.cpp (ray casting) and photo_set.cpp
+// (cameras, sessions); this file validates, sequences, and writes.
+#include "synthetic/synthetic.hpp"
+
+#include "core/error.hpp"
+#include "core/log.hpp"
+#include "core/progress.hpp"
+#include "core/resources.hpp"
+#include "synthetic/noise.hpp"
+#include "synthetic/photo_set.hpp"
+#include "synthetic/render.hpp"
+#include "synthetic/scene.hpp"
+#include "synthetic/writers.hpp"
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgproc.hpp>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <cmath>
+#include <cstring>
+#include <memory>
+#include <unistd.h>
+
+namespace fs = std::filesystem;
+
+namespace strata {
+namespace {
+
+constexpr double kTruthMargin = 0.25;        // metres of truth raster around the trench
+constexpr double kAreaThreshold = 0.001;     // metres: removed thickness counted as area
+constexpr double kOcclusionTol = 0.005;      // metres: a marker centre hidden by more is not observed
+constexpr double kMaxMarkerIncidence = 80.0; // degrees from the marker normal still observed
+constexpr double kLensBlurSigma = 0.55;      // pixels: optics + demosaicing softness
+constexpr double kVignetting = 0.22;         // relative fall-off at the image corner
+constexpr double kMidGrey = 0.18;            // linear mean the auto-exposure aims for
+constexpr std::int64_t kMaxGridNodes = 80'000'000;  // per layer: ~320 MB of Float32
+constexpr const char* kMake = "Strata Synthetic";
+constexpr const char* kModel = "SynthCam APS-C";
+
+template <typename T>
+void require(bool ok, const char* field, T value, const char* range) {
+  if (!ok) throw InputError(fmt::format("synth: option {} must be {} (got {})", field, range, value));
+}
+
+std::string exif_time(const std::string& iso) {  // "2024-06-10T09:00:01" -> "2024:06:10 09:00:01"
+  std::string s = iso;
+  s[4] = ':';
+  s[7] = ':';
+  s[10] = ' ';
+  return s;
+}
+
+// Camera response: vignetting, lens blur, auto-exposure, sRGB encoding and sensor
+// noise (read noise plus shot noise growing with the signal), then 8-bit.
+std::vector<std::uint8_t> develop(const synthetic::LinearImage& img, const Intrinsics& k,
+                                  double noise_sigma, std::uint64_t seed) {
+  const int w = img.width, h = img.height;
+  cv::Mat lin(h, w, CV_32FC3);
+  std::memcpy(lin.data, img.rgb.data(), img.rgb.size() * sizeof(float));
+  const double rmax2 = std::pow(0.5 * w, 2) + std::pow(0.5 * h, 2);
+  for (int v = 0; v < h; ++v) {
+    auto* row = lin.ptr<float>(v);
+    for (int u = 0; u < w; ++u) {
+      const double r2 = (std::pow(u - k.cx, 2) + std::pow(v - k.cy, 2)) / rmax2;
+      const float f = float(1.0 - kVignetting * r2);
+      for (int c = 0; c < 3; ++c) row[3 * u + c] *= f;
+    }
+  }
+  cv::GaussianBlur(lin, lin, cv::Size(), kLensBlurSigma, kLensBlurSigma, cv::BORDER_REFLECT);
+  const cv::Scalar mean = cv::mean(lin);
+  const double luminance = 0.2126 * mean[0] + 0.7152 * mean[1] + 0.0722 * mean[2];
+  synthetic::Rng rng(seed);
+  const double exposure = std::clamp(kMidGrey / std::max(luminance, 1e-6), 0.3, 4.0) * std::exp(rng.uniform(-0.08, 0.08));
+  std::vector<std::uint8_t> out(3 * std::size_t(w) * std::size_t(h));
+  const auto seed32 = std::uint32_t(rng.next());
+  for (int v = 0; v < h; ++v) {
+    const auto* row = lin.ptr<float>(v);
+    for (int u = 0; u < w; ++u)
+      for (int c = 0; c < 3; ++c) {
+        const double l = std::max(0.0, row[3 * u + c] * exposure);
+        const double s = l <= 0.0031308 ? 12.92 * l : 1.055 * std::pow(std::min(l, 1.0), 1 / 2.4) - 0.055;
+        // Approximately Gaussian: sum of four uniforms (Irwin-Hall), unit variance.
+        const std::int64_t key = (std::int64_t(v) * w + u) * 3 + c;
+        double g = -2.0;
+        for (std::uint32_t q = 0; q < 4; ++q) g += synthetic::hash_unit(key, q, seed32);
+        g *= std::sqrt(3.0);
+        const double sigma = noise_sigma * std::sqrt(0.4 + 1.2 * s);
+        out[3 * (std::size_t(v) * std::size_t(w) + std::size_t(u)) + std::size_t(c)] =
+            std::uint8_t(std::clamp(std::lround(255.0 * s + sigma * g), 0L, 255L));
+      }
+  }
+  return out;
+}
+
+struct UnitVolume {
+  double volume = 0, area = 0, max = 0;
+};
+
+// Exact integral of the difference of two bilinear height fields on the same
+// nodes: per cell, the mean of the four corner differences times the cell area.
+UnitVolume removed_volume(const synthetic::HeightGrid& before, const synthetic::HeightGrid& after) {
+  UnitVolume r;
+  const double area = before.cell * before.cell;
+  for (int j = 0; j + 1 < before.ny; ++j)
+    for (int i = 0; i + 1 < before.nx; ++i) {
+      double mean = 0;
+      for (int q = 0; q < 4; ++q) {
+        const double d = double(before.node(i + (q & 1), j + (q >> 1))) - after.node(i + (q & 1), j + (q >> 1));
+        mean += 0.25 * d;
+        r.max = std::max(r.max, d);
+      }
+      r.volume += mean * area;
+      if (mean > kAreaThreshold) r.area += area;
+    }
+  return r;
+}
+
+void write_dataset(const SyntheticExcavationOptions& o, const fs::path& dir, SyntheticExcavationSummary& summary) {
+  using namespace synthetic;
+  log::info("synth: building the site (seed {}, {} stages)", o.seed, o.site.stages);
+  const Scene scene(o);
+  const Intrinsics intrinsics = make_intrinsics(o);
+  const auto& site = o.site;
+  const Eigen::Vector3d origin(site.origin_e, site.origin_n, site.origin_z);
+  const std::string crs = fmt::format("EPSG:{}", site.epsg);
+  fs::create_directories(dir / "truth");
+
+  // Markers: truth and a 'surveyed' copy with Gaussian noise.
+  Rng survey(o.seed ^ 0x5EB7E7ull);
+  std::vector<Eigen::Vector3d> surveyed;
+  {
+    TextFile truth(dir / "truth" / "markers.csv"), meas(dir / "markers.csv");
+    truth.out() << "name,E,N,Z,sigma,kind\n";
+    meas.out() << "name,E,N,Z,sigma,kind\n";
+    for (const auto& m : scene.markers()) {
+      const Eigen::Vector3d t = m.centre + origin;
+      const Eigen::Vector3d s = t + site.survey_sigma * Eigen::Vector3d(survey.normal(), survey.normal(), survey.normal());
+      surveyed.push_back(s);
+      const char* kind = m.check ? "check" : "control";
+      truth.out() << fmt::format("{},{:.6f},{:.6f},{:.6f},0,{}\n", m.name, t.x(), t.y(), t.z(), kind);
+      meas.out() << fmt::format("{},{:.4f},{:.4f},{:.4f},{},{}\n", m.name, s.x(), s.y(), s.z(), site.survey_sigma, kind);
+    }
+    truth.close();
+    meas.close();
+  }
+
+  // Each recorded layer: bake its lit texture, photograph it, write its truth.
+  std::vector<std::string> gcp_lines;
+  std::unique_ptr<LayerTexture> ground;
+  const double sensor = o.photos.sensor_width_mm;
+  const double focal_mm = intrinsics.fx / intrinsics.width * sensor;
+  RenderSettings settings;
+  settings.edge_samples = o.render.edge_samples;
+  for (int k = 0; k < scene.layers(); ++k) {
+    check_cancelled();
+    const std::string layer = fmt::format("L{}", k + 1);
+    fs::create_directories(dir / "photos" / layer);
+    fs::create_directories(dir / "truth" / layer);
+    const Lighting light = session_lighting(scene, k);
+    auto texture = std::make_unique<LayerTexture>(scene, k, light, o.render.texel, ground.get());
+    const auto plan = plan_photos(scene, k, intrinsics);
+    std::vector<std::vector<std::string>> observations(plan.size());
+    {
+      Progress progress(fmt::format("synth: photographing {}", layer), plan.size());
+      tbb::parallel_for(std::size_t(0), plan.size(), [&](std::size_t i) {
+        check_cancelled();
+        const PlannedPhoto& p = plan[i];
+        const LinearImage img = render_view(scene, k, *texture, light, p.camera, settings);
+        const auto rgb = develop(img, intrinsics, o.photos.noise_sigma, mix64(o.seed * 1000003 + std::uint64_t(k) * 1009 + i));
+        ExifFields exif;
+        exif.make = kMake;
+        exif.model = kModel;
+        exif.software = "strata synth 0.1.0";
+        exif.description = fmt::format("strata synthetic excavation, seed {}, layer {}", o.seed, layer);
+        exif.datetime = exif_time(session_time(k, p.seconds_after_start));
+        exif.focal_mm = focal_mm;
+        exif.focal_35mm = int(std::lround(focal_mm * 36.0 / sensor));
+        exif.sensor_width_mm = sensor;
+        exif.width = intrinsics.width;
+        exif.height = intrinsics.height;
+        write_jpeg(dir / "photos" / layer / p.name, rgb, img.width, img.height, o.photos.jpeg_quality, exif);
+
+        // True observations of every marker centre this photo sees.
+        const Eigen::Vector3d c = p.camera.pose.centre();
+        for (std::size_t m = 0; m < scene.markers().size(); ++m) {
+          const Eigen::Vector3d& x = scene.markers()[m].centre;
+          const auto px = p.camera.project(x);
+          if (!px || px->x() < 0 || px->y() < 0 || px->x() > intrinsics.width - 1 || px->y() > intrinsics.height - 1)
+            continue;
+          const Eigen::Vector3d d = (x - c).normalized();
+          if (-d.z() < std::cos(kMaxMarkerIncidence * 3.141592653589793 / 180)) continue;
+          const RayHit hit = cast_ray(scene, k, c, d);
+          if (hit.where == RayHit::Where::sky || hit.t < (x - c).norm() - kOcclusionTol) continue;
+          const Eigen::Vector3d& s = surveyed[m];
+          observations[i].push_back(fmt::format("{:.4f}\t{:.4f}\t{:.4f}\t{:.4f}\t{:.4f}\t{}\t{}", s.x(), s.y(), s.z(),
+                                                px->x(), px->y(), p.name, scene.markers()[m].name));
+        }
+        progress.step();
+      });
+      progress.finish();
+    }
+    for (const auto& v : observations) gcp_lines.insert(gcp_lines.end(), v.begin(), v.end());
+    summary.photos += int(plan.size());
+
+    TextFile cams(dir / "truth" / layer / "cameras.csv");
+    cams.out() << "image,fx,fy,ppx,ppy,k1,k2,r11,r12,r13,r21,r22,r23,r31,r32,r33,X,Y,Z\n";
+    for (const auto& p : plan) {
+      const auto& K = p.camera.intrinsics;
+      const auto& R = p.camera.pose.R;
+      const Eigen::Vector3d c = p.camera.pose.centre() + origin;
+      cams.out() << fmt::format("{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g}", p.name, K.fx, K.fy, K.cx, K.cy,
+                                K.k1, K.k2);
+      for (int r = 0; r < 3; ++r)
+        for (int q = 0; q < 3; ++q) cams.out() << fmt::format(",{:.17g}", R(r, q));
+      cams.out() << fmt::format(",{:.17g},{:.17g},{:.17g}\n", c.x(), c.y(), c.z());
+    }
+    cams.close();
+
+    // Truth surface: cell centres on a grid aligned to multiples of the cell in the CRS.
+    Raster raster;
+    raster.cell = o.render.truth_cell;
+    raster.epsg = site.epsg;
+    raster.west = std::floor((origin.x() + scene.trench_x0() - kTruthMargin) / raster.cell) * raster.cell;
+    raster.north = std::ceil((origin.y() + scene.trench_y1() + kTruthMargin) / raster.cell) * raster.cell;
+    raster.cols = int(std::ceil((origin.x() + scene.trench_x1() + kTruthMargin - raster.west) / raster.cell));
+    raster.rows = int(std::ceil((raster.north - (origin.y() + scene.trench_y0() - kTruthMargin)) / raster.cell));
+    raster.values.resize(std::size_t(raster.cols) * std::size_t(raster.rows));
+    const HeightGrid& surface = scene.surface(k);
+    tbb::parallel_for(0, raster.rows, [&](int r) {
+      for (int q = 0; q < raster.cols; ++q) {
+        const double x = raster.west + (q + 0.5) * raster.cell - origin.x();
+        const double y = raster.north - (r + 0.5) * raster.cell - origin.y();
+        raster.values[std::size_t(r) * std::size_t(raster.cols) + std::size_t(q)] =
+            surface.contains(x, y) ? float(surface.sample(x, y) + origin.z()) : raster.nodata;
+      }
+    });
+    write_geotiff(dir / "truth" / layer / "surface.tif", raster);
+
+    if (k == 0) ground = std::move(texture);
+  }
+
+  {
+    TextFile gcp(dir / "gcp_list.txt");
+    gcp.out() << crs << "\n";
+    for (const auto& l : gcp_lines) gcp.out() << l << "\n";
+    gcp.close();
+  }
+  summary.marker_observations = int(gcp_lines.size());
+  summary.markers = int(scene.markers().size());
+  summary.layers = scene.layers();
+
+  // Volumes removed, per excavated unit.
+  {
+    TextFile units(dir / "truth" / "units.csv");
+    units.out() << "unit,volume_m3,area_m2,mean_thickness_m,max_thickness_m\n";
+    for (int k = 1; k < scene.layers(); ++k) {
+      const UnitVolume v = removed_volume(scene.surface(k - 1), scene.surface(k));
+      SyntheticExcavationSummary::UnitVolume u;
+      u.unit = scene.layer_unit_code(k - 1);
+      u.volume_m3 = v.volume;
+      u.area_m2 = v.area;
+      u.mean_thickness_m = v.area > 0 ? v.volume / v.area : 0;
+      u.max_thickness_m = v.max;
+      summary.units.push_back(u);
+      units.out() << fmt::format("{},{:.9g},{:.9g},{:.9g},{:.9g}\n", u.unit, u.volume_m3, u.area_m2,
+                                 u.mean_thickness_m, u.max_thickness_m);
+    }
+    units.close();
+  }
+
+  // Stratigraphy and layers.
+  {
+    TextFile units(dir / "units.csv");
+    units.out() << "code,type,description\n";
+    for (const auto& u : scene.units())
+      units.out() << csv_field(u.code) << ',' << csv_field(u.type) << ',' << csv_field(u.description) << '\n';
+    units.close();
+    TextFile rel(dir / "relations.csv");
+    rel.out() << "a,relation,b\n";
+    for (const auto& r : scene.relations()) rel.out() << r.a << ',' << r.relation << ',' << r.b << '\n';
+    rel.close();
+    TextFile layers(dir / "layers.csv");
+    layers.out() << "layer,unit,captured_at,photos_dir\n";
+    for (int k = 0; k < scene.layers(); ++k)
+      layers.out() << fmt::format("L{},{},{},photos/L{}\n", k + 1, scene.layer_unit_code(k), session_time(k, 0), k + 1);
+    layers.close();
+  }
+
+  nlohmann::ordered_json j;
+  j["crs"] = crs;
+  j["origin"] = {origin.x(), origin.y(), origin.z()};
+  j["seed"] = o.seed;
+  const double cx = 0.5 * (scene.trench_x0() + scene.trench_x1()), cy = 0.5 * (scene.trench_y0() + scene.trench_y1());
+  j["trench"] = {{"min_E", origin.x() + scene.trench_x0()},
+                 {"min_N", origin.y() + scene.trench_y0()},
+                 {"max_E", origin.x() + scene.trench_x1()},
+                 {"max_N", origin.y() + scene.trench_y1()},
+                 {"size_E_m", site.trench_size_e},
+                 {"size_N_m", site.trench_size_n},
+                 {"ground_Z", origin.z() + scene.surface(0).sample(cx, cy)}};
+  j["layers"] = nlohmann::json::array();
+  for (int k = 0; k < scene.layers(); ++k)
+    j["layers"].push_back({{"name", fmt::format("L{}", k + 1)},
+                           {"unit", scene.layer_unit_code(k)},
+                           {"captured_at", session_time(k, 0)},
+                           {"photos", fmt::format("photos/L{}", k + 1)},
+                           {"truth", fmt::format("truth/L{}", k + 1)}});
+  j["camera"] = {{"make", kMake},
+                 {"model", kModel},
+                 {"sensor_width_mm", sensor},
+                 {"width", intrinsics.width},
+                 {"height", intrinsics.height},
+                 {"focal_mm", focal_mm}};
+  j["markers"] = {{"dictionary", "DICT_4X4_50"},
+                  {"size_m", site.marker_size},
+                  {"count", site.markers},
+                  {"check", site.check_markers},
+                  {"survey_sigma_m", site.survey_sigma}};
+  j["generator"] = {{"name", "strata synth"}, {"version", "0.1.0"}};
+  TextFile json(dir / "site.json");
+  json.out() << j.dump(2) << "\n";
+  json.close();
+}
+
+}  // namespace
+
+SyntheticExcavationOptions SyntheticExcavationOptions::preset(Size size) {
+  SyntheticExcavationOptions o;
+  if (size == Size::full) {
+    o.photos.per_layer = 40;
+    o.photos.width = 2400;
+    o.photos.height = 1600;
+    o.render.height_cell = 0.0025;
+    o.render.texel = 0.00125;  // about the ground sampling distance at 1.5-2 m
+  }
+  return o;
+}
+
+void SyntheticExcavationOptions::validate() const {
+  require(site.epsg > 0, "site.epsg", site.epsg, "a positive EPSG code");
+  require(site.trench_size_e >= 1 && site.trench_size_e <= 20, "site.trench_size_e", site.trench_size_e, "1..20 m");
+  require(site.trench_size_n >= 1 && site.trench_size_n <= 20, "site.trench_size_n", site.trench_size_n, "1..20 m");
+  require(site.stages >= 1 && site.stages <= 8, "site.stages", site.stages, "1..8");
+  require(site.min_unit_thickness >= 0.01, "site.min_unit_thickness", site.min_unit_thickness, ">= 0.01 m");
+  require(site.max_unit_thickness >= site.min_unit_thickness && site.max_unit_thickness <= 1.0,
+          "site.max_unit_thickness", site.max_unit_thickness, "between site.min_unit_thickness and 1 m");
+  require(site.markers >= 4 && site.markers <= 12, "site.markers", site.markers, "4..12");
+  require(site.check_markers >= 0 && site.check_markers <= site.markers - 3, "site.check_markers",
+          site.check_markers, "0..markers-3 (3 control points at least)");
+  require(site.marker_size >= 0.05 && site.marker_size <= 0.5, "site.marker_size", site.marker_size, "0.05..0.5 m");
+  require(site.survey_sigma >= 0 && site.survey_sigma <= 0.1, "site.survey_sigma", site.survey_sigma, "0..0.1 m");
+  require(photos.per_layer >= 3 && photos.per_layer <= 500, "photos.per_layer", photos.per_layer, "3..500");
+  require(photos.width >= 64 && photos.width <= 10000, "photos.width", photos.width, "64..10000 pixels");
+  require(photos.height >= 64 && photos.height <= 10000, "photos.height", photos.height, "64..10000 pixels");
+  require(photos.focal_ratio >= 0.5 && photos.focal_ratio <= 2.0, "photos.focal_ratio", photos.focal_ratio, "0.5..2");
+  require(photos.sensor_width_mm > 1 && photos.sensor_width_mm <= 100, "photos.sensor_width_mm",
+          photos.sensor_width_mm, "1..100 mm");
+  require(photos.jpeg_quality >= 1 && photos.jpeg_quality <= 100, "photos.jpeg_quality", photos.jpeg_quality, "1..100");
+  require(photos.noise_sigma >= 0 && photos.noise_sigma <= 20, "photos.noise_sigma", photos.noise_sigma, "0..20 grey levels");
+  require(render.height_cell >= 0.001 && render.height_cell <= 0.01, "render.height_cell", render.height_cell, "0.001..0.01 m");
+  require(render.texel >= 0.0005 && render.texel <= 0.01, "render.texel", render.texel, "0.0005..0.01 m");
+  require(render.edge_samples >= 0 && render.edge_samples <= 8, "render.edge_samples", render.edge_samples, "0..8");
+  require(render.truth_cell >= 0.001 && render.truth_cell <= 0.05, "render.truth_cell", render.truth_cell, "0.001..0.05 m");
+  require(render.threads >= 0 && render.threads <= 1024, "render.threads", render.threads, "0 (all cores)..1024");
+  constexpr double kGridMarginBoth = 2 * 1.2;  // metres: fine grid margin, both sides (scene.cpp)
+  const double nodes = (site.trench_size_e + kGridMarginBoth) * (site.trench_size_n + kGridMarginBoth) /
+                       (render.height_cell * render.height_cell);
+  require(nodes <= double(kMaxGridNodes), "render.height_cell", render.height_cell,
+          "coarse enough for at most 80 million height nodes per layer");
+  const double texels = nodes * std::pow(render.height_cell / render.texel, 2);
+  require(texels <= 4.0 * double(kMaxGridNodes), "render.texel", render.texel,
+          "coarse enough for at most 320 million texels per layer");
+}
+
+SyntheticExcavationSummary generate_excavation(const SyntheticExcavationOptions& options, const fs::path& out_dir) {
+  const Stopwatch clock;
+  options.validate();
+  std::error_code ec;
+  if (fs::exists(out_dir)) {
+    if (!fs::is_directory(out_dir)) throw InputError("synth: " + out_dir.string() + " exists and is not a folder");
+    if (!fs::is_empty(out_dir))
+      throw InputError("synth: output folder " + out_dir.string() + " is not empty; choose a new or empty folder");
+  }
+  const fs::path target = fs::absolute(out_dir).lexically_normal();
+  const fs::path parent = target.has_filename() ? target.parent_path() : target.parent_path().parent_path();
+  const std::string name = (target.has_filename() ? target : target.parent_path()).filename().string();
+  fs::create_directories(parent, ec);
+  if (ec) throw IoError("synth: cannot create " + parent.string() + ": " + ec.message());
+  // Written beside the target and moved into place at the end: a failure or an
+  // interruption never leaves a half-written dataset under the requested name.
+  const fs::path partial = parent / fmt::format(".{}.partial-{}", name, ::getpid());
+  fs::remove_all(partial, ec);
+  fs::create_directories(partial, ec);
+  if (ec) throw IoError("synth: cannot create " + partial.string() + ": " + ec.message());
+
+  SyntheticExcavationSummary summary;
+  summary.out_dir = parent / name;
+  try {
+    tbb::task_arena arena(options.render.threads > 0 ? options.render.threads : tbb::task_arena::automatic);
+    arena.execute([&] { write_dataset(options, partial, summary); });
+    if (fs::exists(summary.out_dir)) fs::remove(summary.out_dir);  // checked empty above
+    fs::rename(partial, summary.out_dir);
+  } catch (...) {
+    fs::remove_all(partial, ec);
+    throw;
+  }
+  summary.seconds = clock.seconds();
+  return summary;
+}
+
+}  // namespace strata

@@ -1,0 +1,51 @@
+#pragma once
+// File writers of the synthetic dataset (internal): JPEG with EXIF (OpenCV +
+// exiv2), Float32 GeoTIFF (GDAL), text files. Errors are IoError naming the file.
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+namespace strata::synthetic {
+
+struct ExifFields {
+  std::string make, model, software, description;
+  std::string datetime;           // EXIF form "YYYY:MM:DD HH:MM:SS"
+  double focal_mm = 0;            // millimetres
+  int focal_35mm = 0;             // millimetres, 35 mm-equivalent
+  double sensor_width_mm = 0;     // millimetres, for FocalPlaneXResolution
+  int width = 0, height = 0;      // pixels
+};
+
+// rgb: 8-bit, interleaved R, G, B, row-major.
+void write_jpeg(const std::filesystem::path& path, const std::vector<std::uint8_t>& rgb, int width,
+                int height, int quality, const ExifFields& exif);
+
+struct Raster {
+  double west = 0, north = 0;     // metres, CRS: outer corner of the top-left cell
+  double cell = 0;                // metres
+  int cols = 0, rows = 0;
+  int epsg = 0;
+  float nodata = -9999.0f;
+  std::vector<float> values;      // row-major from the north edge
+};
+void write_geotiff(const std::filesystem::path& path, const Raster& raster);
+
+// An output text file; throws IoError when it cannot be created. close() checks
+// that everything reached the disk.
+class TextFile {
+ public:
+  explicit TextFile(const std::filesystem::path& path);
+  std::ofstream& out() { return out_; }
+  void close();
+
+ private:
+  std::filesystem::path path_;
+  std::ofstream out_;
+};
+
+// A CSV field, quoted when it holds a comma, quote or newline (RFC 4180).
+std::string csv_field(const std::string& s);
+
+}  // namespace strata::synthetic
