@@ -1,0 +1,52 @@
+#!/usr/bin/env bash
+# The main job on the bundled example excavation, end to end:
+#   install what is missing -> build strata -> generate the synthetic example
+#   excavation (if absent) -> create a project -> record units, relations, layers
+#   -> import photos and surveyed markers -> process every layer -> summary.
+# Usage: scripts/example.sh [--size small|full]   (default: full)
+# Everything goes under example/ (ignored by git); rerunning reuses what exists.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+size=full
+if [[ "${1:-}" == "--size" ]]; then size="${2:?--size needs small or full}"; fi
+
+bash scripts/setup.sh
+cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo >/dev/null
+cmake --build build -j "$(nproc)" --target strata
+strata=build/src/cli/strata
+
+data=example/data-$size
+site=example/site-$size
+if [[ ! -f "$data/site.json" ]]; then
+  echo "== generating the synthetic example excavation ($size) in $data"
+  rm -rf "$data"
+  "$strata" synth "$data" --size "$size"
+fi
+
+if [[ ! -f "$site/project.gpkg" ]]; then
+  echo "== creating the project $site"
+  crs=$(sed -n 's/.*"crs" *: *"\([^"]*\)".*/\1/p' "$data/site.json" | head -n 1)
+  "$strata" init "$site" --crs "$crs" --name "strata example excavation ($size)"
+  tail -n +2 "$data/units.csv" | while IFS=, read -r code type description; do
+    "$strata" -q unit add "$site" "$code" --type "$type" --description "$description"
+  done
+  tail -n +2 "$data/relations.csv" | while IFS=, read -r a relation b; do
+    "$strata" -q relation add "$site" "$a" "$relation" "$b" >/dev/null
+  done
+  tail -n +2 "$data/layers.csv" | while IFS=, read -r layer unit captured photos; do
+    "$strata" -q layer add "$site" "$layer" --unit "$unit" --captured-at "$captured"
+    "$strata" -q import photos "$site" --layer "$layer" "$data/$photos"/*.jpg
+  done
+  "$strata" -q import markers "$site" "$data/markers.csv"
+fi
+
+if "$strata" process --help >/dev/null 2>&1; then
+  echo "== processing every layer"
+  "$strata" process "$site" --all
+fi
+
+echo "== the project"
+"$strata" info "$site"
+echo
+echo "Harris matrix: $strata matrix $site --format dot"
+echo "Project database (open in QGIS): $site/project.gpkg"

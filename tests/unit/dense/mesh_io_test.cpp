@@ -1,0 +1,97 @@
+// writer.ply / writer.obj round trips: header, counts, and full precision of
+// site-CRS coordinates with a large (UTM-sized) offset.
+#include "core/error.hpp"
+#include "dense/dense.hpp"
+#include "test_support.hpp"
+
+#include <gtest/gtest.h>
+
+namespace strata {
+namespace {
+
+constexpr double kCrsTolerance = 1e-6;    // metres: doubles keep micrometres at 1e7 m
+constexpr double kLocalTolerance = 1e-5;  // metres: float in the site frame, |x| < 100 m
+const Eigen::Vector3d kOrigin(512345.678901, 4123456.789012, 234.5);  // E, N, Z metres
+
+DenseMesh small_mesh() {
+  DenseMesh m;
+  m.vertices = {{0.0, 0.0, 0.0}, {1.234567, 0.000123, -0.5}, {0.1, 2.000001, 0.25}, {-3.5, 7.25, 1.0}};
+  m.colours = {Rgb8(255, 0, 0), Rgb8(0, 255, 0), Rgb8(0, 0, 255), Rgb8(10, 20, 30)};
+  m.faces = {{0, 1, 2}, {0, 2, 3}};
+  return m;
+}
+
+TEST(DenseMeshIo, PlyRoundTripKeepsCrsCoordinatesInDouble) {
+  test::ScratchDir dir("dense_ply");
+  const DenseMesh m = small_mesh();
+  ExportFrame frame;
+  frame.site_origin = kOrigin;
+  frame.crs = "EPSG:32636";
+  write_ply(dir / "mesh.ply", m, frame);
+  EXPECT_FALSE(std::filesystem::exists(dir / "mesh.ply.tmp"));
+  const PlyContents r = read_ply(dir / "mesh.ply");
+  ASSERT_GE(r.header.size(), 3u);
+  EXPECT_EQ(r.header[0], "ply");
+  EXPECT_EQ(r.header[1], "format binary_little_endian 1.0");
+  EXPECT_NE(std::find(r.header.begin(), r.header.end(), "element vertex 4"), r.header.end());
+  EXPECT_NE(std::find(r.header.begin(), r.header.end(), "property double x"), r.header.end());
+  EXPECT_NE(std::find(r.header.begin(), r.header.end(), "element face 2"), r.header.end());
+  EXPECT_TRUE(r.double_coordinates);
+  EXPECT_FALSE(r.has_offset_comment);
+  EXPECT_EQ(r.crs, "EPSG:32636");
+  ASSERT_EQ(r.mesh.vertices.size(), m.vertices.size());
+  for (std::size_t i = 0; i < m.vertices.size(); ++i) {
+    EXPECT_LT((r.mesh.vertices[i] - (m.vertices[i] + kOrigin)).norm(), kCrsTolerance) << i;
+    EXPECT_EQ(r.mesh.colours[i], m.colours[i]);
+  }
+  EXPECT_EQ(r.mesh.faces, m.faces);
+}
+
+TEST(DenseMeshIo, PlyLocalFloatCarriesOffsetComment) {
+  test::ScratchDir dir("dense_ply_local");
+  DenseMesh m = small_mesh();
+  m.faces.clear();  // a point cloud
+  m.normals.assign(m.vertices.size(), Eigen::Vector3f::UnitZ());
+  ExportFrame frame;
+  frame.crs_coordinates = false;
+  frame.site_origin = kOrigin;
+  write_ply(dir / "points.ply", m, frame);
+  const PlyContents r = read_ply(dir / "points.ply");
+  EXPECT_FALSE(r.double_coordinates);
+  ASSERT_TRUE(r.has_offset_comment);
+  EXPECT_LT((r.offset - kOrigin).norm(), kCrsTolerance);
+  ASSERT_EQ(r.mesh.vertices.size(), m.vertices.size());
+  EXPECT_TRUE(r.mesh.faces.empty());
+  ASSERT_EQ(r.mesh.normals.size(), m.vertices.size());
+  for (std::size_t i = 0; i < m.vertices.size(); ++i) {
+    EXPECT_LT((r.mesh.vertices[i] - m.vertices[i]).norm(), kLocalTolerance) << i;
+  }
+}
+
+TEST(DenseMeshIo, ObjHasVerticesFacesAndOffset) {
+  test::ScratchDir dir("dense_obj");
+  ExportFrame frame;
+  frame.site_origin = kOrigin;
+  write_obj(dir / "mesh.obj", small_mesh(), frame);
+  const std::string text = test::read_text(dir / "mesh.obj");
+  EXPECT_NE(text.find("v 512345.678901 4123456.789012 234.500000 1.0000 0.0000 0.0000\n"), std::string::npos);
+  EXPECT_NE(text.find("f 1 3 4\n"), std::string::npos);
+}
+
+TEST(DenseOptions, ValidationNamesTheField) {
+  DenseOptions o;
+  EXPECT_NO_THROW(o.validate());
+  o.patch_match.scale = 0.3;
+  try {
+    o.validate();
+    FAIL() << "expected InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("patch_match.scale"), std::string::npos);
+  }
+  o = DenseOptions();
+  o.fusion.truncation_voxels = 1;
+  EXPECT_THROW(o.validate(), InputError);
+}
+
+}  // namespace
+}  // namespace strata
