@@ -1,7 +1,51 @@
+// strata export ...
 #include "cli/commands.hpp"
+#include "core/error.hpp"
+#include "core/log.hpp"
+#include "exporters/cameras/camera_export.hpp"
+#include "pipeline/alignment_store.hpp"
+#include "project/project.hpp"
+#include "project/records.hpp"
+
+#include <fmt/format.h>
+
+#include <memory>
 
 namespace strata::cli {
 
-void register_export_commands(CLI::App& app) { (void)app; }
+void register_export_commands(CLI::App& app) {
+  auto* exp = app.add_subcommand("export", "write products for other tools (GIS, CAD, photogrammetry)");
+  exp->require_subcommand(1);
+  {
+    auto* cmd = exp->add_subcommand(
+        "cameras",
+        "aligned cameras of a layer. csv: one row per photo with the header\n"
+        "image,fx,fy,ppx,ppy,k1,k2,r11,...,r33,X,Y,Z (pixels, world-to-camera rotation, camera\n"
+        "centre in site CRS coordinates). colmap: a COLMAP text model (cameras.txt, images.txt,\n"
+        "points3D.txt) in the site frame, to continue in COLMAP or OpenMVS.");
+    auto dir = std::make_shared<std::string>();
+    auto layer = std::make_shared<std::string>();
+    auto format = std::make_shared<std::string>("csv");
+    auto out = std::make_shared<std::string>();
+    cmd->add_option("DIR", *dir, "project folder")->required();
+    cmd->add_option("--layer", *layer, "the layer")->required();
+    cmd->add_option("--format", *format, "csv (default) or colmap")->check(CLI::IsMember({"csv", "colmap"}));
+    cmd->add_option("--out", *out, "output file (csv) or folder (colmap)")->required();
+    cmd->callback([=] {
+      Project p = Project::open(*dir);
+      const LayerRecord l = require_layer(p.db(), *layer);
+      const auto a = load_alignment(p.db(), l);
+      if (!a) throw InputError(fmt::format("layer {} is not aligned yet; run 'strata process {} --layer {}'",
+                                           l.name, *dir, l.name));
+      const SiteInfo site = p.site();
+      if (*format == "csv") {
+        write_cameras_csv(a->rec, site.origin, *out);
+      } else {
+        write_colmap_model(a->rec, *out);
+      }
+      log::info("wrote {}", *out);
+    });
+  }
+}
 
 }  // namespace strata::cli

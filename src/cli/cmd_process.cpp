@@ -1,7 +1,109 @@
+// strata process
 #include "cli/commands.hpp"
+#include "core/error.hpp"
+#include "core/log.hpp"
+#include "features/targets.hpp"
+#include "pipeline/align_layer.hpp"
+#include "project/project.hpp"
+#include "project/records.hpp"
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include <memory>
 
 namespace strata::cli {
+namespace {
 
-void register_process_commands(CLI::App& app) { (void)app; }
+void print_quality(const nlohmann::json& q, bool skipped) {
+  fmt::print("layer {}{}\n", q["layer"].get<std::string>(), skipped ? " (up to date, not recomputed)" : "");
+  fmt::print("  photos aligned      {} / {}\n", q["images_registered"].get<int>(), q["images_total"].get<int>());
+  fmt::print("  sparse points       {} (mean track {:.1f} photos)\n", q["points"].get<int>(),
+             q["mean_track_length"].get<double>());
+  fmt::print("  reprojection RMSE   {:.3f} px\n", q["reprojection_rmse_px"].get<double>());
+  fmt::print("  ground sampling     {:.2f} mm/px\n", 1000 * q["gsd_m"].get<double>());
+  if (!q["georeferenced"].get<bool>()) {
+    fmt::print("  NOT georeferenced: arbitrary local frame and scale\n");
+    return;
+  }
+  auto rmse = [](const nlohmann::json& r) {
+    if (r["markers"].get<int>() == 0) return std::string("-");
+    return fmt::format("E {:.1f}  N {:.1f}  Z {:.1f}  3D {:.1f} mm ({} markers)", 1000 * r["e_m"].get<double>(),
+                       1000 * r["n_m"].get<double>(), 1000 * r["z_m"].get<double>(),
+                       1000 * r["xyz_m"].get<double>(), r["markers"].get<int>());
+  };
+  fmt::print("  control RMSE        {}\n", rmse(q["control_rmse"]));
+  fmt::print("  check RMSE          {}\n", rmse(q["check_rmse"]));
+  fmt::print("  {:<10} {:<9} {:>8} {:>8} {:>8} {:>8} {:>6}\n", "marker", "role", "dE mm", "dN mm", "dZ mm", "px", "photos");
+  for (const auto& m : q["markers"]) {
+    if (!m["triangulated"].get<bool>()) {
+      fmt::print("  {:<10} {:<9} {:>35} {:>6}\n", m["marker"].get<std::string>(), m["role"].get<std::string>(),
+                 "not triangulated", m["images"].get<int>());
+      continue;
+    }
+    fmt::print("  {:<10} {:<9} {:>8.1f} {:>8.1f} {:>8.1f} {:>8.2f} {:>6}\n", m["marker"].get<std::string>(),
+               m["role"].get<std::string>(), 1000 * m["dE"].get<double>(), 1000 * m["dN"].get<double>(),
+               1000 * m["dZ"].get<double>(), m["reprojection_px"].get<double>(), m["images"].get<int>());
+  }
+}
+
+}  // namespace
+
+void register_process_commands(CLI::App& app) {
+  auto* cmd = app.add_subcommand(
+      "process",
+      "reconstruct layers from their photos: features -> matches -> coded targets -> incremental\n"
+      "structure from motion with self-calibration -> georeference on the surveyed markers.\n"
+      "Stages whose inputs and options are unchanged are not recomputed; features and matches\n"
+      "are cached under cache/.");
+  auto dir = std::make_shared<std::string>();
+  auto layer = std::make_shared<std::string>();
+  auto all = std::make_shared<bool>(false);
+  auto until = std::make_shared<std::string>("sparse");
+  auto json = std::make_shared<bool>(false);
+  auto options = std::make_shared<AlignOptions>();
+  auto target_names = std::make_shared<std::string>();
+  cmd->add_option("DIR", *dir, "project folder")->required();
+  auto* layer_opt = cmd->add_option("--layer", *layer, "the layer to process");
+  auto* all_opt = cmd->add_flag("--all", *all, "process every layer");
+  layer_opt->excludes(all_opt);
+  cmd->add_option("--until", *until, "last stage to run: sparse (alignment)")
+      ->check(CLI::IsMember({"sparse"}));
+  cmd->add_flag("--json", *json, "print the quality figures as JSON");
+  cmd->add_flag("--force", options->force, "recompute even when up to date");
+  cmd->add_option("--max-image-size", options->features.max_image_size,
+                  "long side (px) photos are reduced to for feature detection (default 2000)");
+  cmd->add_option("--max-features", options->features.max_features, "SIFT features per photo (default 8000)");
+  cmd->add_flag("!--no-targets", options->detect_targets, "do not detect coded targets");
+  cmd->add_option("--target-dictionary", options->targets.dictionary,
+                  "coded target family: DICT_4X4_50 (default), DICT_APRILTAG_36h11, ...");
+  cmd->add_option("--target-rule", options->naming.rule,
+                  "marker name of a coded target id (default 'GCP{id}')");
+  cmd->add_option("--target-names", *target_names,
+                  "explicit id=name list, e.g. '3=NW,4=NE'; wins over --target-rule");
+  cmd->footer("Example: strata process site --layer L101 --json");
+  cmd->callback([=] {
+    if (layer->empty() && !*all) throw InputError("process: give --layer LAYER or --all");
+    Project p = Project::open(*dir);
+    if (!target_names->empty()) options->naming.names = parse_target_names(*target_names);
+    std::vector<std::string> layers;
+    if (*all) {
+      for (const auto& l : list_layers(p.db())) layers.push_back(l.name);
+    } else {
+      layers.push_back(require_layer(p.db(), *layer).name);
+    }
+    nlohmann::json out = nlohmann::json::array();
+    for (const auto& name : layers) {
+      log::info("== layer {}: alignment", name);
+      const AlignResult r = align_layer(p, name, *options);
+      if (*json) {
+        out.push_back(r.quality);
+      } else {
+        print_quality(r.quality, r.skipped);
+      }
+    }
+    if (*json) fmt::print("{}\n", (*all ? out : out.front()).dump(2));
+  });
+}
 
 }  // namespace strata::cli

@@ -14,6 +14,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
+#include <ctime>
 #include <atomic>
 #include <cmath>
 #include <numeric>
@@ -161,6 +162,7 @@ std::vector<ImageKeypoints> extract_features(const FeatureExtractionOptions& opt
   options.validate();
   STRATA_CHECK(!cache_dir.empty(), "extract_features needs a cache folder");
   Stopwatch clock;
+  const std::clock_t cpu_start = std::clock();
   const std::string fingerprint = options.fingerprint();
 
   std::vector<ImageKeypoints> result(images.size());
@@ -197,6 +199,7 @@ std::vector<ImageKeypoints> extract_features(const FeatureExtractionOptions& opt
   s.loaded_from_cache = cached;
   for (const auto& kp : result) s.keypoints += kp.points.size();
   s.seconds = clock.seconds();
+  s.cpu_seconds = static_cast<double>(std::clock() - cpu_start) / CLOCKS_PER_SEC;
   log::info("features: {} images ({} extracted, {} from cache), {} keypoints, {:.1f} s",
             s.images, s.extracted, s.loaded_from_cache, s.keypoints, s.seconds);
   if (summary) *summary = s;

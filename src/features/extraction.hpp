@@ -54,6 +54,7 @@ struct FeatureExtractionSummary {
   std::size_t loaded_from_cache = 0;  // read back from cache_dir
   std::size_t keypoints = 0;          // total over all images
   double seconds = 0;                 // wall time of the whole stage
+  double cpu_seconds = 0;             // process CPU time over the stage (all threads)
 };
 
 // Extracts (or loads from cache) the keypoints of every image, in input order.

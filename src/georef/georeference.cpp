@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <set>
 
@@ -129,6 +130,17 @@ GeoreferenceSummary georeference(const GeoreferenceOptions& options,
     }
   }
 
+  // The site frame keeps coordinates small (CRS minus the site origin); raw projected
+  // coordinates (hundreds of kilometres) would make the adjustment badly conditioned.
+  for (const auto& m : markers) {
+    if (m.position.cwiseAbs().maxCoeff() > 1e4) {
+      log::warn("georeference: marker {} lies {:.0f} m from the frame origin; are these raw CRS "
+                "coordinates instead of site-frame ones (CRS minus the site origin)?",
+                m.name, m.position.norm());
+      break;
+    }
+  }
+
   // 1. Triangulate every marker in the reconstruction frame.
   const auto rays = collect_rays(observations, rec);
   std::vector<std::string> usable_names, control_names;
@@ -173,37 +185,80 @@ GeoreferenceSummary georeference(const GeoreferenceOptions& options,
         names(usable_names), spread, options.min_spread_ratio));
   }
 
-  // 2. Robust similarity: leave-one-out rejection of gross outliers, worst first.
-  std::vector<int> inliers(usable.size());
-  for (std::size_t i = 0; i < usable.size(); ++i) inliers[i] = int(i);
-  while (inliers.size() >= 4) {
-    int worst = -1;
-    double worst_excess = 1.0;
-    for (std::size_t k = 0; k < inliers.size(); ++k) {
-      std::vector<Eigen::Vector3d> src, dst;
-      for (std::size_t j = 0; j < inliers.size(); ++j) {
-        if (j == k) continue;
-        src.push_back(usable_local[inliers[j]]);
-        dst.push_back(usable_site[inliers[j]]);
-      }
-      if (planar_spread_ratio(dst) < options.min_spread_ratio) continue;  // cannot leave it out
-      const Similarity3 s = fit_similarity(src, dst, options.min_spread_ratio);
-      const int i = inliers[k];
-      const double residual = (s.apply(usable_local[i]) - usable_site[i]).norm();
-      const double limit =
-          std::max(options.outlier_threshold_m, options.outlier_sigma_factor * usable[i]->sigma.norm());
-      if (residual / limit > worst_excess) {
-        worst_excess = residual / limit;
-        worst = int(k);
+  // 2. Robust similarity. With >= 4 markers, a consensus over every non-collinear
+  // triple (exhaustive, as there are few markers; RANSAC in spirit, Fischler & Bolles
+  // 1981): the triple whose similarity agrees with the most markers, within
+  // max(outlier_threshold_m, outlier_sigma_factor x |sigma|), ties broken by the
+  // smaller sum of squared residuals. Leave-one-out is not enough with 4 markers:
+  // one blunder among the 3 others distorts every fit that includes it.
+  const std::size_t n_usable = usable.size();
+  auto limit_of = [&](std::size_t i) {
+    return std::max(options.outlier_threshold_m, options.outlier_sigma_factor * usable[i]->sigma.norm());
+  };
+  auto residual_of = [&](const Similarity3& s, std::size_t i) {
+    return (s.apply(usable_local[i]) - usable_site[i]).norm();
+  };
+  std::vector<int> inliers(n_usable);
+  for (std::size_t i = 0; i < n_usable; ++i) inliers[i] = int(i);
+  if (n_usable >= 4) {
+    std::size_t best_count = 0;
+    double best_sum2 = std::numeric_limits<double>::infinity();
+    std::vector<int> best;
+    for (std::size_t a = 0; a < n_usable; ++a) {
+      for (std::size_t b = a + 1; b < n_usable; ++b) {
+        for (std::size_t c = b + 1; c < n_usable; ++c) {
+          const std::vector<Eigen::Vector3d> src{usable_local[a], usable_local[b], usable_local[c]};
+          const std::vector<Eigen::Vector3d> dst{usable_site[a], usable_site[b], usable_site[c]};
+          if (planar_spread_ratio(dst) < options.min_spread_ratio ||
+              planar_spread_ratio(src) < options.min_spread_ratio) {
+            continue;
+          }
+          const Similarity3 s = fit_similarity(src, dst, options.min_spread_ratio);
+          std::vector<int> agree;
+          double sum2 = 0;
+          for (std::size_t i = 0; i < n_usable; ++i) {
+            const double r = residual_of(s, i);
+            if (r <= limit_of(i)) {
+              agree.push_back(int(i));
+              sum2 += r * r;
+            }
+          }
+          if (agree.size() > best_count || (agree.size() == best_count && sum2 < best_sum2)) {
+            best_count = agree.size();
+            best_sum2 = sum2;
+            best = std::move(agree);
+          }
+        }
       }
     }
-    if (worst < 0) break;
-    const int i = inliers[worst];
-    summary.rejected.push_back(usable[i]->name);
-    log::warn("georeference: control marker {} rejected as a gross outlier (leave-one-out "
-              "residual {:.1f} x the limit)",
-              usable[i]->name, worst_excess);
-    inliers.erase(inliers.begin() + worst);
+    // Confirm on the consensus set: refit and keep those within their limit.
+    std::vector<Eigen::Vector3d> src, dst;
+    for (int i : best) {
+      src.push_back(usable_local[i]);
+      dst.push_back(usable_site[i]);
+    }
+    if (best.size() >= 3 && planar_spread_ratio(dst) >= options.min_spread_ratio) {
+      const Similarity3 s = fit_similarity(src, dst, options.min_spread_ratio);
+      std::vector<int> confirmed;
+      for (std::size_t i = 0; i < n_usable; ++i) {
+        if (residual_of(s, i) <= limit_of(i)) confirmed.push_back(int(i));
+      }
+      std::vector<Eigen::Vector3d> check;
+      for (int i : confirmed) check.push_back(usable_site[i]);
+      if (confirmed.size() >= 3 && planar_spread_ratio(check) >= options.min_spread_ratio) {
+        inliers = confirmed;
+      } else {
+        inliers = best;
+      }
+      for (std::size_t i = 0; i < n_usable; ++i) {
+        if (std::find(inliers.begin(), inliers.end(), int(i)) != inliers.end()) continue;
+        summary.rejected.push_back(usable[i]->name);
+        log::warn("georeference: control marker {} rejected as a gross outlier ({:.3f} m from "
+                  "the similarity of the other markers, limit {:.3f} m)",
+                  usable[i]->name, residual_of(s, i), limit_of(i));
+      }
+    }
+    // No consistent triple at all: keep every marker; the residuals will show it.
   }
   std::vector<Eigen::Vector3d> src, dst;
   for (int i : inliers) {

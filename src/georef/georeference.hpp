@@ -2,7 +2,8 @@
 // Georeferencing a layer's reconstruction onto surveyed markers:
 //  1. triangulate every marker from its image observations (>= 2 rays, angle check);
 //  2. a robust similarity (Umeyama 1991) from >= 3 non-collinear control markers,
-//     rejecting gross outliers by leave-one-out when >= 4 are available;
+//     rejecting gross outliers by a consensus over marker triples when >= 4 are
+//     available;
 //  3. apply it to cameras and points (site frame, metres);
 //  4. a bundle adjustment in the site frame with the control markers as weighted
 //     constraints (their sigma), so photo geometry and survey are fitted together;
@@ -27,9 +28,9 @@ struct GeoreferenceOptions {
   // Smallest second/first singular value of the centred control set (unitless);
   // below it the markers are treated as collinear (see fit_similarity).
   double min_spread_ratio = 0.02;
-  // Gross-outlier rejection (only with >= 4 usable control markers): a marker whose
-  // leave-one-out residual exceeds max(outlier_threshold_m, outlier_sigma_factor x
-  // |sigma|) is excluded, worst first, one at a time.
+  // Gross-outlier rejection (only with >= 4 usable control markers): a marker farther
+  // than max(outlier_threshold_m, outlier_sigma_factor x |sigma|) from the best
+  // consensus similarity of marker triples is excluded.
   double outlier_threshold_m = 0.05;  // metres
   double outlier_sigma_factor = 5.0;  // unitless
   // The adjustment in the site frame (robust loss, marker pixel sigma, intrinsics).

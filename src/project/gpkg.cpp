@@ -17,6 +17,7 @@ struct FeatureTable {
 };
 constexpr FeatureTable kFeatureTables[] = {
     {"markers", "POINT", 1, "surveyed ground-control and check markers"},
+    {"camera_positions", "POINT", 1, "positions of the aligned photos"},
 };
 
 bool table_exists(Database& db, const std::string& name) {

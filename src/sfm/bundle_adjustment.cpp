@@ -126,7 +126,8 @@ BundleSummary solve_bundle(const BundleOptions& options, BaProblem& problem) {
   // Residuals are in units of sigma, so the loss scale is too.
   const auto keypoint_loss =
       make_loss(options.loss, options.loss_scale_px / options.keypoint_sigma_px);
-  const auto marker_loss = make_loss(options.loss, options.loss_scale_px / options.marker_sigma_px);
+  const auto marker_loss =
+      make_loss(options.marker_loss, options.loss_scale_px / options.marker_sigma_px);
 
   std::vector<char> camera_used(problem.cameras.size(), 0);
   std::vector<char> group_used(problem.intrinsics.size(), 0);

@@ -33,9 +33,14 @@ struct IntrinsicsRefinement {
 };
 
 struct BundleOptions {
-  RobustLoss loss = RobustLoss::cauchy;
+  RobustLoss loss = RobustLoss::cauchy;  // on keypoint reprojections
   // pixels: reprojection residuals beyond about this size are down-weighted.
   double loss_scale_px = 1.0;
+  // On marker reprojections. None by default: a robust loss would let a marker whose
+  // survey disagrees with the photos detach from its rays (the loss flattens) instead
+  // of weighing survey and photos by their sigmas; the per-marker residual table is
+  // where a wrong click shows.
+  RobustLoss marker_loss = RobustLoss::none;
   // pixels: standard deviation of a keypoint position; weighs the reprojection
   // residuals against the marker priors (which are in metres / sigma).
   double keypoint_sigma_px = 1.0;

@@ -41,6 +41,8 @@ void IncrementalOptions::validate() const {
   if (!(global_ba_growth > 1)) fail("global_ba_growth", global_ba_growth, "> 1");
   if (calibration_min_images < 2) fail("calibration_min_images", calibration_min_images, ">= 2");
   if (principal_point_min_images < 2) fail("principal_point_min_images", principal_point_min_images, ">= 2");
+  if (intermediate_ba_max_iterations < 1) fail("intermediate_ba_max_iterations", intermediate_ba_max_iterations, ">= 1");
+  if (!(intermediate_ba_function_tolerance > 0)) fail("intermediate_ba_function_tolerance", intermediate_ba_function_tolerance, "> 0");
   if (final_refinement_passes < 1) fail("final_refinement_passes", final_refinement_passes, ">= 1");
   bundle.validate();
 }
@@ -100,6 +102,7 @@ class IncrementalMapper {
   std::size_t filter_points(const std::vector<int>& tracks, double max_error_px);
   std::vector<int> all_point_tracks() const;
   void adjust(const std::vector<int>& variable_images, bool global);
+  bool final_stage_ = false;  // final adjustments run to the full tolerances
   void local_adjust(int image);
   void global_adjust(double max_error_px);
   Reconstruction result() const;
@@ -146,6 +149,7 @@ void IncrementalMapper::build_track_index(IncrementalSummary& summary) {
   auto raw = build_tracks(keypoints_, matches_, &stats);
   summary.tracks = stats.tracks;
   summary.inconsistent_tracks = stats.inconsistent_tracks;
+  summary.repaired_tracks = stats.repaired_tracks;
   track_of_.resize(images_.size());
   image_tracks_.resize(images_.size());
   for (std::size_t i = 0; i < images_.size(); ++i) {
@@ -508,6 +512,10 @@ void IncrementalMapper::adjust(const std::vector<int>& variable_images, bool glo
   }
   // Self-calibration in global adjustments once enough views constrain it.
   BundleOptions bo = opt_.bundle;
+  if (!final_stage_) {
+    bo.max_iterations = std::min(bo.max_iterations, opt_.intermediate_ba_max_iterations);
+    bo.function_tolerance = std::max(bo.function_tolerance, opt_.intermediate_ba_function_tolerance);
+  }
   problem.refine_intrinsics = global && n_registered_ >= opt_.calibration_min_images;
   if (n_registered_ < opt_.principal_point_min_images) bo.refine.principal_point = false;
 
@@ -570,6 +578,7 @@ Reconstruction IncrementalMapper::run(IncrementalSummary& summary) {
   Progress progress("aligning photos", images_.size());
 
   init_pair_ = initialise();
+  log::debug("sfm: initial pair chosen after {:.2f} s", clock.seconds());
   triangulate_image(init_pair_.second);
   global_adjust(opt_.max_reprojection_px);
   progress.step(2);
@@ -595,6 +604,7 @@ Reconstruction IncrementalMapper::run(IncrementalSummary& summary) {
     }
   }
   // Final refinement with a gate that tightens to the calibrated model's level.
+  final_stage_ = true;
   for (int pass = 0; pass < opt_.final_refinement_passes; ++pass) {
     check_cancelled();
     const double gate = pass == 0 ? opt_.max_reprojection_px : opt_.final_max_reprojection_px;

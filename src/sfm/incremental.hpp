@@ -55,6 +55,11 @@ struct IncrementalOptions {
   // The principal point is refined only from this many images on (it trades off
   // against camera tilt and needs varied viewing directions).
   int principal_point_min_images = 6;
+  // Local and intermediate global adjustments only need to keep the model on track
+  // for the next resections: they stop earlier than the final ones (which use
+  // `bundle` as given).
+  int intermediate_ba_max_iterations = 30;
+  double intermediate_ba_function_tolerance = 1e-6;  // relative cost change
   int final_refinement_passes = 3;  // global BA / filter / retriangulate rounds at the end
 
   // Throws InputError naming the first invalid field.
@@ -66,7 +71,8 @@ struct IncrementalSummary {
   std::size_t registered = 0;
   std::pair<int, int> initial_pair{-1, -1};
   std::size_t tracks = 0;
-  std::size_t inconsistent_tracks = 0;   // dropped: two keypoints of one image
+  std::size_t inconsistent_tracks = 0;   // match components with two keypoints of one image
+  std::size_t repaired_tracks = 0;       // tracks recovered from them (see build_tracks)
   std::size_t points = 0;
   std::size_t observations = 0;          // in the final points' tracks
   double reprojection_rmse_px = 0;

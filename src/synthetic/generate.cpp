@@ -121,7 +121,9 @@ UnitVolume removed_volume(const synthetic::HeightGrid& before, const synthetic::
 void write_dataset(const SyntheticExcavationOptions& o, const fs::path& dir, SyntheticExcavationSummary& summary) {
   using namespace synthetic;
   log::info("synth: building the site (seed {}, {} stages)", o.seed, o.site.stages);
+  Stopwatch step;
   const Scene scene(o);
+  log::debug("synth: scene built in {:.2f} s", step.seconds());
   const Intrinsics intrinsics = make_intrinsics(o);
   const auto& site = o.site;
   const Eigen::Vector3d origin(site.origin_e, site.origin_n, site.origin_z);
@@ -160,7 +162,9 @@ void write_dataset(const SyntheticExcavationOptions& o, const fs::path& dir, Syn
     fs::create_directories(dir / "photos" / layer);
     fs::create_directories(dir / "truth" / layer);
     const Lighting light = session_lighting(scene, k);
+    const Stopwatch bake;
     auto texture = std::make_unique<LayerTexture>(scene, k, light, o.render.texel, ground.get());
+    log::debug("synth: {} texture baked in {:.2f} s", layer, bake.seconds());
     const auto plan = plan_photos(scene, k, intrinsics);
     std::vector<std::vector<std::string>> observations(plan.size());
     {

@@ -360,7 +360,7 @@ void Scene::build_surfaces() {
   const double gx1 = proto.x1(), gy1 = proto.y1();
 
   tbb::parallel_for(0, proto.ny, [&](int j) {
-    std::vector<double> s(std::size_t(layers()));
+    std::vector<double> s(static_cast<std::size_t>(layers()));
     for (int i = 0; i < proto.nx; ++i) {
       const double x = proto.x0 + i * cell, y = proto.y0 + j * cell;
       // Ground: micro-relief fades out at the grid edge (to meet the analytic

@@ -4,9 +4,11 @@
 // radial distortion). Depth maps + fusion must recover the heights.
 #include "dense/dense.hpp"
 #include "dense/internal.hpp"
-#include "test_support.hpp"
+#include "support/test_support.hpp"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
+#include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
 #include <algorithm>
@@ -25,6 +27,7 @@ constexpr double kWallExclusion = 0.006;          // metres: cells this close to
 constexpr double kSparseDistanceTolerance = 0.003;  // metres, median |surface - sparse point|
 
 // ---- the analytic scene -------------------------------------------------------------
+constexpr double kImageNoise = 3.0;                      // grey levels (of 255), sensor noise
 constexpr double kBlockTop = 0.08;                       // metres
 constexpr double kBlockX0 = -0.10, kBlockX1 = 0.15;      // metres
 constexpr double kBlockY0 = -0.10, kBlockY1 = 0.12;
@@ -121,6 +124,14 @@ Scene make_scene(const std::filesystem::path& dir) {
                                             cv::saturate_cast<uchar>(255 * c.x()));
       }
     }
+    // Sensor noise, sigma kImageNoise grey levels (deterministic seed per view).
+    cv::Mat noise(img.size(), CV_16SC3);
+    cv::theRNG().state = 1234 + v;
+    cv::randn(noise, cv::Scalar::all(0), cv::Scalar::all(kImageNoise));
+    cv::Mat noisy;
+    img.convertTo(noisy, CV_16SC3);
+    noisy += noise;
+    noisy.convertTo(img, CV_8UC3);
     s.photos.push_back(dir / fmt::format("view{}.png", v));
     cv::imwrite(s.photos.back().string(), img);
   }
@@ -150,7 +161,6 @@ double percentile(std::vector<double> v, double q) {
 }
 
 TEST(Dense, ViewSelectionPrefersOverlappingNeighbours) {
-  test::ScratchDir dir("dense_views");
   // A geometry-only scene (no rendering needed): reuse the sparse construction.
   Reconstruction rec;
   Intrinsics in;

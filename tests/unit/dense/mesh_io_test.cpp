@@ -2,7 +2,7 @@
 // site-CRS coordinates with a large (UTM-sized) offset.
 #include "core/error.hpp"
 #include "dense/dense.hpp"
-#include "test_support.hpp"
+#include "support/test_support.hpp"
 
 #include <gtest/gtest.h>
 

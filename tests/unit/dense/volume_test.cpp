@@ -1,8 +1,9 @@
 // A volume computed two ways must agree (style.md "numerical cross-checks"): the
 // OpenVDB level-set volume of a closed shape, the CGAL volume of the mesh extracted
 // from it, and the analytic volume.
+#include "core/error.hpp"
 #include "dense/dense.hpp"
-#include "test_support.hpp"
+#include "support/test_support.hpp"
 
 #include <gtest/gtest.h>
 #include <openvdb/openvdb.h>

@@ -59,8 +59,10 @@ void make_pair(WarpedPair& p) {
   p.images = {{"a", p.dir / "a.png", ""}, {"b", p.dir / "b.png", ""}};
 }
 
+// epipolar_only: an essential-matrix inlier only has to lie near its epipolar
+// line, so a wrong match along that line may stay (up to the threshold).
 void expect_obeys_homography(const PairMatches& m, const std::vector<ImageKeypoints>& kp,
-                             const Eigen::Matrix3d& H) {
+                             const Eigen::Matrix3d& H, bool epipolar_only = false) {
   std::size_t within = 0;
   double worst = 0;
   for (const auto& [i, j] : m.matches) {
@@ -71,7 +73,9 @@ void expect_obeys_homography(const PairMatches& m, const std::vector<ImageKeypoi
   EXPECT_GE(within, kWithinToleranceFraction * m.matches.size())
       << within << " of " << m.matches.size() << " within " << kHomographyTolerancePx
       << " px, worst " << worst;
-  EXPECT_LT(worst, 2 * kVerifyThresholdPx);  // no gross outlier slipped through
+  if (!epipolar_only) {
+    EXPECT_LT(worst, 2 * kVerifyThresholdPx);  // no gross outlier slipped through
+  }
 }
 
 TEST(Matching, WarpedPairObeysTheHomography) {
@@ -117,7 +121,9 @@ TEST(Matching, WarpedPairObeysTheHomography) {
 TEST(Matching, EssentialMatrixWithFocalPrior) {
   WarpedPair p;
   make_pair(p);
-  const auto kp = extract_features({}, p.images, p.dir / "cache");
+  FeatureExtractionOptions fo;
+  fo.max_features = 2500;  // brute force below is quadratic in it
+  const auto kp = extract_features(fo, p.images, p.dir / "cache");
   Intrinsics k;
   k.width = kWidth;
   k.height = kHeight;
@@ -135,7 +141,7 @@ TEST(Matching, EssentialMatrixWithFocalPrior) {
     EXPECT_GE(matches[0].matches.size(), kMinInliers);
     // Planar scene: the homography explains (almost) all of them.
     EXPECT_GE(matches[0].homography_inliers, 0.9 * matches[0].matches.size());
-    expect_obeys_homography(matches[0], kp, p.H);
+    expect_obeys_homography(matches[0], kp, p.H, /*epipolar_only=*/true);
   }
 }
 
@@ -155,18 +161,18 @@ TEST(PairSelection, LargeLayersUseSequenceAndRetrievalWithLinearPairCount) {
   // 12 photos of two unrelated "layers" interleaved in capture order: retrieval
   // must pair photos of the same texture even when they are far apart in time.
   test::ScratchDir dir("retrieval");
-  const cv::Mat texture_a = test::noise_texture(1400, 1000, 31);
-  const cv::Mat texture_b = test::noise_texture(1400, 1000, 32);
+  const cv::Mat texture_a = test::noise_texture(900, 600, 31);
+  const cv::Mat texture_b = test::noise_texture(900, 600, 32);
   std::vector<FeatureImage> images;
   for (int i = 0; i < 12; ++i) {
     const cv::Mat& t = i % 2 == 0 ? texture_a : texture_b;
     const int x = 40 * (i / 2);  // a sweep: each photo shifted 40 px
     const std::string name = "p" + std::to_string(i);
-    test::write_png(dir / (name + ".png"), t(cv::Rect(x, 50, 800, 600)).clone());
+    test::write_png(dir / (name + ".png"), t(cv::Rect(x, 50, 600, 450)).clone());
     images.push_back({name, dir / (name + ".png"), ""});
   }
   FeatureExtractionOptions fo;
-  fo.max_features = 1500;
+  fo.max_features = 1000;
   const auto kp = extract_features(fo, images, dir / "cache");
 
   PairSelectionOptions po;
@@ -193,7 +199,11 @@ TEST(PairSelection, LargeLayersUseSequenceAndRetrievalWithLinearPairCount) {
   for (int i = 0; i < 12; ++i) times[i] = (i % 2) * 100 + i;  // evens first, then odds
   po.retrieval_neighbours = 0;
   const auto by_time = select_pairs(po, kp, dir / "cache", times);
-  for (const auto& [a, b] : by_time) EXPECT_EQ(a % 2, b % 2) << a << "," << b;
+  ASSERT_EQ(by_time.size(), 11u);
+  std::size_t across = 0;  // only where the evens end and the odds begin: (1, 10)
+  for (const auto& [a, b] : by_time) across += (a % 2 != b % 2) ? 1 : 0;
+  EXPECT_EQ(across, 1u);
+  EXPECT_TRUE(std::find(by_time.begin(), by_time.end(), ImagePair{1, 10}) != by_time.end());
 }
 
 TEST(Matching, RejectsBadPairsAndOptions) {
@@ -219,7 +229,7 @@ TEST(Matching, RealPhotosWhenAvailable) {
   if (!std::filesystem::exists(photos / "IMG_0022.jpg")) GTEST_SKIP() << "no " << photos;
   test::ScratchDir dir("copr");
   std::vector<FeatureImage> images;
-  for (const char* name : {"IMG_0022.jpg", "IMG_0025.jpg", "IMG_0028.jpg"})
+  for (const char* name : {"IMG_0022.jpg", "IMG_0025.jpg"})
     images.push_back({name, photos / name, ""});
   FeatureExtractionSummary fs;
   const auto kp = extract_features({}, images, dir / "cache", &fs);
@@ -227,11 +237,11 @@ TEST(Matching, RealPhotosWhenAvailable) {
   const auto pairs = select_pairs({}, kp, dir / "cache");
   const auto matches = match_pairs({}, kp, pairs, {}, dir / "cache", &ms);
   std::cout << "copr: " << fs.images << " photos, " << fs.keypoints << " keypoints, "
-            << fs.seconds << " s extraction; " << ms.pairs << " pairs, " << ms.verified
+            << fs.seconds << " s extraction (" << fs.cpu_seconds << " s CPU); " << ms.pairs << " pairs, " << ms.verified
             << " verified, " << ms.inlier_matches << " inliers, " << ms.seconds
-            << " s matching (" << ms.matching_seconds << " s kNN, " << ms.verification_seconds
+            << " s matching (" << ms.cpu_seconds << " s CPU; " << ms.matching_seconds << " s kNN, " << ms.verification_seconds
             << " s RANSAC, summed over pairs)\n";
-  EXPECT_GE(ms.verified, 2u);
+  EXPECT_EQ(ms.verified, 1u);
   for (const auto& m : matches) EXPECT_GE(m.matches.size(), 100u);
 }
 

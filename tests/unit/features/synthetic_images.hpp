@@ -4,6 +4,7 @@
 #include <opencv2/core.hpp>
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 
 #include <filesystem>
 #include <vector>

@@ -1,0 +1,271 @@
+#include "pipeline/align_layer.hpp"
+
+#include "core/error.hpp"
+#include "core/hash.hpp"
+#include "core/log.hpp"
+#include "core/progress.hpp"
+#include "core/resources.hpp"
+#include "pipeline/alignment_store.hpp"
+#include "project/records.hpp"
+#include "sfm/quality.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <ctime>
+#include <map>
+#include <set>
+
+namespace strata {
+namespace {
+
+// Without any EXIF focal length, start from a moderately wide lens: 1.2 x the
+// long side, as COLMAP does; self-calibration refines it.
+constexpr double kDefaultFocalFactor = 1.2;
+
+double to_epoch_seconds(const std::optional<std::string>& iso) {
+  if (!iso || iso->size() < 19) return 0;
+  std::tm tm{};
+  if (!strptime(iso->c_str(), "%Y-%m-%dT%H:%M:%S", &tm)) return 0;
+  return double(timegm(&tm));
+}
+
+nlohmann::json rmse_json(const AxisRmse& r) {
+  return {{"e_m", r.e}, {"n_m", r.n}, {"z_m", r.z}, {"xyz_m", r.xyz}, {"markers", r.markers}};
+}
+
+}  // namespace
+
+void AlignOptions::validate() const {
+  features.validate();
+  pairs.validate();
+  matching.validate();
+  targets.validate();
+  naming.validate();
+  sfm.validate();
+  georef.validate();
+}
+
+std::string AlignOptions::fingerprint() const {
+  return fmt::format("f[{}] m[{}] t[{},{},{}] s[{},{},{}]", features.fingerprint(), matching.fingerprint(),
+                     detect_targets, targets.dictionary, naming.rule, sfm.min_triangulation_angle_deg,
+                     sfm.max_reprojection_px, sfm.final_max_reprojection_px);
+}
+
+AlignResult align_layer(Project& project, const std::string& layer_name, const AlignOptions& options) {
+  options.validate();
+  auto& db = project.db();
+  const LayerRecord layer = require_layer(db, layer_name);
+  const SiteInfo site = project.site();
+  const std::vector<ImageRecord> records = list_images(db, layer.id);
+  if (records.size() < 2) {
+    throw ProcessingError(fmt::format("layer {} has {} photo(s); alignment needs at least 2 (import "
+                                      "30-60 photos per layer)", layer.name, records.size()));
+  }
+  const auto markers = list_markers(db);
+  AlignResult result;
+
+  // Up to date? The key covers photos, survey, manual observations and options.
+  Sha256 key;
+  key.update(options.fingerprint());
+  for (const auto& r : records) key.update(r.sha256);
+  for (const auto& m : markers) {
+    key.update(fmt::format("{} {} {:.6f} {:.6f} {:.6f} {:.6f}", m.name, m.kind, m.position.x(),
+                           m.position.y(), m.position.z(), m.sigma.x()));
+  }
+  for (const auto& o : list_observations(db, layer.id)) {
+    if (o.source == "manual") key.update(fmt::format("{} {} {:.3f} {:.3f}", o.marker_id, o.image_id, o.pixel.x(), o.pixel.y()));
+  }
+  const std::string inputs_key = key.hex_digest();
+  if (!options.force) {
+    if (auto stored = load_alignment(db, layer); stored && stored->inputs_key == inputs_key) {
+      result.skipped = true;
+      result.quality = stored->quality;
+      return result;
+    }
+  }
+
+  Stopwatch total;
+  nlohmann::json timings;
+  const auto cache = project.cache_dir();
+
+  // ---- camera groups: one per camera row (make, model, size, focal setting)
+  std::vector<CameraGroup> groups;
+  std::vector<std::int64_t> camera_ids;
+  std::map<std::int64_t, int> group_of_camera;
+  std::vector<ImageInput> inputs;
+  std::vector<FeatureImage> feature_images;
+  std::vector<std::optional<Intrinsics>> priors;
+  std::vector<double> times;
+  for (const auto& r : records) {
+    const std::int64_t cam_id = r.camera_id.value_or(0);
+    auto [it, inserted] = group_of_camera.try_emplace(cam_id, int(groups.size()));
+    if (inserted) {
+      CameraGroup g;
+      const auto cam = r.camera_id ? find_camera(db, *r.camera_id) : std::nullopt;
+      Intrinsics& k = g.intrinsics;
+      k.width = r.width;
+      k.height = r.height;
+      g.focal_from_exif = cam && cam->focal_px;
+      k.fx = k.fy = g.focal_from_exif ? *cam->focal_px : kDefaultFocalFactor * std::max(r.width, r.height);
+      k.cx = (r.width - 1) / 2.0;
+      k.cy = (r.height - 1) / 2.0;
+      groups.push_back(g);
+      camera_ids.push_back(cam_id);
+    }
+    inputs.push_back({r.name, it->second});
+    feature_images.push_back({r.name, project.dir() / r.media_path, r.sha256});
+    priors.push_back(groups[it->second].focal_from_exif ? std::optional<Intrinsics>(groups[it->second].intrinsics)
+                                                        : std::nullopt);
+    times.push_back(to_epoch_seconds(r.captured_at));
+  }
+
+  // ---- features and matches (cached under cache/)
+  FeatureExtractionSummary fs;
+  const auto keypoints = extract_features(options.features, feature_images, cache, &fs);
+  timings["features_s"] = fs.seconds;
+  check_cancelled();
+  PairSelectionSummary ps;
+  const auto pairs = select_pairs(options.pairs, keypoints, cache, times, &ps);
+  MatchingSummary ms;
+  const auto matches = match_pairs(options.matching, keypoints, pairs, priors, cache, &ms);
+  timings["matching_s"] = ps.seconds + ms.seconds;
+  log::info("layer {}: {} keypoints in {} photos, {} of {} pairs verified", layer.name, fs.keypoints,
+            records.size(), ms.verified, pairs.size());
+  check_cancelled();
+
+  // ---- coded targets -> detected observations
+  std::map<std::string, const MarkerRecord*> marker_by_name;
+  for (const auto& m : markers) marker_by_name[m.name] = &m;
+  std::vector<ObservationRecord> detected;
+  std::set<int> unknown_ids;
+  if (options.detect_targets) {
+    Stopwatch sw;
+    Progress progress("coded targets", records.size());
+    for (std::size_t i = 0; i < records.size(); ++i) {
+      check_cancelled();
+      for (const auto& d : detect_targets(options.targets, feature_images[i].path)) {
+        const std::string name = target_name(options.naming, d.id);
+        const auto it = marker_by_name.find(name);
+        if (it == marker_by_name.end()) {
+          unknown_ids.insert(d.id);
+          continue;
+        }
+        detected.push_back({0, it->second->id, records[i].id, d.centre, "detected"});
+      }
+      progress.step();
+    }
+    progress.finish();
+    timings["targets_s"] = sw.seconds();
+    if (!unknown_ids.empty()) {
+      std::string ids;
+      for (int id : unknown_ids) ids += (ids.empty() ? "" : ", ") + std::to_string(id);
+      log::warn("coded targets with ids {} have no surveyed marker of that name (rule '{}'); ignored",
+                ids, options.naming.rule);
+    }
+  }
+
+  // ---- incremental reconstruction
+  IncrementalSummary is;
+  Reconstruction rec = reconstruct_incremental(options.sfm, groups, inputs, keypoints, matches, &is);
+  timings["sfm_s"] = is.seconds;
+  if (is.registered < 2) {
+    throw ProcessingError(fmt::format(
+        "layer {}: only {} of {} photos could be aligned; the photos overlap too little or show too "
+        "little texture", layer.name, is.registered, records.size()));
+  }
+  check_cancelled();
+
+  // ---- georeference: manual and detected observations of known markers
+  std::map<std::int64_t, int> index_of_image;
+  for (std::size_t i = 0; i < records.size(); ++i) index_of_image[records[i].id] = int(i);
+  std::map<std::int64_t, const MarkerRecord*> marker_by_id;
+  for (const auto& m : markers) marker_by_id[m.id] = &m;
+  std::vector<MarkerObservation> observations;
+  std::set<std::int64_t> observed_markers;
+  auto add_observation = [&](const ObservationRecord& o) {
+    observations.push_back({marker_by_id.at(o.marker_id)->name, index_of_image.at(o.image_id), o.pixel});
+    observed_markers.insert(o.marker_id);
+  };
+  // A hand-entered observation wins over a detection of the same marker in the same photo.
+  std::set<std::pair<std::int64_t, std::int64_t>> manual;
+  for (const auto& o : list_observations(db, layer.id)) {
+    if (o.source != "manual") continue;
+    manual.emplace(o.marker_id, o.image_id);
+    add_observation(o);
+  }
+  for (const auto& o : detected) {
+    if (!manual.count({o.marker_id, o.image_id})) add_observation(o);
+  }
+  std::vector<MarkerConstraint> constraints;
+  for (std::int64_t id : observed_markers) {
+    const MarkerRecord& m = *marker_by_id.at(id);
+    constraints.push_back({m.name, m.position - site.origin, m.sigma, m.kind == "control"});
+  }
+  GeoreferenceSummary gs;
+  if (constraints.empty()) {
+    gs = keep_arbitrary_frame(rec);
+    log::warn("layer {}: no surveyed marker is seen in its photos; the layer is aligned in an "
+              "arbitrary local frame at an arbitrary scale (not georeferenced)", layer.name);
+  } else {
+    gs = georeference(options.georef, constraints, observations, keypoints, rec);
+  }
+  timings["georeference_s"] = gs.seconds;
+
+  // ---- quality
+  const ReconstructionQuality q = measure_quality(rec, keypoints);
+  nlohmann::json quality;
+  quality["layer"] = layer.name;
+  quality["images_total"] = records.size();
+  quality["images_registered"] = q.registered_images;
+  quality["unregistered"] = is.unregistered;
+  quality["points"] = q.points;
+  quality["observations"] = q.observations;
+  quality["mean_track_length"] = q.mean_track_length;
+  quality["reprojection_rmse_px"] = q.reprojection_rmse_px;
+  quality["gsd_m"] = q.gsd_m;
+  quality["georeferenced"] = gs.georeferenced;
+  quality["control_rmse"] = rmse_json(gs.control);
+  quality["check_rmse"] = rmse_json(gs.check);
+  quality["rejected_markers"] = gs.rejected;
+  quality["unusable_markers"] = gs.unusable;
+  quality["detected_observations"] = detected.size();
+  quality["pairs"] = {{"selected", pairs.size()}, {"verified", ms.verified}, {"exhaustive", ps.exhaustive}};
+  nlohmann::json rows = nlohmann::json::array();
+  std::vector<std::pair<std::int64_t, nlohmann::json>> residuals;
+  std::map<std::string, std::int64_t> marker_id_by_name;
+  for (const auto& m : markers) marker_id_by_name[m.name] = m.id;
+  for (const auto& r : gs.residuals) {
+    nlohmann::json row = {{"marker", r.name}, {"role", to_string(r.role)}, {"triangulated", r.triangulated},
+                          {"dE", r.dE}, {"dN", r.dN}, {"dZ", r.dZ}, {"reprojection_px", r.reprojection_px},
+                          {"images", r.images}};
+    rows.push_back(row);
+    residuals.emplace_back(marker_id_by_name.at(r.name), row);
+  }
+  quality["markers"] = rows;
+  if (!gs.message.empty()) quality["georeference_message"] = gs.message;
+  timings["total_s"] = total.seconds();
+  quality["timings"] = timings;
+  quality["peak_memory_mb"] = double(peak_memory_bytes()) / (1024.0 * 1024.0);
+
+  // ---- store, in one transaction with the detected observations
+  Transaction tx(db);
+  db.prepare(
+        "DELETE FROM observations WHERE source = 'detected' AND image_id IN (SELECT id FROM images "
+        "WHERE layer_id = ?)")
+      .bind_all(layer.id)
+      .run();
+  for (const auto& o : detected) upsert_observation(db, o);
+  StoredAlignment stored;
+  stored.rec = rec;
+  stored.images = records;
+  stored.camera_ids = camera_ids;
+  stored.quality = quality;
+  stored.inputs_key = inputs_key;
+  store_alignment(db, layer, site, stored, residuals);
+  tx.commit();
+  result.quality = quality;
+  return result;
+}
+
+}  // namespace strata

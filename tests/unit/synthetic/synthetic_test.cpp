@@ -1,0 +1,436 @@
+// Tests of the synthetic excavation generator: the truth must be consistent with
+// itself and with the photos (issue 3).
+#include "core/error.hpp"
+#include "geometry/camera.hpp"
+#include "support/test_support.hpp"
+#include "synthetic/render.hpp"
+#include "synthetic/scene.hpp"
+#include "synthetic/synthetic.hpp"
+
+#include <gdal_priv.h>
+#include <gtest/gtest.h>
+#include <opencv2/aruco.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <set>
+#include <sstream>
+
+namespace fs = std::filesystem;
+
+namespace strata {
+namespace {
+
+// ---- tolerances, each with its reason -------------------------------------------
+// Float32 rasters of heights near 1450 m: a ulp is 0.12 mm.
+constexpr double kRasterUlp = 2e-4;  // metres
+// Volumes from the 5 mm truth rasters (midpoint rule) vs the exact integral over
+// the 4 mm height field: they differ only at the steep sides, well under 1 %.
+constexpr double kVolumeRelTol = 0.01;
+// gcp_list pixels are written with 4 decimals.
+constexpr double kGcpPixelTol = 1e-3;
+// Surveyed markers carry 3 mm Gaussian noise: 5 sigma bound per axis.
+constexpr double kSurveyNoiseBound = 5 * 0.003;
+// A detected ArUco centre (diagonal intersection of 4 corners found to ~0.1-0.3 px
+// after JPEG and noise) vs the true projection of the printed centre.
+constexpr double kArucoCentreTol = 1.0;  // pixels
+// Share of markers fully inside a photo and large enough that ArUco must find.
+constexpr double kMinDetectionRate = 0.6;
+// The centroid of a painted 1.5 cm disc vs the projection of its centre: pixel
+// quantisation and the tiny perspective bias of a disc (radius^2 / distance).
+constexpr double kSpotTol = 0.3;  // pixels
+// A ray ending at a point hidden behind the trench side stops this much earlier.
+constexpr double kOcclusionMargin = 0.05;  // metres
+
+using Table = std::vector<std::map<std::string, std::string>>;
+
+Table read_csv(const fs::path& path, std::string* header = nullptr) {
+  std::ifstream in(path);
+  EXPECT_TRUE(in.good()) << path;
+  std::string line;
+  std::getline(in, line);
+  if (header) *header = line;
+  std::vector<std::string> names;
+  std::stringstream hs(line);
+  for (std::string f; std::getline(hs, f, ',');) names.push_back(f);
+  Table rows;
+  while (std::getline(in, line)) {
+    if (line.empty()) continue;
+    std::map<std::string, std::string> row;
+    std::stringstream ls(line);
+    std::size_t i = 0;
+    for (std::string f; std::getline(ls, f, ',') && i < names.size(); ++i) row[names[i]] = f;
+    rows.push_back(row);
+  }
+  return rows;
+}
+
+struct GcpLine {
+  double e, n, z, u, v;
+  std::string image, marker;
+};
+std::vector<GcpLine> read_gcp(const fs::path& path, std::string* first) {
+  std::ifstream in(path);
+  std::getline(in, *first);
+  std::vector<GcpLine> out;
+  for (GcpLine g; in >> g.e >> g.n >> g.z >> g.u >> g.v >> g.image >> g.marker;) out.push_back(g);
+  return out;
+}
+
+struct Raster {
+  double gt[6]{};
+  int cols = 0, rows = 0;
+  std::vector<float> z;
+  std::string wkt;
+  double nodata = 0;
+};
+Raster read_raster(const fs::path& path) {
+  GDALAllRegister();
+  Raster r;
+  std::unique_ptr<GDALDataset> ds(GDALDataset::Open(path.string().c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
+  if (!ds) {
+    ADD_FAILURE() << "cannot open " << path;
+    return r;
+  }
+  ds->GetGeoTransform(r.gt);
+  r.cols = ds->GetRasterXSize();
+  r.rows = ds->GetRasterYSize();
+  r.z.resize(std::size_t(r.cols) * std::size_t(r.rows));
+  auto* band = ds->GetRasterBand(1);
+  r.nodata = band->GetNoDataValue();
+  EXPECT_EQ(band->GetRasterDataType(), GDT_Float32);
+  EXPECT_EQ(band->RasterIO(GF_Read, 0, 0, r.cols, r.rows, r.z.data(), r.cols, r.rows, GDT_Float32, 0, 0), CE_None);
+  if (const auto* srs = ds->GetSpatialRef()) r.wkt = srs->GetAuthorityCode(nullptr) ? srs->GetAuthorityCode(nullptr) : "";
+  return r;
+}
+
+// Camera in the site frame from a truth cameras.csv row.
+Camera camera_from_row(const std::map<std::string, std::string>& row, const Eigen::Vector3d& origin, int w, int h) {
+  Camera c;
+  c.intrinsics = {w, h, std::stod(row.at("fx")), std::stod(row.at("fy")), std::stod(row.at("ppx")),
+                  std::stod(row.at("ppy")), std::stod(row.at("k1")), std::stod(row.at("k2"))};
+  Eigen::Matrix3d R;
+  const char* names[9] = {"r11", "r12", "r13", "r21", "r22", "r23", "r31", "r32", "r33"};
+  for (int i = 0; i < 9; ++i) R(i / 3, i % 3) = std::stod(row.at(names[i]));
+  const Eigen::Vector3d centre(std::stod(row.at("X")), std::stod(row.at("Y")), std::stod(row.at("Z")));
+  c.pose = Pose::from_centre(R, centre - origin);
+  return c;
+}
+
+// The small scene, generated once for the suite.
+class SmallExcavation : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new fs::path(fs::path(std::getenv("STRATA_BINARY_DIR")) / "scratch" / "synthetic_small");
+    fs::remove_all(*dir_);
+    options_ = SyntheticExcavationOptions::preset(SyntheticExcavationOptions::Size::small);
+    options_.seed = 3;
+    summary_ = new SyntheticExcavationSummary(generate_excavation(options_, *dir_));
+  }
+  static void TearDownTestSuite() {
+    if (!std::getenv("STRATA_KEEP_SCRATCH")) fs::remove_all(*dir_);
+    delete dir_;
+    delete summary_;
+  }
+  static Eigen::Vector3d origin() {
+    return {options_.site.origin_e, options_.site.origin_n, options_.site.origin_z};
+  }
+  static fs::path* dir_;
+  static SyntheticExcavationOptions options_;
+  static SyntheticExcavationSummary* summary_;
+};
+fs::path* SmallExcavation::dir_ = nullptr;
+SyntheticExcavationOptions SmallExcavation::options_;
+SyntheticExcavationSummary* SmallExcavation::summary_ = nullptr;
+
+TEST_F(SmallExcavation, WritesTheDocumentedLayout) {
+  const fs::path& d = *dir_;
+  const int layers = options_.site.stages + 1;
+  EXPECT_EQ(summary_->layers, layers);
+  EXPECT_EQ(summary_->photos, layers * options_.photos.per_layer);
+  std::string h;
+  read_csv(d / "units.csv", &h);
+  EXPECT_EQ(h, "code,type,description");
+  read_csv(d / "relations.csv", &h);
+  EXPECT_EQ(h, "a,relation,b");
+  const auto layer_rows = read_csv(d / "layers.csv", &h);
+  EXPECT_EQ(h, "layer,unit,captured_at,photos_dir");
+  ASSERT_EQ(int(layer_rows.size()), layers);
+  read_csv(d / "markers.csv", &h);
+  EXPECT_EQ(h, "name,E,N,Z,sigma,kind");
+  read_csv(d / "truth" / "markers.csv", &h);
+  EXPECT_EQ(h, "name,E,N,Z,sigma,kind");
+  const auto volumes = read_csv(d / "truth" / "units.csv", &h);
+  EXPECT_EQ(h, "unit,volume_m3,area_m2,mean_thickness_m,max_thickness_m");
+  EXPECT_EQ(int(volumes.size()), options_.site.stages);
+  std::set<std::string> names;
+  for (int k = 1; k <= layers; ++k) {
+    const std::string l = "L" + std::to_string(k);
+    EXPECT_EQ(layer_rows[std::size_t(k - 1)].at("layer"), l);
+    EXPECT_EQ(layer_rows[std::size_t(k - 1)].at("photos_dir"), "photos/" + l);
+    const auto cams = read_csv(d / "truth" / l / "cameras.csv", &h);
+    EXPECT_EQ(h, "image,fx,fy,ppx,ppy,k1,k2,r11,r12,r13,r21,r22,r23,r31,r32,r33,X,Y,Z");
+    EXPECT_EQ(int(cams.size()), options_.photos.per_layer);
+    for (const auto& c : cams) {
+      EXPECT_TRUE(fs::exists(d / "photos" / l / c.at("image"))) << c.at("image");
+      EXPECT_TRUE(names.insert(c.at("image")).second) << "image names must be unique: " << c.at("image");
+    }
+    EXPECT_TRUE(fs::exists(d / "truth" / l / "surface.tif"));
+  }
+  std::ifstream site(d / "site.json");
+  std::string json((std::istreambuf_iterator<char>(site)), {});
+  EXPECT_NE(json.find("\"crs\": \"EPSG:32636\""), std::string::npos);
+  EXPECT_NE(json.find("\"photos\": \"photos/L1\""), std::string::npos);
+  // Relations name existing units and include the pit's cut and fill.
+  std::set<std::string> codes;
+  for (const auto& u : read_csv(d / "units.csv")) codes.insert(u.at("code"));
+  bool cuts = false, fills = false;
+  for (const auto& r : read_csv(d / "relations.csv")) {
+    EXPECT_TRUE(codes.count(r.at("a")) && codes.count(r.at("b")));
+    cuts |= r.at("relation") == "cuts";
+    fills |= r.at("relation") == "fills";
+  }
+  EXPECT_TRUE(cuts && fills);
+}
+
+TEST_F(SmallExcavation, LaterSurfacesNeverRiseAndGroundOutsideStays) {
+  const int layers = options_.site.stages + 1;
+  const Raster first = read_raster(*dir_ / "truth" / "L1" / "surface.tif");
+  EXPECT_EQ(first.wkt, "32636");
+  EXPECT_DOUBLE_EQ(first.gt[1], options_.render.truth_cell);
+  // The site.json trench box, to tell inside from outside.
+  const Table markers = read_csv(*dir_ / "truth" / "markers.csv");
+  Raster prev = first;
+  for (int k = 2; k <= layers; ++k) {
+    const Raster r = read_raster(*dir_ / "truth" / ("L" + std::to_string(k)) / "surface.tif");
+    ASSERT_EQ(r.z.size(), prev.z.size());
+    int lowered = 0, same_edge = 0, edge = 0;
+    for (int row = 0; row < r.rows; ++row)
+      for (int col = 0; col < r.cols; ++col) {
+        const std::size_t i = std::size_t(row) * std::size_t(r.cols) + std::size_t(col);
+        EXPECT_LE(r.z[i], prev.z[i] + kRasterUlp) << "layer L" << k << " rises at row " << row << " col " << col;
+        lowered += r.z[i] < prev.z[i] - kRasterUlp;
+        // The outer ring of the raster lies outside the trench (0.25 m margin).
+        if (row == 0 || col == 0 || row == r.rows - 1 || col == r.cols - 1) {
+          ++edge;
+          same_edge += std::abs(r.z[i] - first.z[i]) <= kRasterUlp;
+        }
+      }
+    EXPECT_GT(lowered, 0);
+    EXPECT_EQ(same_edge, edge) << "ground outside the trench changed in L" << k;
+    prev = r;
+  }
+}
+
+TEST_F(SmallExcavation, UnitVolumesAgreeWithTheTruthRasters) {
+  const Table volumes = read_csv(*dir_ / "truth" / "units.csv");
+  for (std::size_t k = 0; k < volumes.size(); ++k) {
+    const Raster before = read_raster(*dir_ / "truth" / ("L" + std::to_string(k + 1)) / "surface.tif");
+    const Raster after = read_raster(*dir_ / "truth" / ("L" + std::to_string(k + 2)) / "surface.tif");
+    double volume = 0;
+    for (std::size_t i = 0; i < before.z.size(); ++i) volume += double(before.z[i]) - double(after.z[i]);
+    volume *= before.gt[1] * before.gt[1];
+    const double truth = std::stod(volumes[k].at("volume_m3"));
+    EXPECT_NEAR(volume, truth, kVolumeRelTol * truth) << "unit " << volumes[k].at("unit");
+    // 4 m x 3 m at 5-30 cm.
+    const double area = std::stod(volumes[k].at("area_m2")), mean = std::stod(volumes[k].at("mean_thickness_m"));
+    EXPECT_NEAR(mean, truth / area, 1e-6);
+    EXPECT_GT(mean, options_.site.min_unit_thickness);
+    EXPECT_LT(mean, options_.site.max_unit_thickness);
+    EXPECT_LE(area, options_.site.trench_size_e * options_.site.trench_size_n * 1.02);
+  }
+}
+
+TEST_F(SmallExcavation, MarkersProjectOntoTheGcpListPixels) {
+  std::string first;
+  const auto gcp = read_gcp(*dir_ / "gcp_list.txt", &first);
+  EXPECT_EQ(first, "EPSG:32636");
+  ASSERT_FALSE(gcp.empty());
+  std::map<std::string, Eigen::Vector3d> truth, surveyed;
+  std::map<std::string, std::string> kind;
+  for (const auto& m : read_csv(*dir_ / "truth" / "markers.csv"))
+    truth[m.at("name")] = {std::stod(m.at("E")), std::stod(m.at("N")), std::stod(m.at("Z"))};
+  for (const auto& m : read_csv(*dir_ / "markers.csv")) {
+    surveyed[m.at("name")] = {std::stod(m.at("E")), std::stod(m.at("N")), std::stod(m.at("Z"))};
+    kind[m.at("name")] = m.at("kind");
+  }
+  EXPECT_EQ(int(truth.size()), options_.site.markers);
+  int checks = 0;
+  for (const auto& [name, k] : kind) checks += k == "check";
+  EXPECT_EQ(checks, options_.site.check_markers);
+  for (const auto& [name, t] : truth) EXPECT_LT((surveyed.at(name) - t).cwiseAbs().maxCoeff(), kSurveyNoiseBound);
+
+  std::map<std::string, Camera> cameras;
+  for (int k = 1; k <= options_.site.stages + 1; ++k)
+    for (const auto& row : read_csv(*dir_ / "truth" / ("L" + std::to_string(k)) / "cameras.csv"))
+      cameras[row.at("image")] = camera_from_row(row, origin(), options_.photos.width, options_.photos.height);
+  std::map<std::string, int> per_image;
+  for (const auto& g : gcp) {
+    const auto px = cameras.at(g.image).project(truth.at(g.marker) - origin());
+    ASSERT_TRUE(px.has_value());
+    EXPECT_NEAR(px->x(), g.u, kGcpPixelTol) << g.image << " " << g.marker;
+    EXPECT_NEAR(px->y(), g.v, kGcpPixelTol) << g.image << " " << g.marker;
+    EXPECT_NEAR(g.e, surveyed.at(g.marker).x(), 1e-4);
+    ++per_image[g.image];
+  }
+  // Hand-held sets keep markers in view: most photos show three or more.
+  int with_three = 0;
+  for (const auto& [image, n] : per_image) with_three += n >= 3;
+  EXPECT_GE(with_three, int(cameras.size()) / 2);
+}
+
+// The photos themselves: ArUco finds the printed targets where the truth says.
+TEST_F(SmallExcavation, ArucoFindsTheMarkersAtTheTruePixels) {
+  std::string first;
+  const auto gcp = read_gcp(*dir_ / "gcp_list.txt", &first);
+  std::map<std::string, std::map<int, Eigen::Vector2d>> expected;
+  for (const auto& g : gcp) expected[g.image][std::stoi(g.marker.substr(3))] = {g.u, g.v};
+  auto dict = cv::aruco::getPredefinedDictionary(cv::aruco::DICT_4X4_50);
+  auto params = cv::aruco::DetectorParameters::create();
+  params->cornerRefinementMethod = cv::aruco::CORNER_REFINE_SUBPIX;
+  int found = 0, checked = 0, expected_count = 0;
+  for (int k = 1; k <= options_.site.stages + 1; ++k) {
+    const std::string l = "L" + std::to_string(k);
+    for (int i : {1, 4}) {  // an oblique photo and another one of each layer
+      const std::string name = l + "_" + (i < 10 ? "000" : "00") + std::to_string(i) + ".jpg";
+      const cv::Mat img = cv::imread((*dir_ / "photos" / l / name).string());
+      ASSERT_FALSE(img.empty()) << name;
+      std::vector<int> ids;
+      std::vector<std::vector<cv::Point2f>> corners;
+      cv::aruco::detectMarkers(img, dict, corners, ids, params);
+      expected_count += int(expected[name].size());
+      for (std::size_t m = 0; m < ids.size(); ++m) {
+        EXPECT_GE(ids[m], 1);
+        EXPECT_LE(ids[m], options_.site.markers);
+        auto it = expected[name].find(ids[m]);
+        if (it == expected[name].end()) {
+          ADD_FAILURE() << name << ": detected id " << ids[m] << " that the truth does not see";
+          continue;
+        }
+        // Centre of the printed square = intersection of the diagonals of its corners.
+        const auto& c = corners[m];
+        const Eigen::Vector3d a = Eigen::Vector3d(c[0].x, c[0].y, 1).cross(Eigen::Vector3d(c[2].x, c[2].y, 1));
+        const Eigen::Vector3d b = Eigen::Vector3d(c[1].x, c[1].y, 1).cross(Eigen::Vector3d(c[3].x, c[3].y, 1));
+        const Eigen::Vector3d x = a.cross(b);
+        const Eigen::Vector2d centre = x.head<2>() / x.z();
+        EXPECT_LT((centre - it->second).norm(), kArucoCentreTol) << name << " GCP" << ids[m];
+        ++found;
+      }
+      ++checked;
+    }
+  }
+  EXPECT_GT(checked, 0);
+  EXPECT_GE(double(found), kMinDetectionRate * expected_count)
+      << found << " of " << expected_count << " visible marker centres detected";
+}
+
+// ---- internal API: the renderer agrees with the camera model ------------------------
+
+SyntheticExcavationOptions tiny_options() {
+  auto o = SyntheticExcavationOptions::preset(SyntheticExcavationOptions::Size::small);
+  o.site.stages = 2;
+  o.photos.per_layer = 3;
+  o.photos.width = 320;
+  o.photos.height = 214;
+  return o;
+}
+
+TEST(SyntheticRender, ASurfacePointAppearsWhereTheCameraProjectsIt) {
+  const auto o = tiny_options();
+  const synthetic::Scene scene(o);
+  const int layer = scene.layers() - 1;  // the deepest floor: trench sides all around
+  const synthetic::Lighting light;
+  const synthetic::LayerTexture texture(scene, layer, light, o.render.texel);
+  // A point on the floor, off the trench centre, not on a stone.
+  const double x = scene.trench_x0() + 0.45 * o.site.trench_size_e, y = scene.trench_y0() + 0.3 * o.site.trench_size_n;
+  const Eigen::Vector3d point(x, y, scene.surface(layer).sample(x, y));
+  synthetic::RenderSettings settings;
+  settings.edge_samples = 0;
+  settings.spot = synthetic::RenderSettings::Spot{{x, y}, 0.015, {0.9f, 0.02f, 0.02f}};
+  Intrinsics k{640, 427, 560, 560, 331.7, 209.2, -0.08, 0.02};
+  for (const Eigen::Vector3d& eye : {Eigen::Vector3d(x + 0.2, y - 0.1, point.z() + 1.8),
+                                     Eigen::Vector3d(x - 0.6, scene.trench_y0() - 0.5, point.z() + 2.0)}) {
+    const Camera cam{k, Pose::look_at(eye, point + Eigen::Vector3d(0.1, 0.05, 0))};
+    const auto expected = cam.project(point);
+    ASSERT_TRUE(expected.has_value());
+    const auto img = synthetic::render_view(scene, layer, texture, light, cam, settings);
+    double su = 0, sv = 0, sw = 0;
+    for (int v = 0; v < img.height; ++v)
+      for (int u = 0; u < img.width; ++u) {
+        const float* p = &img.rgb[3 * (std::size_t(v) * std::size_t(img.width) + std::size_t(u))];
+        // Weight: how much redder than the soil the pixel is.
+        const double w = std::max(0.0, double(p[0]) - 2.0 * double(std::max(p[1], p[2])));
+        su += w * u;
+        sv += w * v;
+        sw += w;
+      }
+    ASSERT_GT(sw, 0) << "the spot is not visible";
+    EXPECT_NEAR(su / sw, expected->x(), kSpotTol);
+    EXPECT_NEAR(sv / sw, expected->y(), kSpotTol);
+  }
+}
+
+TEST(SyntheticRender, TrenchSidesHideTheFloorBehindThem) {
+  const auto o = tiny_options();
+  const synthetic::Scene scene(o);
+  const int layer = scene.layers() - 1;
+  // A floor point 5 cm inside the north side, seen from a low eye 1 m north of the trench.
+  const double x = 0.5 * (scene.trench_x0() + scene.trench_x1()), y = scene.trench_y1() - 0.05;
+  const Eigen::Vector3d point(x, y, scene.surface(layer).sample(x, y));
+  const Eigen::Vector3d low(x, scene.trench_y1() + 1.0, scene.ground_smooth(x, scene.trench_y1() + 1.0) + 0.4);
+  const Eigen::Vector3d high(x, y - 0.3, point.z() + 1.8);
+  const auto hidden = synthetic::cast_ray(scene, layer, low, (point - low).normalized());
+  EXPECT_LT(hidden.t, (point - low).norm() - kOcclusionMargin);
+  const auto seen = synthetic::cast_ray(scene, layer, high, (point - high).normalized());
+  EXPECT_NEAR(seen.t, (point - high).norm(), 1e-4);
+}
+
+TEST(SyntheticOptions, InvalidOptionsNameTheField) {
+  auto o = tiny_options();
+  o.photos.width = 10;
+  try {
+    o.validate();
+    FAIL() << "accepted a 10 px width";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("photos.width"), std::string::npos) << e.what();
+  }
+  o = tiny_options();
+  o.site.check_markers = o.site.markers;
+  EXPECT_THROW(o.validate(), InputError);
+}
+
+TEST(SyntheticGenerate, SameSeedSameBytesOtherSeedOtherScene) {
+  test::ScratchDir scratch("determinism");
+  auto o = tiny_options();
+  o.site.stages = 1;
+  o.seed = 11;
+  generate_excavation(o, scratch / "a");
+  generate_excavation(o, scratch / "b");
+  EXPECT_EQ(test::tree_fingerprint(scratch / "a"), test::tree_fingerprint(scratch / "b"));
+  o.seed = 12;
+  generate_excavation(o, scratch / "c");
+  EXPECT_NE(test::read_text(scratch / "a" / "truth" / "units.csv"), test::read_text(scratch / "c" / "truth" / "units.csv"));
+  // A non-empty folder is refused and left as it was.
+  const auto before = test::tree_fingerprint(scratch / "a");
+  EXPECT_THROW(generate_excavation(o, scratch / "a"), InputError);
+  EXPECT_EQ(test::tree_fingerprint(scratch / "a"), before);
+}
+
+TEST(SyntheticCli, SynthCommandWritesADatasetAndRejectsBadOptions) {
+  test::ScratchDir scratch("cli");
+  const auto ok = test::run_strata({"synth", (scratch / "dig").string(), "--size", "small", "--stages", "1",
+                                    "--photos", "3", "--width", "320", "--seed", "5"});
+  EXPECT_EQ(ok.exit_code, 0) << ok.err;
+  EXPECT_TRUE(fs::exists(scratch / "dig" / "site.json"));
+  EXPECT_TRUE(fs::exists(scratch / "dig" / "photos" / "L2" / "L2_0003.jpg"));
+  const auto bad = test::run_strata({"synth", (scratch / "bad").string(), "--photos", "1"});
+  EXPECT_NE(bad.exit_code, 0);
+  EXPECT_NE(bad.err.find("photos.per_layer"), std::string::npos) << bad.err;
+  EXPECT_FALSE(fs::exists(scratch / "bad"));
+}
+
+}  // namespace
+}  // namespace strata
