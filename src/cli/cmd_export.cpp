@@ -1,6 +1,7 @@
 // strata export ...
 #include "cli/commands.hpp"
 #include "core/error.hpp"
+#include "core/hash.hpp"
 #include "core/log.hpp"
 #include "exporters/cameras/camera_export.hpp"
 #include "pipeline/alignment_store.hpp"
@@ -43,6 +44,41 @@ void register_export_commands(CLI::App& app) {
       } else {
         write_colmap_model(a->rec, *out);
       }
+      log::info("wrote {}", *out);
+    });
+  }
+  // Products the dense stage already wrote (double-precision site CRS vertices):
+  // exported by copy, after checking the file still matches its recorded checksum.
+  const std::pair<const char*, const char*> copies[] = {
+      {"mesh", "the layer's triangle mesh (PLY; .obj when the dense stage wrote one), site CRS coordinates"},
+      {"points", "the layer's coloured dense point cloud (PLY), site CRS coordinates"}};
+  for (const auto& [kind_c, help] : copies) {
+    const std::string kind = kind_c;
+    auto* cmd = exp->add_subcommand(kind, help);
+    auto dir = std::make_shared<std::string>();
+    auto layer = std::make_shared<std::string>();
+    auto out = std::make_shared<std::string>();
+    cmd->add_option("DIR", *dir, "project folder")->required();
+    cmd->add_option("--layer", *layer, "the layer")->required();
+    cmd->add_option("--out", *out, "output file")->required();
+    cmd->callback([=] {
+      Project p = Project::open(*dir);
+      const LayerRecord l = require_layer(p.db(), *layer);
+      const bool obj = std::filesystem::path(*out).extension() == ".obj";
+      auto product = find_product(p.db(), l.id, obj ? "mesh_obj" : kind);
+      if (!product) {
+        throw InputError(fmt::format("layer {} has no {} yet; run 'strata process {} --layer {} --until dense'{}",
+                                     l.name, obj ? "OBJ mesh" : kind, *dir, l.name,
+                                     obj ? " (OBJ meshes need the dense stage's OBJ option)" : ""));
+      }
+      const auto src = p.dir() / product->path;
+      if (!std::filesystem::exists(src) || sha256_file(src) != product->sha256) {
+        throw IoError(fmt::format("{}: missing or changed since it was recorded; rerun 'strata process {} --layer "
+                                  "{} --force'", src.string(), *dir, l.name));
+      }
+      const std::string tmp = *out + ".tmp";
+      std::filesystem::copy_file(src, tmp, std::filesystem::copy_options::overwrite_existing);
+      std::filesystem::rename(tmp, *out);
       log::info("wrote {}", *out);
     });
   }

@@ -4,6 +4,7 @@
 #include "core/log.hpp"
 #include "features/targets.hpp"
 #include "pipeline/align_layer.hpp"
+#include "pipeline/dense_layer.hpp"
 #include "project/project.hpp"
 #include "project/records.hpp"
 
@@ -47,6 +48,19 @@ void print_quality(const nlohmann::json& q, bool skipped) {
   }
 }
 
+void print_dense(const nlohmann::json& q, bool skipped) {
+  fmt::print("  dense surface{}\n", skipped ? " (up to date, not recomputed)" : "");
+  fmt::print("    depth maps          {} / {} photos at scale {}\n", q["images_with_depth"].get<int>(),
+             q["images_total"].get<int>(), q["depth_scale"].get<double>());
+  fmt::print("    voxel size          {:.1f} mm\n", 1000 * q["voxel_size_m"].get<double>());
+  fmt::print("    completeness        {:.1f} % of {:.2f} m2\n", 100 * q["completeness"].get<double>(),
+             q["area_m2"].get<double>());
+  fmt::print("    to sparse points    median {:.1f} mm, 95% {:.1f} mm\n",
+             1000 * q["median_distance_sparse_m"].get<double>(), 1000 * q["p95_distance_sparse_m"].get<double>());
+  fmt::print("    mesh                {} faces; {} points\n", q["mesh_faces"].get<int>(), q["points"].get<int>());
+  fmt::print("    time                {:.1f} s\n", q["steps"]["total"]["seconds"].get<double>());
+}
+
 }  // namespace
 
 void register_process_commands(CLI::App& app) {
@@ -59,7 +73,8 @@ void register_process_commands(CLI::App& app) {
   auto dir = std::make_shared<std::string>();
   auto layer = std::make_shared<std::string>();
   auto all = std::make_shared<bool>(false);
-  auto until = std::make_shared<std::string>("sparse");
+  auto until = std::make_shared<std::string>("dense");
+  auto dense = std::make_shared<DenseOptions>();
   auto json = std::make_shared<bool>(false);
   auto options = std::make_shared<AlignOptions>();
   auto target_names = std::make_shared<std::string>();
@@ -67,8 +82,16 @@ void register_process_commands(CLI::App& app) {
   auto* layer_opt = cmd->add_option("--layer", *layer, "the layer to process");
   auto* all_opt = cmd->add_flag("--all", *all, "process every layer");
   layer_opt->excludes(all_opt);
-  cmd->add_option("--until", *until, "last stage to run: sparse (alignment)")
-      ->check(CLI::IsMember({"sparse"}));
+  cmd->add_option("--until", *until,
+                  "last stage to run: sparse (alignment and georeference) or dense (depth maps, "
+                  "fused surface, mesh, point cloud); default dense")
+      ->check(CLI::IsMember({"sparse", "dense"}));
+  cmd->add_option("--dense-scale", dense->patch_match.scale,
+                  "depth-map resolution relative to the photos: 1, 0.5 or 0.25 (default 0.25)");
+  cmd->add_option("--voxel-size", dense->fusion.voxel_size_m,
+                  "fusion voxel size in metres (default: from the ground sampling distance)");
+  cmd->add_option("--target-faces", dense->mesh.target_faces,
+                  "simplify the mesh to this many faces with CGAL (default: keep all)");
   cmd->add_flag("--json", *json, "print the quality figures as JSON");
   cmd->add_flag("--force", options->force, "recompute even when up to date");
   cmd->add_option("--max-image-size", options->features.max_image_size,
@@ -96,11 +119,15 @@ void register_process_commands(CLI::App& app) {
     for (const auto& name : layers) {
       log::info("== layer {}: alignment", name);
       const AlignResult r = align_layer(p, name, *options);
-      if (*json) {
-        out.push_back(r.quality);
-      } else {
-        print_quality(r.quality, r.skipped);
+      nlohmann::json q = r.quality;
+      if (!*json) print_quality(r.quality, r.skipped);
+      if (*until != "sparse") {
+        log::info("== layer {}: dense surface", name);
+        const DenseLayerResult d = dense_layer(p, name, *dense, options->force || !r.skipped);
+        q["dense"] = d.quality;
+        if (!*json) print_dense(d.quality, d.skipped);
       }
+      out.push_back(q);
     }
     if (*json) fmt::print("{}\n", (*all ? out : out.front()).dump(2));
   });

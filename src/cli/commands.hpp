@@ -13,5 +13,7 @@ void register_import_commands(CLI::App& app);    // import photos|markers, marke
 void register_synth_command(CLI::App& app);      // synth
 void register_process_commands(CLI::App& app);   // process, (later) volume, check
 void register_export_commands(CLI::App& app);    // export ...
+void register_products_commands(CLI::App& app);  // export dtm|ortho|qgis|grass
+void register_volume_commands(CLI::App& app);    // volume, check, export thickness|voxels|section
 
 }  // namespace strata::cli

@@ -18,6 +18,8 @@ struct FeatureTable {
 constexpr FeatureTable kFeatureTables[] = {
     {"markers", "POINT", 1, "surveyed ground-control and check markers"},
     {"camera_positions", "POINT", 1, "positions of the aligned photos"},
+    {"contours", "LINESTRING", 1, "contour lines of each layer's DTM"},
+    {"footprints", "MULTIPOLYGON", 0, "reconstructed footprint of each layer"},
 };
 
 bool table_exists(Database& db, const std::string& name) {

@@ -272,3 +272,59 @@ std::vector<ObservationRecord> list_observations(Database& db, std::optional<std
 }
 
 }  // namespace strata
+
+#include "core/hash.hpp"
+
+namespace strata {
+namespace {
+constexpr const char* kProductSelect =
+    "SELECT id, layer_id, unit_id, kind, path, sha256, bytes, params_json FROM products ";
+ProductRecord read_product(const Statement& st) {
+  ProductRecord p;
+  p.id = st.get_int(0);
+  if (!st.is_null(1)) p.layer_id = st.get_int(1);
+  if (!st.is_null(2)) p.unit_id = st.get_int(2);
+  p.kind = st.get_text(3);
+  p.path = st.get_text(4);
+  p.sha256 = st.get_text(5);
+  p.bytes = st.get_int(6);
+  p.params_json = st.get_text(7);
+  return p;
+}
+}  // namespace
+
+std::int64_t record_product(Database& db, const std::filesystem::path& project_dir, ProductRecord p) {
+  const auto file = project_dir / p.path;
+  p.sha256 = sha256_file(file);
+  p.bytes = std::int64_t(std::filesystem::file_size(file));
+  db.prepare("DELETE FROM products WHERE path = ?").bind_all(p.path).run();
+  db.prepare(
+        "INSERT INTO products(layer_id, unit_id, kind, path, sha256, bytes, params_json, created_at) "
+        "VALUES (?, ?, ?, ?, ?, ?, ?, strftime('%Y-%m-%dT%H:%M:%SZ','now'))")
+      .bind_all(p.layer_id, p.unit_id, p.kind, p.path, p.sha256, p.bytes, p.params_json)
+      .run();
+  return db.last_insert_id();
+}
+
+std::vector<ProductRecord> list_products(Database& db, std::optional<std::int64_t> layer_id,
+                                         const std::string& kind) {
+  std::string sql = std::string(kProductSelect) + "WHERE 1 ";
+  if (layer_id) sql += "AND layer_id = ? ";
+  if (!kind.empty()) sql += "AND kind = ? ";
+  sql += "ORDER BY id";
+  auto st = db.prepare(sql);
+  int i = 1;
+  if (layer_id) st.bind(i++, *layer_id);
+  if (!kind.empty()) st.bind(i++, kind);
+  std::vector<ProductRecord> out;
+  while (st.step()) out.push_back(read_product(st));
+  return out;
+}
+
+std::optional<ProductRecord> find_product(Database& db, std::int64_t layer_id, const std::string& kind) {
+  auto all = list_products(db, layer_id, kind);
+  if (all.empty()) return std::nullopt;
+  return all.back();
+}
+
+}  // namespace strata

@@ -6,6 +6,7 @@
 #include <Eigen/Core>
 
 #include <cstdint>
+#include <filesystem>
 #include <optional>
 #include <string>
 #include <vector>
@@ -105,5 +106,26 @@ std::vector<MarkerRecord> list_markers(Database& db);
 bool upsert_observation(Database& db, const ObservationRecord& o);
 std::vector<ObservationRecord> list_observations(Database& db,
                                                  std::optional<std::int64_t> layer_id = {});
+
+}  // namespace strata
+
+namespace strata {
+
+// ---- products: files under the project folder, recorded with their checksum
+struct ProductRecord {
+  std::int64_t id = 0;
+  std::optional<std::int64_t> layer_id;
+  std::optional<std::int64_t> unit_id;
+  std::string kind;
+  std::string path;  // relative to the project folder
+  std::string sha256;
+  std::int64_t bytes = 0;
+  std::string params_json = "{}";
+};
+// Records (or replaces, by path) a product; computes size and checksum from the file.
+std::int64_t record_product(Database& db, const std::filesystem::path& project_dir, ProductRecord p);
+std::vector<ProductRecord> list_products(Database& db, std::optional<std::int64_t> layer_id = {},
+                                         const std::string& kind = "");
+std::optional<ProductRecord> find_product(Database& db, std::int64_t layer_id, const std::string& kind);
 
 }  // namespace strata

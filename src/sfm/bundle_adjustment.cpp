@@ -10,6 +10,7 @@
 #include <Eigen/Geometry>
 
 #include <algorithm>
+#include <cstdlib>
 #include <cmath>
 #include <limits>
 #include <map>
@@ -61,30 +62,29 @@ void from_block(const IntrinsicsBlock& b, Intrinsics& k) {
   k.k2 = b[kK2];
 }
 
-std::array<double, 3> to_angle_axis(const Eigen::Matrix3d& R) {
-  const Eigen::AngleAxisd aa(R);
+std::array<double, kPoseSize> to_block(const Pose& pose) {
+  const Eigen::AngleAxisd aa(pose.R);
   const Eigen::Vector3d w = aa.axis() * aa.angle();
-  return {w.x(), w.y(), w.z()};
+  return {w.x(), w.y(), w.z(), pose.t.x(), pose.t.y(), pose.t.z()};
 }
 
-Eigen::Matrix3d from_angle_axis(const std::array<double, 3>& w) {
-  const Eigen::Vector3d v(w[0], w[1], w[2]);
-  const double angle = v.norm();
-  if (angle < 1e-15) return Eigen::Matrix3d::Identity();
-  return Eigen::AngleAxisd(angle, v / angle).toRotationMatrix();
+Pose pose_from_block(const std::array<double, kPoseSize>& b) {
+  Pose pose;
+  const Eigen::Vector3d w(b[0], b[1], b[2]);
+  const double angle = w.norm();
+  pose.R = angle < 1e-15 ? Eigen::Matrix3d::Identity()
+                         : Eigen::AngleAxisd(angle, w / angle).toRotationMatrix();
+  pose.t = Eigen::Vector3d(b[3], b[4], b[5]);
+  return pose;
 }
 
 void set_gauge(BaProblem& problem, int a, int b) {
   problem.gauge_camera = a;
   problem.gauge_scale_camera = b;
-  const auto& ca = problem.cameras[a];
-  const auto& cb = problem.cameras[b];
-  const Eigen::Matrix3d Ra = from_angle_axis(ca.rotation);
-  const Eigen::Matrix3d Rb = from_angle_axis(cb.rotation);
-  const Eigen::Vector3d Ca = -Ra.transpose() * Eigen::Vector3d(ca.translation.data());
-  const Eigen::Vector3d Cb = -Rb.transpose() * Eigen::Vector3d(cb.translation.data());
+  const Pose pa = pose_from_block(problem.cameras[a].pose);
+  const Pose pb = pose_from_block(problem.cameras[b].pose);
   // Scaling by s about Ca changes t_b by -(s - 1) Rb (Cb - Ca): fix its largest entry.
-  const Eigen::Vector3d d = Rb * (Cb - Ca);
+  const Eigen::Vector3d d = pb.R * (pb.centre() - pa.centre());
   d.cwiseAbs().maxCoeff(&problem.gauge_scale_axis);
 }
 
@@ -92,8 +92,8 @@ double reprojection_error_px(const BaProblem& problem, const BaObservation& obs)
   const auto& cam = problem.cameras[obs.camera];
   const ReprojectionCost cost(obs.pixel, 1.0);
   double r[2];
-  if (!cost(cam.rotation.data(), cam.translation.data(), problem.intrinsics[cam.group].data(),
-            problem.points[obs.point].data(), r)) {
+  if (!cost(cam.pose.data(), problem.intrinsics[cam.group].data(), problem.points[obs.point].data(),
+            r)) {
     return std::numeric_limits<double>::infinity();
   }
   return std::hypot(r[0], r[1]);
@@ -136,11 +136,10 @@ BundleSummary solve_bundle(const BundleOptions& options, BaProblem& problem) {
     auto& cam = problem.cameras[obs.camera];
     if (!cam.variable && !problem.point_variable[obs.point]) continue;
     const double sigma = obs.marker ? options.marker_sigma_px : options.keypoint_sigma_px;
-    auto* cost = new ceres::AutoDiffCostFunction<ReprojectionCost, 2, 3, 3, kIntrinsicsSize, 3>(
+    auto* cost = new ceres::AutoDiffCostFunction<ReprojectionCost, 2, kPoseSize, kIntrinsicsSize, 3>(
         new ReprojectionCost(obs.pixel, sigma));
     ceres_problem.AddResidualBlock(cost, obs.marker ? marker_loss.get() : keypoint_loss.get(),
-                                   cam.rotation.data(), cam.translation.data(),
-                                   problem.intrinsics[cam.group].data(),
+                                   cam.pose.data(), problem.intrinsics[cam.group].data(),
                                    problem.points[obs.point].data());
     camera_used[obs.camera] = 1;
     group_used[cam.group] = 1;
@@ -165,8 +164,7 @@ BundleSummary solve_bundle(const BundleOptions& options, BaProblem& problem) {
     if (!camera_used[c]) continue;
     auto& cam = problem.cameras[c];
     if (!cam.variable) {
-      ceres_problem.SetParameterBlockConstant(cam.rotation.data());
-      ceres_problem.SetParameterBlockConstant(cam.translation.data());
+      ceres_problem.SetParameterBlockConstant(cam.pose.data());
     } else {
       any_variable_camera = true;
     }
@@ -201,15 +199,13 @@ BundleSummary solve_bundle(const BundleOptions& options, BaProblem& problem) {
   // Datum of an unreferenced problem.
   if (problem.gauge_camera >= 0 && camera_used[problem.gauge_camera] &&
       problem.cameras[problem.gauge_camera].variable) {
-    auto& cam = problem.cameras[problem.gauge_camera];
-    ceres_problem.SetParameterBlockConstant(cam.rotation.data());
-    ceres_problem.SetParameterBlockConstant(cam.translation.data());
+    ceres_problem.SetParameterBlockConstant(problem.cameras[problem.gauge_camera].pose.data());
     summary.gauge_fixed = true;
   }
   if (problem.gauge_scale_camera >= 0 && camera_used[problem.gauge_scale_camera] &&
       problem.cameras[problem.gauge_scale_camera].variable) {
-    ceres_problem.SetManifold(problem.cameras[problem.gauge_scale_camera].translation.data(),
-                              new ceres::SubsetManifold(3, {problem.gauge_scale_axis}));
+    ceres_problem.SetManifold(problem.cameras[problem.gauge_scale_camera].pose.data(),
+                              new ceres::SubsetManifold(kPoseSize, {3 + problem.gauge_scale_axis}));
     summary.gauge_fixed = true;
   }
 
@@ -241,7 +237,7 @@ BundleSummary solve_bundle(const BundleOptions& options, BaProblem& problem) {
   summary.converged = ceres_summary.termination_type == ceres::CONVERGENCE;
   summary.initial_cost = ceres_summary.initial_cost;
   summary.final_cost = ceres_summary.final_cost;
-  summary.message = ceres_summary.BriefReport();
+  summary.message = std::getenv("STRATA_BA_FULL") ? ceres_summary.FullReport() : ceres_summary.BriefReport();
   double sum2 = 0;
   std::size_t n = 0;
   for (const auto& obs : problem.observations) {
@@ -275,8 +271,7 @@ BundleSummary bundle_adjust(const BundleOptions& options, Reconstruction& rec,
     if (!im.registered) continue;
     STRATA_CHECK(im.group >= 0 && std::size_t(im.group) < rec.groups.size());
     BaCamera cam;
-    cam.rotation = to_angle_axis(im.pose.R);
-    cam.translation = {im.pose.t.x(), im.pose.t.y(), im.pose.t.z()};
+    cam.pose = to_block(im.pose);
     cam.group = im.group;
     camera_of_image[i] = int(problem.cameras.size());
     problem.cameras.push_back(cam);
@@ -343,8 +338,7 @@ BundleSummary bundle_adjust(const BundleOptions& options, Reconstruction& rec,
   for (std::size_t i = 0; i < rec.images.size(); ++i) {
     const int c = camera_of_image[i];
     if (c < 0) continue;
-    rec.images[i].pose.R = from_angle_axis(problem.cameras[c].rotation);
-    rec.images[i].pose.t = Eigen::Vector3d(problem.cameras[c].translation.data());
+    rec.images[i].pose = pose_from_block(problem.cameras[c].pose);
   }
   for (std::size_t p = 0; p < rec.points.size(); ++p) {
     rec.points[p].X = problem.points[p];

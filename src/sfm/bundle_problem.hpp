@@ -15,8 +15,7 @@ namespace strata::sfm_detail {
 using IntrinsicsBlock = std::array<double, kIntrinsicsSize>;
 
 struct BaCamera {
-  std::array<double, 3> rotation{};     // angle-axis, world -> camera
-  std::array<double, 3> translation{};  // metres
+  std::array<double, kPoseSize> pose{};  // {angle-axis world -> camera, t in metres}
   int group = 0;
   bool variable = true;  // false: held constant (a neighbour in a local adjustment)
 };
@@ -51,8 +50,8 @@ struct BaProblem {
 
 IntrinsicsBlock to_block(const Intrinsics& k);
 void from_block(const IntrinsicsBlock& b, Intrinsics& k);
-std::array<double, 3> to_angle_axis(const Eigen::Matrix3d& R);
-Eigen::Matrix3d from_angle_axis(const std::array<double, 3>& w);
+std::array<double, kPoseSize> to_block(const Pose& pose);
+Pose pose_from_block(const std::array<double, kPoseSize>& b);
 
 // Chooses the gauge of an unreferenced problem from two variable cameras a, b:
 // the translation component of b that changes most under a scaling about a's centre.

@@ -4,8 +4,9 @@
 // Internal to sfm/ and its tests: no Ceres header is needed here, only the maths.
 //
 // Parameter blocks (all double):
-//   rotation[3]    angle-axis of the world->camera rotation R (radians, |w| = angle)
-//   translation[3] t of X_cam = R X_world + t (metres, reconstruction frame)
+//   pose[6]        {w, t}: angle-axis w of the world->camera rotation R (radians,
+//                  |w| = angle) and t of X_cam = R X_world + t (metres). One block,
+//                  so Ceres' Schur eliminator runs its specialisation <2, 3, 6>.
 //   intrinsics[6]  {f, cx, cy, k1, k2, aspect}: fx = f, fy = f * aspect (pixels);
 //                  the strata camera model of geometry/camera.hpp
 //   point[3]       X_world (metres)
@@ -17,6 +18,7 @@ namespace strata::sfm_detail {
 
 enum IntrinsicIndex { kFocal = 0, kCx = 1, kCy = 2, kK1 = 3, kK2 = 4, kAspect = 5 };
 constexpr int kIntrinsicsSize = 6;
+constexpr int kPoseSize = 6;
 
 // Rotates p by the angle-axis vector w (Rodrigues' formula):
 //   R p = p cos(th) + (k x p) sin(th) + k (k . p)(1 - cos(th)),  k = w / th.
@@ -51,13 +53,12 @@ struct ReprojectionCost {
       : u(observed_px.x()), v(observed_px.y()), inv_sigma(1.0 / sigma_px) {}
 
   template <typename T>
-  bool operator()(const T* rotation, const T* translation, const T* intrinsics, const T* point,
-                  T* residual) const {
+  bool operator()(const T* pose, const T* intrinsics, const T* point, T* residual) const {
     T xc[3];
-    angle_axis_rotate(rotation, point, xc);
-    xc[0] += translation[0];
-    xc[1] += translation[1];
-    xc[2] += translation[2];
+    angle_axis_rotate(pose, point, xc);
+    xc[0] += pose[3];
+    xc[1] += pose[4];
+    xc[2] += pose[5];
     // A point behind the camera has no projection: reject the step rather than
     // let the division flip signs.
     if (!(xc[2] > T(1e-12))) return false;

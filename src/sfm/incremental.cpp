@@ -124,6 +124,7 @@ class IncrementalMapper {
   std::pair<int, int> init_pair_{-1, -1};
   int local_count_ = 0, global_count_ = 0;
   std::size_t filtered_ = 0;
+  double ba_seconds_ = 0;
 };
 
 void IncrementalMapper::prepare_intrinsics() {
@@ -474,9 +475,7 @@ void IncrementalMapper::adjust(const std::vector<int>& variable_images, bool glo
   auto add_camera = [&](int image) {
     if (camera_of[image] >= 0) return camera_of[image];
     BaCamera cam;
-    cam.rotation = to_angle_axis(poses_[image].R);
-    const Eigen::Vector3d& t = poses_[image].t;
-    cam.translation = {t.x(), t.y(), t.z()};
+    cam.pose = to_block(poses_[image]);
     cam.group = images_[image].group;
     cam.variable = variable[image];
     camera_of[image] = int(problem.cameras.size());
@@ -520,14 +519,14 @@ void IncrementalMapper::adjust(const std::vector<int>& variable_images, bool glo
   if (n_registered_ < opt_.principal_point_min_images) bo.refine.principal_point = false;
 
   const auto s = solve_bundle(bo, problem);
+  ba_seconds_ += s.seconds;
   (global ? global_count_ : local_count_)++;
 
   for (std::size_t g = 0; g < intr_.size(); ++g) from_block(problem.intrinsics[g], intr_[g]);
   for (std::size_t c = 0; c < problem.cameras.size(); ++c) {
     if (!problem.cameras[c].variable) continue;
     const int image = image_of_camera[c];
-    poses_[image].R = from_angle_axis(problem.cameras[c].rotation);
-    poses_[image].t = Eigen::Vector3d(problem.cameras[c].translation.data());
+    poses_[image] = pose_from_block(problem.cameras[c].pose);
   }
   for (std::size_t p = 0; p < point_tracks.size(); ++p) tracks_[point_tracks[p]].X = problem.points[p];
   log::debug("sfm: {} BA over {} images: rmse {:.3f} px, {} iterations", global ? "global" : "local",
@@ -578,7 +577,7 @@ Reconstruction IncrementalMapper::run(IncrementalSummary& summary) {
   Progress progress("aligning photos", images_.size());
 
   init_pair_ = initialise();
-  log::debug("sfm: initial pair chosen after {:.2f} s", clock.seconds());
+  summary.initial_pair_seconds = clock.seconds();
   triangulate_image(init_pair_.second);
   global_adjust(opt_.max_reprojection_px);
   progress.step(2);
@@ -635,6 +634,7 @@ Reconstruction IncrementalMapper::run(IncrementalSummary& summary) {
   for (std::size_t i = 0; i < images_.size(); ++i) {
     if (!registered_[i]) summary.unregistered.push_back(images_[i].name);
   }
+  summary.adjustment_seconds = ba_seconds_;
   summary.seconds = clock.seconds();
   return rec;
 }

@@ -80,7 +80,9 @@ struct IncrementalSummary {
   int global_adjustments = 0;
   std::size_t filtered_observations = 0; // outlier observations removed over the run
   std::vector<std::string> unregistered; // image names that could not be placed
-  double seconds = 0;
+  double initial_pair_seconds = 0;       // choosing the initial pair
+  double adjustment_seconds = 0;         // all bundle adjustments
+  double seconds = 0;                    // total
 };
 
 // Reconstructs one layer. `groups` hold the initial intrinsics (a group with fx <= 0

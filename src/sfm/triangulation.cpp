@@ -69,21 +69,19 @@ TriangulationResult triangulate_views(const std::vector<Camera>& cameras,
     // Maximum-likelihood point for fixed cameras: minimise the reprojection error.
     using namespace sfm_detail;
     std::vector<IntrinsicsBlock> intr;
-    std::vector<std::array<double, 3>> rot, trans;
+    std::vector<std::array<double, kPoseSize>> pose;
     for (const auto& c : cameras) {
       intr.push_back(to_block(c.intrinsics));
-      rot.push_back(to_angle_axis(c.pose.R));
-      trans.push_back({c.pose.t.x(), c.pose.t.y(), c.pose.t.z()});
+      pose.push_back(to_block(c.pose));
     }
     ceres::Problem problem;
     double point[3] = {X.x(), X.y(), X.z()};
     for (std::size_t i = 0; i < cameras.size(); ++i) {
       problem.AddResidualBlock(
-          new ceres::AutoDiffCostFunction<ReprojectionCost, 2, 3, 3, kIntrinsicsSize, 3>(
+          new ceres::AutoDiffCostFunction<ReprojectionCost, 2, kPoseSize, kIntrinsicsSize, 3>(
               new ReprojectionCost(pixels[i], 1.0)),
-          nullptr, rot[i].data(), trans[i].data(), intr[i].data(), point);
-      problem.SetParameterBlockConstant(rot[i].data());
-      problem.SetParameterBlockConstant(trans[i].data());
+          nullptr, pose[i].data(), intr[i].data(), point);
+      problem.SetParameterBlockConstant(pose[i].data());
       problem.SetParameterBlockConstant(intr[i].data());
     }
     ceres::Solver::Options so;

@@ -34,9 +34,16 @@ class Rng {
   std::uint64_t state_;
 };
 
+// Lattice hash (MurmurHash3's 32-bit finaliser over a linear mix): cheap enough
+// for per-texel noise, and well distributed for visual purposes.
 inline std::uint32_t hash2(std::int64_t x, std::int64_t y, std::uint32_t seed) {
-  std::uint64_t h = mix64(std::uint64_t(x) * 0x9E3779B97F4A7C15ull ^ std::uint64_t(seed));
-  return std::uint32_t(mix64(h ^ std::uint64_t(y) * 0xC2B2AE3D27D4EB4Full) >> 32);
+  std::uint32_t h = std::uint32_t(x) * 0x8DA6B343u ^ std::uint32_t(y) * 0xD8163841u ^ seed * 0xCB1AB31Fu;
+  h ^= h >> 16;
+  h *= 0x85EBCA6Bu;
+  h ^= h >> 13;
+  h *= 0xC2B2AE35u;
+  h ^= h >> 16;
+  return h;
 }
 inline double hash_unit(std::int64_t x, std::int64_t y, std::uint32_t seed) {  // [0,1)
   return double(hash2(x, y, seed)) * (1.0 / 4294967296.0);
@@ -93,10 +100,11 @@ inline Clast clast_at(double x, double y, double cell, double density, double rm
       const double px = (double(i) + hash_unit(i, j, seed + 1)) * cell;
       const double py = (double(j) + hash_unit(i, j, seed + 2)) * cell;
       const double r = rmin + (rmax - rmin) * hash_unit(i, j, seed + 3);
+      const double dx = x - px, dy = y - py;
+      if (dx * dx + dy * dy > (r + footprint) * (r + footprint)) continue;  // before any trigonometry
       // Slightly elongated: scale one axis by up to 1.5 along a random direction.
       const double ang = 6.283185307179586 * hash_unit(i, j, seed + 4);
       const double ca = std::cos(ang), sa = std::sin(ang);
-      const double dx = x - px, dy = y - py;
       const double a = ca * dx + sa * dy, b = (-sa * dx + ca * dy) * (1.0 + 0.5 * hash_unit(i, j, seed + 5));
       const double d = std::sqrt(a * a + b * b);
       if (d > r + footprint) continue;

@@ -11,6 +11,8 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <memory>
+#include <mutex>
 
 namespace strata::synthetic {
 namespace {
@@ -41,10 +43,8 @@ struct SrgbTables {
     }
   }
 };
-const SrgbTables& srgb() {
-  static const SrgbTables t;
-  return t;
-}
+const SrgbTables kSrgb;  // built at start-up, read-only afterwards
+const SrgbTables& srgb() { return kSrgb; }
 // Encoding through a 12-bit table: finer than the 8-bit output in the darks that
 // matter (the table step is 1/4096 of white in linear light).
 inline std::uint8_t encode(float linear) {
@@ -272,7 +272,7 @@ RayHit cast_ray(const Scene& scene, int layer, const Eigen::Vector3d& o, const E
     if (auto t = march_outer(scene, o, d, 0, t0, lipschitz)) return found(*t, RayHit::Where::outer);
 
   // Inside the grid: clip to the part of the ray below the highest node.
-  const auto& tiles = scene.tile_max(layer);
+  const auto& pyramid = scene.max_pyramid(layer);
   const float gmax = scene.surface_max(layer);
   double ta = t0, tb = t1;
   if (d.z() < 0) ta = std::max(ta, (double(gmax) - o.z()) / d.z());
@@ -280,8 +280,6 @@ RayHit cast_ray(const Scene& scene, int layer, const Eigen::Vector3d& o, const E
   if (ta < tb) {
     const double c = g.cell;
     const double ox = (o.x() - g.x0) / c, oy = (o.y() - g.y0) / c, dx = d.x() / c, dy = d.y() / c;
-    const int T = scene.tile_size();
-    const int cells_x = g.nx - 1, cells_y = g.ny - 1;
     double t_hit = -1;
     // f(t) = ray height above the bilinear surface of cell (i, j).
     auto f_cell = [&](int i, int j, double t) {
@@ -289,37 +287,45 @@ RayHit cast_ray(const Scene& scene, int layer, const Eigen::Vector3d& o, const E
       const double a = g.node(i, j), b = g.node(i + 1, j), cc = g.node(i, j + 1), dd = g.node(i + 1, j + 1);
       return o.z() + t * d.z() - (a + (b - a) * u + (cc - a) * v + (a - b - cc + dd) * u * v);
     };
-    traverse(ox / T, oy / T, dx / T, dy / T, ta, tb, scene.tiles_x(), scene.tiles_y(),
-             [&](int ti, int tj, double tin, double tout) {
-               const double zlo = std::min(o.z() + tin * d.z(), o.z() + tout * d.z());
-               if (zlo > tiles[std::size_t(tj * scene.tiles_x() + ti)] + 1e-6) return false;
-               return traverse(ox, oy, dx, dy, tin, tout, cells_x, cells_y,
-                               [&](int i, int j, double cin, double cout) {
-                                 const double f0 = f_cell(i, j, cin);
-                                 if (f0 <= 0) {
-                                   t_hit = cin;
-                                   return true;
-                                 }
-                                 const double f1 = f_cell(i, j, cout);
-                                 if (f1 > 0) return false;
-                                 // Along a line the bilinear patch is quadratic in t:
-                                 // fit through three values and take the first root.
-                                 const double fm = f_cell(i, j, 0.5 * (cin + cout));
-                                 const double A = 2 * f1 + 2 * f0 - 4 * fm, B = f1 - f0 - A, C = f0;
-                                 double s = -C / (B != 0 ? B : -1e-12);
-                                 if (std::abs(A) > 1e-12) {
-                                   const double disc = std::max(0.0, B * B - 4 * A * C);
-                                   const double q = -0.5 * (B + std::copysign(std::sqrt(disc), B));
-                                   const double r1 = q / A, r2 = q != 0 ? C / q : 2.0;
-                                   s = 2.0;
-                                   for (double r : {r1, r2})
-                                     if (r >= -1e-9 && r <= 1 + 1e-9) s = std::min(s, r);
-                                   if (s > 1) s = f0 / (f0 - f1);  // numerical fallback: secant
-                                 }
-                                 t_hit = cin + std::clamp(s, 0.0, 1.0) * (cout - cin);
-                                 return true;
-                               });
-             });
+    auto cell_hit = [&](int i, int j, double cin, double cout) {
+      const double f0 = f_cell(i, j, cin);
+      if (f0 <= 0) {
+        t_hit = cin;
+        return true;
+      }
+      const double f1 = f_cell(i, j, cout);
+      if (f1 > 0) return false;
+      // Along a line the bilinear patch is quadratic in t: fit through three
+      // values and take the first root in the cell.
+      const double fm = f_cell(i, j, 0.5 * (cin + cout));
+      const double A = 2 * f1 + 2 * f0 - 4 * fm, B = f1 - f0 - A, C = f0;
+      double s = f0 / (f0 - f1);  // secant, exact when the patch is planar along the ray
+      if (std::abs(A) > 1e-12) {
+        const double disc = std::max(0.0, B * B - 4 * A * C);
+        const double q = -0.5 * (B + std::copysign(std::sqrt(disc), B));
+        double best = 2.0;
+        for (double r : {q / A, q != 0 ? C / q : 2.0})
+          if (r >= -1e-9 && r <= 1 + 1e-9) best = std::min(best, r);
+        if (best <= 1) s = best;
+      }
+      t_hit = cin + std::clamp(s, 0.0, 1.0) * (cout - cin);
+      return true;
+    };
+    // Descend the max pyramid: a block the ray passes entirely above is skipped.
+    auto visit = [&](auto&& self, int level, int i, int j, double tin, double tout) -> bool {
+      if (level == 0) return cell_hit(i, j, tin, tout);
+      const Scene::MaxLevel& L = pyramid[std::size_t(level)];
+      const double zlo = std::min(o.z() + tin * d.z(), o.z() + tout * d.z());
+      if (zlo > L.max[std::size_t(j) * std::size_t(L.nx) + std::size_t(i)] + 1e-6) return false;
+      const Scene::MaxLevel& F = pyramid[std::size_t(level - 1)];
+      const double b = F.block;
+      return traverse(ox / b, oy / b, dx / b, dy / b, tin, tout, F.nx, F.ny,
+                      [&](int ci, int cj, double a, double e) { return self(self, level - 1, ci, cj, a, e); });
+    };
+    const int top = int(pyramid.size()) - 1;
+    const double b = pyramid[std::size_t(top)].block;
+    traverse(ox / b, oy / b, dx / b, dy / b, ta, tb, pyramid[std::size_t(top)].nx, pyramid[std::size_t(top)].ny,
+             [&](int i, int j, double a, double e) { return visit(visit, top, i, j, a, e); });
     if (t_hit >= 0) return found(t_hit, RayHit::Where::grid);
   }
   if (auto t = march_outer(scene, o, d, t1, kFar, lipschitz)) return found(*t, RayHit::Where::outer);
@@ -336,10 +342,9 @@ struct Sample {
 };
 
 Sample shade_ray(const Scene& scene, int layer, const LayerTexture& tex, const Lighting& light,
-                 const Camera& cam, const RenderSettings& settings, const Eigen::Vector2d& pixel,
+                 const Camera& cam, const RenderSettings& settings, const Eigen::Vector3d& d,
                  double pixel_scale) {
   const Eigen::Vector3d o = cam.pose.centre();
-  const Eigen::Vector3d d = cam.ray(pixel);
   const RayHit hit = cast_ray(scene, layer, o, d);
   Sample s;
   if (hit.where == RayHit::Where::sky) {
@@ -388,6 +393,29 @@ Sample shade_ray(const Scene& scene, int layer, const LayerTexture& tex, const L
   return s;
 }
 
+// Undistorted normalised coordinates of every pixel centre: the fixed-point
+// inversion of the distortion is the costliest part of a ray, and every photo of
+// a dataset shares one camera, so the last table is kept.
+std::shared_ptr<const std::vector<Eigen::Vector2d>> undistorted_pixel_centres(const Intrinsics& k) {
+  static std::mutex mutex;
+  static Intrinsics cached_for;
+  static std::shared_ptr<const std::vector<Eigen::Vector2d>> cached;
+  std::lock_guard lock(mutex);
+  const bool same = cached && cached_for.width == k.width && cached_for.height == k.height &&
+                    cached_for.fx == k.fx && cached_for.fy == k.fy && cached_for.cx == k.cx &&
+                    cached_for.cy == k.cy && cached_for.k1 == k.k1 && cached_for.k2 == k.k2;
+  if (!same) {
+    auto table = std::make_shared<std::vector<Eigen::Vector2d>>(std::size_t(k.width) * std::size_t(k.height));
+    tbb::parallel_for(0, k.height, [&](int v) {
+      for (int u = 0; u < k.width; ++u)
+        (*table)[std::size_t(v) * std::size_t(k.width) + std::size_t(u)] = k.to_normalised({double(u), double(v)});
+    });
+    cached = table;
+    cached_for = k;
+  }
+  return cached;
+}
+
 }  // namespace
 
 LinearImage render_view(const Scene& scene, int layer, const LayerTexture& texture, const Lighting& light,
@@ -399,11 +427,15 @@ LinearImage render_view(const Scene& scene, int layer, const LayerTexture& textu
   img.height = h;
   img.rgb.assign(3 * std::size_t(w) * std::size_t(h), 0.0f);
   std::vector<double> depth(std::size_t(w) * std::size_t(h), kInf);
+  const auto normalised = undistorted_pixel_centres(camera.intrinsics);
+  const Eigen::Matrix3d Rt = camera.pose.R.transpose();
   tbb::parallel_for(tbb::blocked_range<int>(0, h, 8), [&](const tbb::blocked_range<int>& rows) {
     for (int v = rows.begin(); v < rows.end(); ++v)
       for (int u = 0; u < w; ++u) {
-        const Sample s = shade_ray(scene, layer, texture, light, camera, settings, {double(u), double(v)}, 1.0);
         const std::size_t k = std::size_t(v) * std::size_t(w) + std::size_t(u);
+        const Eigen::Vector2d& xn = (*normalised)[k];
+        const Eigen::Vector3d d = (Rt * Eigen::Vector3d(xn.x(), xn.y(), 1.0)).normalized();
+        const Sample s = shade_ray(scene, layer, texture, light, camera, settings, d, 1.0);
         depth[k] = s.t;
         img.rgb[3 * k] = s.colour.r;
         img.rgb[3 * k + 1] = s.colour.g;
@@ -435,8 +467,8 @@ LinearImage render_view(const Scene& scene, int layer, const LayerTexture& textu
         if (!edge) continue;
         Rgb sum{img.rgb[3 * k], img.rgb[3 * k + 1], img.rgb[3 * k + 2]};
         for (int e = 0; e < extra; ++e) {
-          const Sample s = shade_ray(scene, layer, texture, light, camera, settings,
-                                     {u + kOffsets[std::size_t(e)][0], v + kOffsets[std::size_t(e)][1]}, 0.5);
+          const Eigen::Vector2d p(u + kOffsets[std::size_t(e)][0], v + kOffsets[std::size_t(e)][1]);
+          const Sample s = shade_ray(scene, layer, texture, light, camera, settings, camera.ray(p), 0.5);
           sum = sum + s.colour;
         }
         const float inv = 1.0f / float(1 + extra);

@@ -208,6 +208,8 @@ void Scene::layout(std::uint64_t seed) {
   pit_.b = std::min(rng.uniform(0.24, 0.32), 0.12 * sn);
   pit_.yaw = rng.uniform(0, kPi);
   pit_.depth = rng.uniform(0.22, 0.32);
+  pit_.cos_yaw = std::cos(pit_.yaw);
+  pit_.sin_yaw = std::sin(pit_.yaw);
 
   // Stone wall: two faces of blocks running north-south in the eastern part,
   // founded on the last (undug) unit, standing proud of it.
@@ -219,17 +221,20 @@ void Scene::layout(std::uint64_t seed) {
     double y = wall_y0 + rng.uniform(0.0, 0.08);
     while (true) {
       Stone s;
-      const double half_len = rng.uniform(0.11, 0.17);
+      const double half_len = rng.uniform(0.10, 0.19);
       if (y + 2 * half_len > wall_y1) break;
       s.a = half_len;
-      s.b = rng.uniform(0.085, 0.12);
+      s.b = rng.uniform(0.075, 0.13);
       s.c = {wall_x + face + rng.uniform(-0.02, 0.02), y + half_len};
-      s.yaw = kPi / 2 + rng.uniform(-0.15, 0.15);
+      s.yaw = kPi / 2 + rng.uniform(-0.25, 0.25);
+      s.cos_yaw = std::cos(s.yaw);
+      s.sin_yaw = std::sin(s.yaw);
       const double floor_z = interface_smooth(stages_, s.c.x(), s.c.y());
       s.base = floor_z - 0.05;
       s.top = std::min(floor_z + rng.uniform(0.17, 0.27),
                        interface_smooth(cap_level, s.c.x(), s.c.y()) - 0.035);
       s.tint = rng.uniform(0.82, 1.1);
+      s.tilt = rng.uniform(-1.0, 1.0);
       stones_.push_back(s);
       y += 2 * half_len + rng.uniform(0.015, 0.04);
     }
@@ -299,7 +304,7 @@ double Scene::interface_smooth(int j, double x, double y) const {
 
 double Scene::pit_profile(double x, double y) const {
   const double dx = x - pit_.c.x(), dy = y - pit_.c.y();
-  const double ca = std::cos(pit_.yaw), sa = std::sin(pit_.yaw);
+  const double ca = pit_.cos_yaw, sa = pit_.sin_yaw;
   const double a = (ca * dx + sa * dy) / pit_.a, b = (-sa * dx + ca * dy) / pit_.b;
   const double r2 = a * a + b * b;
   if (r2 >= 1.0) return 0.0;
@@ -313,13 +318,15 @@ double Scene::stone_height(double x, double y, int* which) const {
     const Stone& s = stones_[k];
     const double dx = x - s.c.x(), dy = y - s.c.y();
     if (std::abs(dx) > s.a + s.b || std::abs(dy) > s.a + s.b) continue;
-    const double ca = std::cos(s.yaw), sa = std::sin(s.yaw);
+    const double ca = s.cos_yaw, sa = s.sin_yaw;
     const double a = (ca * dx + sa * dy) / s.a, b = (-sa * dx + ca * dy) / s.b;
-    const double r2 = a * a + b * b;
-    if (r2 >= 1.0) continue;
-    // Flat top with rounded, steep faces; a few mm of tooled roughness.
-    const double h = s.base + (s.top - s.base) * std::pow(1.0 - r2 * r2, 0.3) +
-                     0.004 * value_noise(x / 0.025, y / 0.025, seed32_ + 77u + std::uint32_t(k));
+    // Squarish footprint (superellipse of degree 4): roughly dressed blocks.
+    const double r4 = a * a * a * a + b * b * b * b;
+    if (r4 >= 1.0) continue;
+    // Flat, slightly tilted top; steep faces rounded at the arris; a few mm of
+    // roughness at 1-3 cm.
+    const double h = s.base + (s.top - s.base) * std::pow(1.0 - r4, 0.22) + 0.03 * s.tilt * a +
+                     0.005 * fbm(x, y, 0.04, 3, 0.002, seed32_ + 77u + std::uint32_t(k));
     if (h > best) {
       best = h;
       if (which) *which = int(k);
@@ -398,21 +405,34 @@ void Scene::build_surfaces() {
 
   for (auto& m : markers_) m.centre.z() = surfaces_[0].sample(m.centre.x(), m.centre.y());
 
-  // Max-height tiles for empty-space skipping.
-  tiles_x_ = (proto.nx - 2) / kTile + 1;
-  tiles_y_ = (proto.ny - 2) / kTile + 1;
-  tile_max_.assign(std::size_t(layers()), std::vector<float>(std::size_t(tiles_x_ * tiles_y_)));
-  surface_max_.assign(std::size_t(layers()), -1e30f);
+  // Max-height pyramid for empty-space skipping: factor 4 per level, up to one block.
+  pyramids_.assign(std::size_t(layers()), {});
   for (int k = 0; k < layers(); ++k) {
     const HeightGrid& g = surfaces_[std::size_t(k)];
-    for (int ty = 0; ty < tiles_y_; ++ty)
-      for (int tx = 0; tx < tiles_x_; ++tx) {
-        float mx = -1e30f;
-        for (int j = ty * kTile; j <= std::min((ty + 1) * kTile, g.ny - 1); ++j)
-          for (int i = tx * kTile; i <= std::min((tx + 1) * kTile, g.nx - 1); ++i) mx = std::max(mx, g.node(i, j));
-        tile_max_[std::size_t(k)][std::size_t(ty * tiles_x_ + tx)] = mx;
-        surface_max_[std::size_t(k)] = std::max(surface_max_[std::size_t(k)], mx);
-      }
+    auto& pyr = pyramids_[std::size_t(k)];
+    pyr.push_back(MaxLevel{1, g.nx - 1, g.ny - 1, {}});  // level 0: the cells themselves
+    while (pyr.back().nx > 1 || pyr.back().ny > 1) {
+      const MaxLevel& f = pyr.back();
+      MaxLevel c;
+      c.block = 4 * f.block;
+      c.nx = (f.nx + 3) / 4;
+      c.ny = (f.ny + 3) / 4;
+      c.max.assign(std::size_t(c.nx) * std::size_t(c.ny), -1e30f);
+      for (int j = 0; j < c.ny; ++j)
+        for (int i = 0; i < c.nx; ++i) {
+          float mx = -1e30f;
+          if (pyr.size() == 1) {  // from nodes: a cell's maximum is one of its corners
+            for (int n = 4 * j; n <= std::min(4 * j + 4, g.ny - 1); ++n)
+              for (int m = 4 * i; m <= std::min(4 * i + 4, g.nx - 1); ++m) mx = std::max(mx, g.node(m, n));
+          } else {
+            for (int n = 4 * j; n < std::min(4 * j + 4, f.ny); ++n)
+              for (int m = 4 * i; m < std::min(4 * i + 4, f.nx); ++m)
+                mx = std::max(mx, f.max[std::size_t(n) * std::size_t(f.nx) + std::size_t(m)]);
+          }
+          c.max[std::size_t(j) * std::size_t(c.nx) + std::size_t(i)] = mx;
+        }
+      pyr.push_back(std::move(c));
+    }
   }
 }
 

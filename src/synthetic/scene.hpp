@@ -64,6 +64,8 @@ struct Stone {
   double yaw = 0;             // radians
   double base = 0, top = 0;   // metres, site frame
   double tint = 1;            // brightness factor of this block
+  double tilt = 0;            // -1..1: slope of its top along its length
+  double cos_yaw = 1, sin_yaw = 0;
 };
 
 struct Pit {
@@ -72,6 +74,7 @@ struct Pit {
   double yaw = 0;             // radians
   double depth = 0;           // metres below the surface it is cut from
   int cut_from = 0;           // interface index: cut from the top of unit cut_from+1
+  double cos_yaw = 1, sin_yaw = 0;
 };
 
 struct UnitRecord {
@@ -103,13 +106,15 @@ class Scene {
   double trench_y1() const { return ty1_; }
 
   const HeightGrid& surface(int layer) const { return surfaces_.at(std::size_t(layer)); }
-  // Maximum node height of each tile of tile_size() x tile_size() cells: lets the
-  // ray marcher skip empty space.
-  const std::vector<float>& tile_max(int layer) const { return tile_max_.at(std::size_t(layer)); }
-  int tile_size() const { return kTile; }
-  int tiles_x() const { return tiles_x_; }
-  int tiles_y() const { return tiles_y_; }
-  float surface_max(int layer) const { return surface_max_.at(std::size_t(layer)); }
+  // Maximum-height pyramid of a layer: level l holds the highest node of each
+  // block of 4^l x 4^l cells (level 0 unused). Lets the ray marcher skip empty space.
+  struct MaxLevel {
+    int block = 1;       // cells per block side
+    int nx = 0, ny = 0;  // blocks
+    std::vector<float> max;
+  };
+  const std::vector<MaxLevel>& max_pyramid(int layer) const { return pyramids_.at(std::size_t(layer)); }
+  float surface_max(int layer) const { return pyramids_.at(std::size_t(layer)).back().max.front(); }
   // Upper bound of |grad ground_smooth|, for conservative ray marching.
   double ground_slope_bound() const { return ground_slope_bound_; }
 
@@ -150,8 +155,6 @@ class Scene {
   static constexpr double kNoHeight = -std::numeric_limits<double>::infinity();
 
  private:
-  static constexpr int kTile = 16;  // cells per tile side of the max-height pyramid
-
   double thickness(int unit, double x, double y) const;  // metres, smooth, unit >= 1
   double micro_relief(int surface, double x, double y) const;
   double pit_profile(double x, double y) const;          // metres of depth, 0 outside
@@ -177,9 +180,7 @@ class Scene {
   std::vector<Stone> stones_;
   Pit pit_;
   std::vector<HeightGrid> surfaces_;
-  std::vector<std::vector<float>> tile_max_;
-  int tiles_x_ = 0, tiles_y_ = 0;
-  std::vector<float> surface_max_;
+  std::vector<std::vector<MaxLevel>> pyramids_;
   double ground_slope_bound_ = 0;
   std::vector<UnitRecord> units_;
   std::vector<RelationRecord> relations_;

@@ -46,10 +46,12 @@ TEST(CostFunctions, AngleAxisRotateMatchesEigen) {
 void check_reprojection(const double* rotation, const double* translation,
                         const double* intrinsics, const double* point) {
   const ReprojectionCost functor(Eigen::Vector2d(700.3, 455.9), 0.7);
-  ceres::AutoDiffCostFunction<ReprojectionCost, 2, 3, 3, kIntrinsicsSize, 3> cost(
+  ceres::AutoDiffCostFunction<ReprojectionCost, 2, kPoseSize, kIntrinsicsSize, 3> cost(
       new ReprojectionCost(functor));
   ceres::GradientChecker checker(&cost, no_manifolds(), central());
-  std::vector<const double*> params{rotation, translation, intrinsics, point};
+  const double pose[kPoseSize] = {rotation[0],    rotation[1],    rotation[2],
+                                  translation[0], translation[1], translation[2]};
+  std::vector<const double*> params{pose, intrinsics, point};
   ceres::GradientChecker::ProbeResults results;
   EXPECT_TRUE(checker.Probe(params.data(), kJacobianRelTol, &results)) << results.error_log;
   EXPECT_LT(results.maximum_relative_error, kJacobianRelTol);
@@ -79,11 +81,11 @@ TEST(CostFunctions, ReprojectionJacobianAtZeroRotation) {
 
 TEST(CostFunctions, ReprojectionRejectsPointsBehindTheCamera) {
   const ReprojectionCost cost(Eigen::Vector2d(0, 0), 1.0);
-  const double rotation[3] = {0, 0, 0}, translation[3] = {0, 0, -5};
+  const double pose[kPoseSize] = {0, 0, 0, 0, 0, -5};
   const double intrinsics[kIntrinsicsSize] = {1000, 500, 400, 0, 0, 1};
   const double point[3] = {0, 0, 1};
   double r[2];
-  EXPECT_FALSE(cost(rotation, translation, intrinsics, point, r));
+  EXPECT_FALSE(cost(pose, intrinsics, point, r));
 }
 
 TEST(CostFunctions, MarkerPriorJacobianMatchesFiniteDifferences) {

@@ -1,0 +1,110 @@
+#include "products/dtm.hpp"
+
+#include "core/error.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+
+namespace strata {
+
+void DtmOptions::validate() const {
+  if (!(cell_m > 0) || cell_m > 10) {
+    throw InputError(fmt::format("products.dtm: cell_m must be in (0, 10] metres, got {}", cell_m));
+  }
+  if (!(margin_m >= 0)) {
+    throw InputError(fmt::format("products.dtm: margin_m must be >= 0 metres, got {}", margin_m));
+  }
+}
+
+Dtm dtm_from_height_field(const HeightField& hf) {
+  Dtm d;
+  d.grid.cell = hf.cell;
+  d.grid.width = hf.nx;
+  d.grid.height = hf.ny;
+  d.grid.x_min = hf.x0 - 0.5 * hf.cell;
+  d.grid.y_max = hf.y0 + (hf.ny - 1) * hf.cell + 0.5 * hf.cell;
+  d.z.assign(d.grid.cells(), std::numeric_limits<float>::quiet_NaN());
+  // HeightField rows go south to north (j along +y); rasters go north to south.
+  for (int j = 0; j < hf.ny; ++j) {
+    const int row = hf.ny - 1 - j;
+    for (int i = 0; i < hf.nx; ++i) {
+      const double z = hf.at(i, j);
+      if (std::isfinite(z)) d.z[d.grid.index(i, row)] = float(z);
+    }
+  }
+  return d;
+}
+
+Dtm build_dtm(const std::filesystem::path& vdb, const DtmOptions& options) {
+  options.validate();
+  const LevelSetInfo info = read_level_set_info(vdb);
+  if (!(info.max.x() > info.min.x()) || !(info.max.y() > info.min.y())) {
+    throw ProcessingError(fmt::format("products.dtm: {}: the level set has no active voxels", vdb.string()));
+  }
+  const double c = options.cell_m;
+  // Snap the box outward to whole cells so that exports of different layers share
+  // pixel edges and GRASS/QGIS can stack them without resampling.
+  const double x0 = std::floor((info.min.x() - options.margin_m) / c) * c;
+  const double y0 = std::floor((info.min.y() - options.margin_m) / c) * c;
+  const double x1 = std::ceil((info.max.x() + options.margin_m) / c) * c;
+  const double y1 = std::ceil((info.max.y() + options.margin_m) / c) * c;
+  const int nx = int(std::lround((x1 - x0) / c));
+  const int ny = int(std::lround((y1 - y0) / c));
+  if (double(nx) * double(ny) > 4e8) {
+    throw InputError(fmt::format("products.dtm: {} x {} cells at {} m is too large; use a coarser cell", nx,
+                                 ny, c));
+  }
+  const HeightField hf = sample_top_surface(vdb, x0 + 0.5 * c, y0 + 0.5 * c, c, nx, ny);
+  return dtm_from_height_field(hf);
+}
+
+DtmStatistics dtm_statistics(const Dtm& dtm, double z_offset) {
+  DtmStatistics s;
+  double sum = 0, sum2 = 0, lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (float z : dtm.z) {
+    if (!std::isfinite(z)) continue;
+    const double v = double(float(double(z) + z_offset));  // what the Float32 file holds
+    ++s.valid_cells;
+    sum += v;
+    sum2 += v * v;
+    lo = std::min(lo, v);
+    hi = std::max(hi, v);
+  }
+  if (s.valid_cells == 0) return s;
+  const double n = double(s.valid_cells);
+  s.min = lo;
+  s.max = hi;
+  s.mean = sum / n;
+  s.stddev = std::sqrt(std::max(0.0, sum2 / n - s.mean * s.mean));
+  s.area_m2 = n * dtm.grid.cell * dtm.grid.cell;
+  return s;
+}
+
+std::vector<Eigen::Vector3f> dtm_normals(const Dtm& dtm) {
+  const RasterGrid& g = dtm.grid;
+  std::vector<Eigen::Vector3f> n(g.cells(), Eigen::Vector3f::UnitZ());
+  auto slope = [&](float zm, float z0, float zp) -> double {
+    // d z / d step from whichever neighbours exist (central, else one-sided).
+    if (std::isfinite(zm) && std::isfinite(zp)) return 0.5 * (double(zp) - double(zm));
+    if (std::isfinite(zp)) return double(zp) - double(z0);
+    if (std::isfinite(zm)) return double(z0) - double(zm);
+    return 0.0;
+  };
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  for (int r = 0; r < g.height; ++r) {
+    for (int c = 0; c < g.width; ++c) {
+      const float z0 = dtm.at(c, r);
+      if (!std::isfinite(z0)) continue;
+      const float zw = c > 0 ? dtm.at(c - 1, r) : nan, ze = c + 1 < g.width ? dtm.at(c + 1, r) : nan;
+      const float zn = r > 0 ? dtm.at(c, r - 1) : nan, zs = r + 1 < g.height ? dtm.at(c, r + 1) : nan;
+      const double dzdx = slope(zw, z0, ze) / g.cell;
+      const double dzdy = slope(zs, z0, zn) / g.cell;  // rows run north to south
+      n[g.index(c, r)] = Eigen::Vector3f(float(-dzdx), float(-dzdy), 1.0f).normalized();
+    }
+  }
+  return n;
+}
+
+}  // namespace strata

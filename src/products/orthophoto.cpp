@@ -1,0 +1,559 @@
+#include "products/orthophoto.hpp"
+
+#include "core/error.hpp"
+#include "core/log.hpp"
+#include "core/progress.hpp"
+#include "core/resources.hpp"
+
+#include <Eigen/Cholesky>
+#include <Eigen/Dense>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <exception>
+#include <limits>
+#include <mutex>
+#include <thread>
+#include <unordered_map>
+
+namespace strata {
+
+void OrthoOptions::validate() const {
+  auto bad = [](const char* field, double v, const char* range) {
+    throw InputError(fmt::format("products.ortho: {} must be {}, got {}", field, range, v));
+  };
+  if (!(depth_buffer_scale >= 0 && depth_buffer_scale <= 1)) bad("depth_buffer_scale", depth_buffer_scale, "in [0, 1] (0 = automatic)");
+  if (!(depth_tolerance_m >= 0)) bad("depth_tolerance_m", depth_tolerance_m, ">= 0 metres");
+  if (!(max_view_angle_deg > 0 && max_view_angle_deg < 90)) bad("max_view_angle_deg", max_view_angle_deg, "in (0, 90) degrees");
+  if (!(border_px >= 0)) bad("border_px", border_px, ">= 0 pixels");
+  if (candidates < 1 || candidates > 16) bad("candidates", candidates, "in [1, 16]");
+  if (!(smoothness >= 0)) bad("smoothness", smoothness, ">= 0");
+  if (smoothing_iterations < 0) bad("smoothing_iterations", smoothing_iterations, ">= 0");
+  if (!(feather_m >= 0)) bad("feather_m", feather_m, ">= 0 metres");
+  if (threads < 1) bad("threads", threads, ">= 1");
+}
+
+namespace {
+
+constexpr float kNoDepth = std::numeric_limits<float>::infinity();
+
+// A photo's pixels, interleaved RGB.
+struct PhotoPixels {
+  int width = 0, height = 0;
+  cv::Mat owned;                      // when read from disk
+  const std::uint8_t* data = nullptr;
+
+  // Bilinear colour at pixel (x, y) ((0, 0) = centre of the top-left pixel).
+  void sample(double x, double y, std::uint8_t out[3]) const {
+    const int x0 = std::clamp(int(std::floor(x)), 0, width - 2), y0 = std::clamp(int(std::floor(y)), 0, height - 2);
+    const double ax = std::clamp(x - x0, 0.0, 1.0), ay = std::clamp(y - y0, 0.0, 1.0);
+    const std::uint8_t* p00 = data + (std::size_t(y0) * width + x0) * 3;
+    const std::uint8_t* p10 = p00 + 3;
+    const std::uint8_t* p01 = p00 + std::size_t(width) * 3;
+    const std::uint8_t* p11 = p01 + 3;
+    for (int k = 0; k < 3; ++k) {
+      const double v = (1 - ay) * ((1 - ax) * p00[k] + ax * p10[k]) + ay * ((1 - ax) * p01[k] + ax * p11[k]);
+      out[k] = std::uint8_t(std::clamp(std::lround(v), 0L, 255L));
+    }
+  }
+};
+
+PhotoPixels load_photo(const OrthoView& v) {
+  PhotoPixels p;
+  const Intrinsics& K = v.camera.intrinsics;
+  if (!v.rgb.empty()) {
+    STRATA_CHECK(v.rgb.size() == std::size_t(K.width) * K.height * 3, "in-memory photo size mismatch");
+    p.width = K.width;
+    p.height = K.height;
+    p.data = v.rgb.data();
+    return p;
+  }
+  // The camera model describes the sensor as stored: EXIF orientation is ignored,
+  // as in feature extraction.
+  cv::Mat bgr = cv::imread(v.photo.string(), cv::IMREAD_COLOR | cv::IMREAD_IGNORE_ORIENTATION);
+  if (bgr.empty()) throw IoError(fmt::format("products.ortho: {}: cannot read the photo", v.photo.string()));
+  if (bgr.cols != K.width || bgr.rows != K.height) {
+    throw InputError(fmt::format("products.ortho: {}: photo is {} x {} px but its camera is {} x {}",
+                                 v.photo.string(), bgr.cols, bgr.rows, K.width, K.height));
+  }
+  cv::cvtColor(bgr, p.owned, cv::COLOR_BGR2RGB);
+  STRATA_CHECK(p.owned.isContinuous(), "cvtColor output not continuous");
+  p.width = p.owned.cols;
+  p.height = p.owned.rows;
+  p.data = p.owned.ptr<std::uint8_t>();
+  return p;
+}
+
+// Projection with a guard against the radial polynomial folding far-away points
+// back into the frame: points beyond the normalised radius of the photo corners
+// (plus a margin) are rejected.
+struct Projector {
+  const Camera& cam;
+  double max_r2 = 0;
+
+  explicit Projector(const Camera& c) : cam(c) {
+    const Intrinsics& K = c.intrinsics;
+    for (const auto& px : {Eigen::Vector2d(0, 0), Eigen::Vector2d(K.width - 1, 0), Eigen::Vector2d(0, K.height - 1),
+                           Eigen::Vector2d(K.width - 1, K.height - 1)}) {
+      max_r2 = std::max(max_r2, K.to_normalised(px).squaredNorm());
+    }
+    max_r2 *= 1.44;  // 20 % radial margin
+  }
+  // Returns false when behind the camera or outside the usable cone.
+  bool project(const Eigen::Vector3d& X, Eigen::Vector2d& px, double& depth) const {
+    const Eigen::Vector3d Xc = cam.pose.to_camera(X);
+    if (Xc.z() <= 1e-6) return false;
+    const Eigen::Vector2d xn = Xc.head<2>() / Xc.z();
+    if (xn.squaredNorm() > max_r2) return false;
+    px = cam.intrinsics.to_pixel(xn);
+    depth = Xc.z();
+    return true;
+  }
+};
+
+struct ViewSample {
+  std::uint32_t cell;
+  float score;
+  std::uint8_t rgb[3];
+};
+
+// Everything one photo contributes: the cells it sees, with score and colour.
+std::vector<ViewSample> sample_view(const Dtm& dtm, const std::vector<Eigen::Vector3f>& normals,
+                                    const OrthoView& view, const OrthoOptions& o) {
+  const RasterGrid& g = dtm.grid;
+  const Intrinsics& K = view.camera.intrinsics;
+  const Projector proj(view.camera);
+  const Eigen::Vector3d C = view.camera.pose.centre();
+
+  // Project every valid cell centre once: used by the z-buffer and the lookup.
+  std::vector<float> px(g.cells() * 2, std::numeric_limits<float>::quiet_NaN());
+  std::vector<float> depth(g.cells(), kNoDepth);
+  std::vector<double> depths;
+  for (int r = 0; r < g.height; ++r) {
+    for (int c = 0; c < g.width; ++c) {
+      const std::size_t i = g.index(c, r);
+      if (!std::isfinite(dtm.z[i])) continue;
+      Eigen::Vector2d p;
+      double d;
+      if (!proj.project({g.x_centre(c), g.y_centre(r), double(dtm.z[i])}, p, d)) continue;
+      px[2 * i] = float(p.x());
+      px[2 * i + 1] = float(p.y());
+      depth[i] = float(d);
+      if (p.x() >= 0 && p.y() >= 0 && p.x() <= K.width - 1 && p.y() <= K.height - 1) depths.push_back(d);
+    }
+  }
+  if (depths.empty()) return {};
+  std::nth_element(depths.begin(), depths.begin() + std::ptrdiff_t(depths.size() / 2), depths.end());
+  const double median_depth = depths[depths.size() / 2];
+
+  // z-buffer resolution: automatic = one buffer pixel per DTM cell at the median
+  // depth (finer buys nothing, the DTM has no more detail).
+  double s = o.depth_buffer_scale;
+  if (s == 0) s = std::clamp(g.cell * K.fx / median_depth, 0.05, 1.0);
+  const int bw = std::max(1, int(std::ceil(K.width * s))), bh = std::max(1, int(std::ceil(K.height * s)));
+  std::vector<float> zbuf(std::size_t(bw) * bh, kNoDepth);
+  auto to_buf = [s](float p) { return (double(p) + 0.5) * s - 0.5; };
+
+  // Draw the DTM as two triangles per quad of cell centres, depth interpolated as
+  // 1/z (perspective-correct).
+  auto raster_triangle = [&](std::size_t a, std::size_t b, std::size_t c) {
+    const double ax = to_buf(px[2 * a]), ay = to_buf(px[2 * a + 1]);
+    const double bx = to_buf(px[2 * b]), by = to_buf(px[2 * b + 1]);
+    const double cx = to_buf(px[2 * c]), cy = to_buf(px[2 * c + 1]);
+    const double area = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax);
+    if (std::abs(area) < 1e-12) return;
+    const int x0 = std::max(0, int(std::ceil(std::min({ax, bx, cx}))));
+    const int x1 = std::min(bw - 1, int(std::floor(std::max({ax, bx, cx}))));
+    const int y0 = std::max(0, int(std::ceil(std::min({ay, by, cy}))));
+    const int y1 = std::min(bh - 1, int(std::floor(std::max({ay, by, cy}))));
+    if (x0 > x1 || y0 > y1) return;
+    const double ia = 1.0 / depth[a], ib = 1.0 / depth[b], ic = 1.0 / depth[c];
+    constexpr double eps = -1e-9;
+    for (int y = y0; y <= y1; ++y) {
+      for (int x = x0; x <= x1; ++x) {
+        const double wa = ((bx - x) * (cy - y) - (by - y) * (cx - x)) / area;
+        const double wb = ((cx - x) * (ay - y) - (cy - y) * (ax - x)) / area;
+        const double wc = 1.0 - wa - wb;
+        if (wa < eps || wb < eps || wc < eps) continue;
+        const float z = float(1.0 / (wa * ia + wb * ib + wc * ic));
+        float& dst = zbuf[std::size_t(y) * bw + x];
+        dst = std::min(dst, z);
+      }
+    }
+  };
+  for (int r = 0; r + 1 < g.height; ++r) {
+    for (int c = 0; c + 1 < g.width; ++c) {
+      const std::size_t i00 = g.index(c, r), i10 = g.index(c + 1, r), i01 = g.index(c, r + 1),
+                        i11 = g.index(c + 1, r + 1);
+      const bool v00 = depth[i00] < kNoDepth, v10 = depth[i10] < kNoDepth, v01 = depth[i01] < kNoDepth,
+                 v11 = depth[i11] < kNoDepth;
+      if (v00 && v10 && v11) raster_triangle(i00, i10, i11);
+      if (v00 && v11 && v01) raster_triangle(i00, i11, i01);
+      // Quads with one corner missing still occlude with their remaining triangle.
+      if (!v00 && v10 && v11 && v01) raster_triangle(i10, i11, i01);
+      if (!v11 && v00 && v10 && v01) raster_triangle(i00, i10, i01);
+    }
+  }
+
+  const double cos_max = std::cos(o.max_view_angle_deg * M_PI / 180.0);
+  const double border_scale = 0.1 * std::min(K.width, K.height);  // pixels over which the score ramps
+  const PhotoPixels photo = load_photo(view);
+  std::vector<ViewSample> out;
+  out.reserve(depths.size());
+  for (int r = 0; r < g.height; ++r) {
+    for (int c = 0; c < g.width; ++c) {
+      const std::size_t i = g.index(c, r);
+      if (!(depth[i] < kNoDepth)) continue;
+      const double x = px[2 * i], y = px[2 * i + 1];
+      const double edge = std::min({x, y, K.width - 1 - x, K.height - 1 - y});
+      if (edge < o.border_px) continue;
+      const Eigen::Vector3d X(g.x_centre(c), g.y_centre(r), double(dtm.z[i]));
+      const double d = depth[i];
+      const Eigen::Vector3d v = (C - X).normalized();
+      const double cos_t = double(normals[i].cast<double>().dot(v));
+      if (cos_t < cos_max) continue;
+      // Depth test. The buffer's own uncertainty grows with its pixel footprint
+      // (d / (f s), metres) and with the slope seen along the ray (tan of the angle).
+      const int bx = std::clamp(int(std::lround(to_buf(float(x)))), 0, bw - 1);
+      const int by = std::clamp(int(std::lround(to_buf(float(y)))), 0, bh - 1);
+      const double footprint = d / (K.fx * s);
+      const double tan_t = std::sqrt(std::max(0.0, 1.0 - cos_t * cos_t)) / std::max(cos_t, 1e-3);
+      const double tol = o.depth_tolerance_m + footprint * (1.0 + std::min(tan_t, 4.0));
+      if (d > double(zbuf[std::size_t(by) * bw + bx]) + tol) continue;
+      // Photo pixels per metre of surface, lowered to half towards the border
+      // (vignetting, residual distortion).
+      const double border_w = 0.5 + 0.5 * std::min(1.0, edge / border_scale);
+      ViewSample sm;
+      sm.cell = std::uint32_t(i);
+      sm.score = float(cos_t * K.fx / d * border_w);
+      photo.sample(x, y, sm.rgb);
+      out.push_back(sm);
+    }
+  }
+  return out;
+}
+
+// Best `k` views of every cell, best first.
+struct Candidates {
+  int k = 0;
+  std::vector<std::int16_t> view;  // -1 = empty slot
+  std::vector<float> score;
+  std::vector<std::uint8_t> rgb;
+
+  Candidates(std::size_t cells, int k_) : k(k_), view(cells * k_, -1), score(cells * k_, 0.f), rgb(cells * k_ * 3, 0) {}
+
+  void insert(std::size_t cell, int v, float s, const std::uint8_t c[3]) {
+    const std::size_t base = cell * k;
+    int pos = k;
+    while (pos > 0 && (view[base + pos - 1] < 0 || score[base + pos - 1] < s)) --pos;
+    if (pos >= k) return;
+    for (int j = k - 1; j > pos; --j) {
+      view[base + j] = view[base + j - 1];
+      score[base + j] = score[base + j - 1];
+      std::copy_n(&rgb[(base + j - 1) * 3], 3, &rgb[(base + j) * 3]);
+    }
+    view[base + pos] = std::int16_t(v);
+    score[base + pos] = s;
+    std::copy_n(c, 3, &rgb[(base + pos) * 3]);
+  }
+};
+
+// Per-photo, per-channel log gains x_v minimising
+//   sum over overlapping pairs (a, b) and shared cells of (x_a + ln I_a - x_b - ln I_b)^2
+// plus a weak pull of every x_v towards 0 that fixes the gauge (mean gain ~ 1).
+void balance_gains(const Candidates& cand, int n_views, OrthoSummary& s, std::vector<std::array<double, 3>>& gains) {
+  struct Acc {
+    double n = 0;
+    std::array<double, 3> sum{}, sum2{};
+  };
+  std::unordered_map<std::uint64_t, Acc> pairs;
+  const std::size_t cells = cand.view.size() / cand.k;
+  for (std::size_t i = 0; i < cells; ++i) {
+    const std::size_t base = i * cand.k;
+    for (int p = 0; p < cand.k; ++p) {
+      const int a = cand.view[base + p];
+      if (a < 0) break;
+      const std::uint8_t* ca = &cand.rgb[(base + p) * 3];
+      if (*std::min_element(ca, ca + 3) < 8 || *std::max_element(ca, ca + 3) > 250) continue;  // dark or clipped
+      for (int q = p + 1; q < cand.k; ++q) {
+        const int b = cand.view[base + q];
+        if (b < 0) break;
+        const std::uint8_t* cb = &cand.rgb[(base + q) * 3];
+        if (*std::min_element(cb, cb + 3) < 8 || *std::max_element(cb, cb + 3) > 250) continue;
+        const bool swap = a > b;
+        Acc& acc = pairs[(std::uint64_t(swap ? b : a) << 32) | std::uint64_t(swap ? a : b)];
+        acc.n += 1;
+        for (int ch = 0; ch < 3; ++ch) {
+          double r = std::log(double(ca[ch])) - std::log(double(cb[ch]));
+          if (swap) r = -r;
+          acc.sum[ch] += r;
+          acc.sum2[ch] += r * r;
+        }
+      }
+    }
+  }
+  gains.assign(std::size_t(n_views), {1.0, 1.0, 1.0});
+  double total_n = 0, before2 = 0, after2 = 0;
+  for (int ch = 0; ch < 3; ++ch) {
+    Eigen::MatrixXd A = Eigen::MatrixXd::Zero(n_views, n_views);
+    Eigen::VectorXd rhs = Eigen::VectorXd::Zero(n_views);
+    for (const auto& [key, acc] : pairs) {
+      const int a = int(key >> 32), b = int(key & 0xffffffffu);
+      // Mean of ln I_a - ln I_b over the pair's cells: want x_a - x_b = -mean.
+      const double m = acc.sum[ch] / acc.n;
+      A(a, a) += acc.n;
+      A(b, b) += acc.n;
+      A(a, b) -= acc.n;
+      A(b, a) -= acc.n;
+      rhs(a) -= acc.n * m;
+      rhs(b) += acc.n * m;
+    }
+    const double lambda = 1e-3 * std::max(1.0, A.diagonal().mean());
+    A.diagonal().array() += lambda;
+    const Eigen::VectorXd x = A.ldlt().solve(rhs);
+    for (int v = 0; v < n_views; ++v) gains[std::size_t(v)][std::size_t(ch)] = std::exp(x(v));
+    for (const auto& [key, acc] : pairs) {
+      const int a = int(key >> 32), b = int(key & 0xffffffffu);
+      const double d = x(a) - x(b);
+      before2 += acc.sum2[ch];
+      after2 += acc.sum2[ch] + 2 * d * acc.sum[ch] + acc.n * d * d;
+      if (ch == 0) total_n += acc.n;
+    }
+  }
+  if (total_n > 0) {
+    s.balance_rms_before = std::sqrt(before2 / (3 * total_n));
+    s.balance_rms_after = std::sqrt(std::max(0.0, after2) / (3 * total_n));
+  }
+}
+
+// Separable box filter of radius r over a w x h float image, in place.
+void box_blur(std::vector<float>& img, int w, int h, int r) {
+  if (r <= 0) return;
+  std::vector<float> line(std::size_t(std::max(w, h)));
+  const float inv = 1.0f / float(2 * r + 1);
+  for (int y = 0; y < h; ++y) {
+    float* row = &img[std::size_t(y) * w];
+    double acc = 0;
+    for (int x = -r; x <= r; ++x) acc += (x >= 0 && x < w) ? row[x] : 0.f;
+    for (int x = 0; x < w; ++x) {
+      line[std::size_t(x)] = float(acc) * inv;
+      const int add = x + r + 1, sub = x - r;
+      if (add < w) acc += row[add];
+      if (sub >= 0) acc -= row[sub];
+    }
+    std::copy_n(line.begin(), w, row);
+  }
+  for (int x = 0; x < w; ++x) {
+    double acc = 0;
+    for (int y = -r; y <= r; ++y) acc += (y >= 0 && y < h) ? img[std::size_t(y) * w + x] : 0.f;
+    for (int y = 0; y < h; ++y) {
+      line[std::size_t(y)] = float(acc) * inv;
+      const int add = y + r + 1, sub = y - r;
+      if (add < h) acc += img[std::size_t(add) * w + x];
+      if (sub >= 0) acc -= img[std::size_t(sub) * w + x];
+    }
+    for (int y = 0; y < h; ++y) img[std::size_t(y) * w + x] = line[std::size_t(y)];
+  }
+}
+
+}  // namespace
+
+RgbaRaster build_orthophoto(const Dtm& dtm, const std::vector<OrthoView>& views, const OrthoOptions& o,
+                            OrthoSummary* summary_out) {
+  o.validate();
+  Stopwatch clock;
+  const RasterGrid& g = dtm.grid;
+  STRATA_CHECK(dtm.z.size() == g.cells(), "DTM size mismatch");
+  if (views.size() > 32000) throw InputError("products.ortho: more than 32000 photos in one orthophoto");
+  OrthoSummary s;
+  s.views = int(views.size());
+  for (const auto& v : views) s.view_names.push_back(v.name);
+  for (float z : dtm.z) s.dtm_cells += std::isfinite(z) ? 1 : 0;
+
+  const std::vector<Eigen::Vector3f> normals = dtm_normals(dtm);
+  Candidates cand(g.cells(), o.candidates);
+
+  // 1. Visibility, scores and colours, one photo per worker at a time.
+  {
+    Progress progress("orthophoto: views", views.size());
+    std::atomic<std::size_t> next{0};
+    std::mutex merge;
+    std::exception_ptr failure;
+    auto worker = [&] {
+      for (;;) {
+        const std::size_t v = next++;
+        if (v >= views.size()) return;
+        try {
+          {
+            std::lock_guard<std::mutex> lock(merge);
+            if (failure) return;
+          }
+          check_cancelled();
+          const std::vector<ViewSample> samples = sample_view(dtm, normals, views[v], o);
+          std::lock_guard<std::mutex> lock(merge);
+          for (const ViewSample& sm : samples) cand.insert(sm.cell, int(v), sm.score, sm.rgb);
+          progress.step();
+        } catch (...) {
+          std::lock_guard<std::mutex> lock(merge);
+          if (!failure) failure = std::current_exception();
+          return;
+        }
+      }
+    };
+    std::vector<std::thread> pool;
+    const int n_threads = std::max(1, std::min<int>(o.threads, int(views.size())));
+    for (int t = 0; t < n_threads; ++t) pool.emplace_back(worker);
+    for (auto& t : pool) t.join();
+    if (failure) std::rethrow_exception(failure);
+    progress.finish();
+  }
+
+  // 2. Radiometric balance.
+  std::vector<std::array<double, 3>> gains(views.size(), {1.0, 1.0, 1.0});
+  if (o.radiometric_balance && views.size() > 1) balance_gains(cand, int(views.size()), s, gains);
+  for (std::size_t i = 0; i < g.cells(); ++i) {
+    for (int p = 0; p < cand.k; ++p) {
+      const int v = cand.view[i * cand.k + p];
+      if (v < 0) break;
+      std::uint8_t* c = &cand.rgb[(i * cand.k + p) * 3];
+      for (int ch = 0; ch < 3; ++ch) {
+        c[ch] = std::uint8_t(std::clamp(std::lround(c[ch] * gains[std::size_t(v)][std::size_t(ch)]), 0L, 255L));
+      }
+    }
+  }
+  s.gains = gains;
+
+  // 3. Region labels: best score, then ICM on score/best + smoothness * agreeing
+  // 4-neighbours / 4 (a Potts prior, solved greedily; Besag 1986).
+  std::vector<std::int16_t> label(g.cells(), -1);  // view index
+  for (std::size_t i = 0; i < g.cells(); ++i) label[i] = cand.view[i * cand.k];
+  for (int it = 0; it < o.smoothing_iterations && o.smoothness > 0; ++it) {
+    std::size_t changed = 0;
+    for (int r = 0; r < g.height; ++r) {
+      for (int c = 0; c < g.width; ++c) {
+        const std::size_t i = g.index(c, r);
+        if (label[i] < 0) continue;
+        const std::size_t base = i * cand.k;
+        const float best = cand.score[base];
+        std::int16_t nb[4] = {-1, -1, -1, -1};
+        if (c > 0) nb[0] = label[i - 1];
+        if (c + 1 < g.width) nb[1] = label[i + 1];
+        if (r > 0) nb[2] = label[i - g.width];
+        if (r + 1 < g.height) nb[3] = label[i + g.width];
+        double best_e = -1;
+        std::int16_t best_v = label[i];
+        for (int p = 0; p < cand.k; ++p) {
+          const std::int16_t v = cand.view[base + p];
+          if (v < 0) break;
+          int agree = 0;
+          for (std::int16_t n : nb) agree += (n == v) ? 1 : 0;
+          const double e = double(cand.score[base + p]) / double(best) + o.smoothness * agree / 4.0;
+          if (e > best_e + 1e-12) {
+            best_e = e;
+            best_v = v;
+          }
+        }
+        if (best_v != label[i]) {
+          label[i] = best_v;
+          ++changed;
+        }
+      }
+    }
+    if (changed == 0) break;
+  }
+
+  // 4. Feathered blend: each view's region mask, box-filtered twice (a tent of
+  // half-width about feather_m), weights the candidates that view provides.
+  const int radius = std::max(0, int(std::lround(o.feather_m / g.cell / 2.0)));
+  std::vector<float> acc(g.cells() * 3, 0.f), wsum(g.cells(), 0.f);
+  s.cells_per_view.assign(views.size(), 0);
+  for (std::size_t i = 0; i < g.cells(); ++i) {
+    if (label[i] >= 0) ++s.cells_per_view[std::size_t(label[i])];
+  }
+  for (std::size_t v = 0; v < views.size(); ++v) {
+    if (s.cells_per_view[v] == 0) continue;
+    ++s.views_used;
+    int c0 = g.width, c1 = -1, r0 = g.height, r1 = -1;
+    for (int r = 0; r < g.height; ++r) {
+      for (int c = 0; c < g.width; ++c) {
+        if (label[g.index(c, r)] != std::int16_t(v)) continue;
+        c0 = std::min(c0, c);
+        c1 = std::max(c1, c);
+        r0 = std::min(r0, r);
+        r1 = std::max(r1, r);
+      }
+    }
+    c0 = std::max(0, c0 - 2 * radius);
+    r0 = std::max(0, r0 - 2 * radius);
+    c1 = std::min(g.width - 1, c1 + 2 * radius);
+    r1 = std::min(g.height - 1, r1 + 2 * radius);
+    const int w = c1 - c0 + 1, h = r1 - r0 + 1;
+    std::vector<float> mask(std::size_t(w) * h, 0.f);
+    for (int r = r0; r <= r1; ++r) {
+      for (int c = c0; c <= c1; ++c) {
+        mask[std::size_t(r - r0) * w + (c - c0)] = label[g.index(c, r)] == std::int16_t(v) ? 1.f : 0.f;
+      }
+    }
+    box_blur(mask, w, h, radius);
+    box_blur(mask, w, h, radius);
+    for (int r = r0; r <= r1; ++r) {
+      for (int c = c0; c <= c1; ++c) {
+        const float wt = mask[std::size_t(r - r0) * w + (c - c0)];
+        if (wt <= 1e-6f) continue;
+        const std::size_t i = g.index(c, r);
+        if (label[i] < 0) continue;
+        for (int p = 0; p < cand.k; ++p) {
+          const int cv = cand.view[i * cand.k + p];
+          if (cv < 0) break;
+          if (cv != int(v)) continue;
+          const std::uint8_t* col = &cand.rgb[(i * cand.k + p) * 3];
+          for (int ch = 0; ch < 3; ++ch) acc[i * 3 + ch] += wt * col[ch];
+          wsum[i] += wt;
+          break;
+        }
+      }
+    }
+  }
+
+  RgbaRaster out;
+  out.grid = g;
+  out.rgba.assign(g.cells() * 4, 0);
+  std::size_t seams = 0;
+  for (int r = 0; r < g.height; ++r) {
+    for (int c = 0; c < g.width; ++c) {
+      const std::size_t i = g.index(c, r);
+      if (label[i] < 0) continue;
+      const std::uint8_t* own = &cand.rgb[(i * cand.k) * 3];
+      for (int p = 0; p < cand.k; ++p) {
+        if (cand.view[i * cand.k + p] == label[i]) {
+          own = &cand.rgb[(i * cand.k + p) * 3];
+          break;
+        }
+      }
+      for (int ch = 0; ch < 3; ++ch) {
+        const float v = wsum[i] > 0 ? acc[i * 3 + ch] / wsum[i] : float(own[ch]);
+        out.rgba[i * 4 + ch] = std::uint8_t(std::clamp(std::lround(v), 0L, 255L));
+      }
+      out.rgba[i * 4 + 3] = 255;
+      ++s.coloured_cells;
+      const bool seam = (c + 1 < g.width && label[i + 1] >= 0 && label[i + 1] != label[i]) ||
+                        (r + 1 < g.height && label[i + g.width] >= 0 && label[i + g.width] != label[i]);
+      seams += seam ? 1 : 0;
+    }
+  }
+  if (s.coloured_cells == 0) {
+    throw ProcessingError("products.ortho: no photo sees any DTM cell (check the alignment and the surface)");
+  }
+  s.coverage = s.dtm_cells ? double(s.coloured_cells) / double(s.dtm_cells) : 0.0;
+  s.seam_fraction = double(seams) / double(s.coloured_cells);
+  s.seconds = clock.seconds();
+  if (summary_out) *summary_out = std::move(s);
+  return out;
+}
+
+}  // namespace strata

@@ -1,0 +1,337 @@
+// Unit solids from layer surfaces: height-field differencing on the common grid,
+// measures, closed meshes, and the Harris-matrix check.
+#include "core/error.hpp"
+#include "core/log.hpp"
+#include "stratigraphy/harris_matrix.hpp"
+#include "volume/volume.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <set>
+
+namespace strata {
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+bool finite(double v) { return std::isfinite(v); }
+
+// Even-odd rule (ray casting along +x).
+bool inside_polygon(const std::vector<Eigen::Vector2d>& poly, double x, double y) {
+  bool in = false;
+  for (std::size_t i = 0, j = poly.size() - 1; i < poly.size(); j = i++) {
+    const auto& a = poly[i];
+    const auto& b = poly[j];
+    if ((a.y() > y) != (b.y() > y)) {
+      const double xc = a.x() + (y - a.y()) * (b.x() - a.x()) / (b.y() - a.y());
+      if (x < xc) in = !in;
+    }
+  }
+  return in;
+}
+
+}  // namespace
+
+HeightField SiteGrid::empty_field() const {
+  HeightField f;
+  f.x0 = x0;
+  f.y0 = y0;
+  f.cell = cell;
+  f.nx = nx;
+  f.ny = ny;
+  f.z.assign(size(), kNaN);
+  return f;
+}
+
+double sample_height(const HeightField& f, double x, double y) {
+  if (f.nx <= 0 || f.ny <= 0) return kNaN;
+  const double u = (x - f.x0) / f.cell, v = (y - f.y0) / f.cell;  // cell-centre units
+  if (u < -0.5 || v < -0.5 || u > f.nx - 0.5 || v > f.ny - 0.5) return kNaN;
+  const int i0 = std::clamp(int(std::floor(u)), 0, std::max(f.nx - 2, 0));
+  const int j0 = std::clamp(int(std::floor(v)), 0, std::max(f.ny - 2, 0));
+  const int i1 = std::min(i0 + 1, f.nx - 1), j1 = std::min(j0 + 1, f.ny - 1);
+  const double tu = std::clamp(u - i0, 0.0, 1.0), tv = std::clamp(v - j0, 0.0, 1.0);
+  const double z00 = f.at(i0, j0), z10 = f.at(i1, j0), z01 = f.at(i0, j1), z11 = f.at(i1, j1);
+  if (finite(z00) && finite(z10) && finite(z01) && finite(z11))
+    return (1 - tv) * ((1 - tu) * z00 + tu * z10) + tv * ((1 - tu) * z01 + tu * z11);
+  // At the edge of the known surface: the nearest finite centre, never an
+  // extrapolation across a gap.
+  const int in = std::clamp(int(std::lround(u)), 0, f.nx - 1), jn = std::clamp(int(std::lround(v)), 0, f.ny - 1);
+  return f.at(in, jn);
+}
+
+HeightField resample(const HeightField& f, const SiteGrid& grid) {
+  HeightField out = grid.empty_field();
+  for (int j = 0; j < grid.ny; ++j)
+    for (int i = 0; i < grid.nx; ++i)
+      out.z[std::size_t(j) * grid.nx + i] = sample_height(f, grid.x(i), grid.y(j));
+  return out;
+}
+
+void VolumeOptions::validate() const {
+  if (!(noise_threshold_m >= 0 && noise_threshold_m <= 0.5))
+    throw InputError(fmt::format("volume options: noise_threshold_m = {} is not in 0..0.5 m", noise_threshold_m));
+  if (!(noise_correlation_m > 0 && noise_correlation_m <= 10))
+    throw InputError(fmt::format("volume options: noise_correlation_m = {} is not in (0, 10] m", noise_correlation_m));
+  for (const auto& [unit, poly] : footprints)
+    if (poly.size() < 3)
+      throw InputError(fmt::format("volume options: footprint of unit {} has {} vertices, a polygon needs 3",
+                                   unit, poly.size()));
+}
+
+std::vector<UnitSolid> build_unit_solids(const std::vector<LayerSurface>& layers, const VolumeOptions& options) {
+  options.validate();
+  if (layers.empty()) return {};
+  const SiteGrid grid = SiteGrid::of(layers.front().z);
+  for (const auto& l : layers)
+    STRATA_CHECK(l.z.nx == grid.nx && l.z.ny == grid.ny && l.z.cell == grid.cell && l.z.x0 == grid.x0 &&
+                     l.z.y0 == grid.y0,
+                 "layer {} is not on the common grid", l.layer);
+
+  // Units in the order of their first layer.
+  std::vector<std::string> units;
+  for (const auto& l : layers)
+    if (std::find(units.begin(), units.end(), l.unit) == units.end()) units.push_back(l.unit);
+
+  std::vector<UnitSolid> solids;
+  const double cell_area = grid.cell * grid.cell;
+  for (const auto& unit : units) {
+    std::vector<std::size_t> own, later;  // indices into layers
+    std::size_t first = layers.size();
+    for (std::size_t k = 0; k < layers.size(); ++k) {
+      if (layers[k].unit == unit) {
+        own.push_back(k);
+        first = std::min(first, k);
+      } else if (first < layers.size()) {
+        later.push_back(k);
+      }
+    }
+    if (later.empty()) {
+      log::debug("volume: unit {} has no later surface (not dug yet): no solid", unit);
+      continue;
+    }
+    const auto footprint = options.footprints.find(unit);
+    UnitSolid s;
+    s.unit = unit;
+    s.top_layer = layers[own.front()].layer;
+    s.top = grid.empty_field();
+    s.bottom = grid.empty_field();
+    std::vector<std::size_t> bottom_count(later.size(), 0);
+    // Uncertainty inputs, area-weighted over the cells each surface supplies.
+    double n_top2 = 0, g_top2 = 0, n_bot2 = 0, g_bot2 = 0;
+    UnitMeasures& m = s.measures;
+    m.min_thickness_m = std::numeric_limits<double>::infinity();
+    m.max_thickness_m = -std::numeric_limits<double>::infinity();
+    for (int j = 0; j < grid.ny; ++j)
+      for (int i = 0; i < grid.nx; ++i) {
+        const std::size_t c = std::size_t(j) * grid.nx + i;
+        const LayerSurface* top = nullptr;
+        for (std::size_t k : own)
+          if (finite(layers[k].z.z[c])) {
+            top = &layers[k];
+            break;
+          }
+        if (!top) continue;
+        const LayerSurface* bottom = nullptr;
+        std::size_t which = 0;
+        for (std::size_t q = 0; q < later.size(); ++q)
+          if (finite(layers[later[q]].z.z[c])) {
+            bottom = &layers[later[q]];
+            which = q;
+            break;
+          }
+        if (!bottom) continue;
+        const double t = top->z.z[c] - bottom->z.z[c];  // metres
+        const bool dug = footprint != options.footprints.end()
+                             ? inside_polygon(footprint->second, grid.x(i), grid.y(j))
+                             : t > options.noise_threshold_m;
+        if (!dug) continue;
+        s.top.z[c] = top->z.z[c];
+        s.bottom.z[c] = bottom->z.z[c];
+        ++bottom_count[which];
+        ++m.cells;
+        m.volume_m3 += t * cell_area;
+        m.min_thickness_m = std::min(m.min_thickness_m, t);
+        m.max_thickness_m = std::max(m.max_thickness_m, t);
+        n_top2 += top->noise_m * top->noise_m;
+        g_top2 += top->vertical_rmse_m * top->vertical_rmse_m;
+        n_bot2 += bottom->noise_m * bottom->noise_m;
+        g_bot2 += bottom->vertical_rmse_m * bottom->vertical_rmse_m;
+      }
+    for (std::size_t q = 0; q < later.size(); ++q)
+      if (bottom_count[q] > 0) s.bottom_layers.push_back(layers[later[q]].layer);
+    if (m.cells == 0) {
+      m.min_thickness_m = m.max_thickness_m = 0;
+      log::warn("volume: unit {}: no cell differs by more than {:.1f} mm between {} and the later surfaces",
+                unit, 1000 * options.noise_threshold_m, s.top_layer);
+    } else {
+      const double n = double(m.cells);
+      m.area_m2 = n * cell_area;
+      m.mean_thickness_m = m.volume_m3 / m.area_m2;
+      const double patch = std::max(options.noise_correlation_m * options.noise_correlation_m, cell_area);
+      m.volume_sigma_m3 = std::sqrt(m.area_m2 * m.area_m2 * (g_top2 + g_bot2) / n +
+                                    m.area_m2 * patch * (n_top2 + n_bot2) / n);
+    }
+    solids.push_back(std::move(s));
+  }
+  return solids;
+}
+
+// ---- closed mesh ------------------------------------------------------------------
+
+DenseMesh unit_solid_mesh(const UnitSolid& solid) {
+  const HeightField& top = solid.top;
+  const int nx = top.nx, ny = top.ny;
+  const double h = top.cell;
+  auto dug = [&](int i, int j) {
+    return i >= 0 && j >= 0 && i < nx && j < ny && finite(top.at(i, j));
+  };
+  DenseMesh mesh;
+  // Corner (ci, cj) lies between cells (ci-1..ci, cj-1..cj). Around a corner the
+  // dug cells form one or two groups (two only for a diagonal pair); each group
+  // gets its own top and bottom vertex. Quadrant q: 0 SW, 1 SE, 2 NE, 3 NW.
+  // Vertex index per (corner, quadrant): -1 until created.
+  const std::size_t ncorners = std::size_t(nx + 1) * std::size_t(ny + 1);
+  std::vector<std::array<int, 4>> top_vertex(ncorners, {-1, -1, -1, -1});
+  std::vector<std::array<int, 4>> bottom_vertex(ncorners, {-1, -1, -1, -1});
+  constexpr int kDi[4] = {-1, 0, 0, -1}, kDj[4] = {-1, -1, 0, 0};
+  for (int cj = 0; cj <= ny; ++cj)
+    for (int ci = 0; ci <= nx; ++ci) {
+      std::array<bool, 4> d;
+      for (int q = 0; q < 4; ++q) d[q] = dug(ci + kDi[q], cj + kDj[q]);
+      // Group id per quadrant: quadrants q and q+1 (cyclic) share an edge.
+      std::array<int, 4> group{-1, -1, -1, -1};
+      int groups = 0;
+      for (int q = 0; q < 4; ++q) {
+        if (!d[q] || group[q] >= 0) continue;
+        group[q] = groups;
+        for (int step : {1, 3}) {  // walk both ways around the corner
+          int r = q;
+          while (true) {
+            const int next = (r + step) % 4;
+            if (!d[next] || group[next] >= 0) break;
+            group[next] = groups;
+            r = next;
+          }
+        }
+        ++groups;
+      }
+      const std::size_t corner = std::size_t(cj) * std::size_t(nx + 1) + ci;
+      for (int g = 0; g < groups; ++g) {
+        double zt = 0, zb = 0;
+        int n = 0;
+        for (int q = 0; q < 4; ++q)
+          if (group[q] == g) {
+            zt += solid.top.at(ci + kDi[q], cj + kDj[q]);
+            zb += solid.bottom.at(ci + kDi[q], cj + kDj[q]);
+            ++n;
+          }
+        const double x = top.x0 + (ci - 0.5) * h, y = top.y0 + (cj - 0.5) * h;
+        const int vt = int(mesh.vertices.size());
+        mesh.vertices.emplace_back(x, y, zt / n);
+        mesh.vertices.emplace_back(x, y, zb / n);
+        for (int q = 0; q < 4; ++q)
+          if (group[q] == g) {
+            top_vertex[corner][q] = vt;
+            bottom_vertex[corner][q] = vt + 1;
+          }
+      }
+    }
+  // Corners of cell (i, j), counter-clockwise seen from above: SW, SE, NE, NW; the
+  // cell is quadrant NE of its SW corner, NW of its SE corner, SW of its NE corner
+  // and SE of its NW corner.
+  auto corner_index = [&](int ci, int cj) { return std::size_t(cj) * std::size_t(nx + 1) + ci; };
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i) {
+      if (!dug(i, j)) continue;
+      const std::array<std::size_t, 4> corners{corner_index(i, j), corner_index(i + 1, j),
+                                               corner_index(i + 1, j + 1), corner_index(i, j + 1)};
+      constexpr int kQuadrant[4] = {2, 3, 0, 1};
+      std::array<int, 4> t, b;
+      for (int k = 0; k < 4; ++k) {
+        t[k] = top_vertex[corners[k]][kQuadrant[k]];
+        b[k] = bottom_vertex[corners[k]][kQuadrant[k]];
+      }
+      // Top faces outward = up: counter-clockwise from above. Bottom: reversed.
+      mesh.faces.push_back({t[0], t[1], t[2]});
+      mesh.faces.push_back({t[0], t[2], t[3]});
+      mesh.faces.push_back({b[0], b[2], b[1]});
+      mesh.faces.push_back({b[0], b[3], b[2]});
+      // Walls on edges towards undug neighbours. Edge k goes from corner k to k+1
+      // (counter-clockwise seen from above), outward to the right of that direction.
+      constexpr int kNi[4] = {0, 1, 0, -1}, kNj[4] = {-1, 0, 1, 0};  // S, E, N, W neighbours
+      for (int k = 0; k < 4; ++k) {
+        if (dug(i + kNi[k], j + kNj[k])) continue;
+        const int k1 = (k + 1) % 4;
+        mesh.faces.push_back({b[k], b[k1], t[k1]});
+        mesh.faces.push_back({b[k], t[k1], t[k]});
+      }
+    }
+  return mesh;
+}
+
+// ---- Harris matrix against geometry ---------------------------------------------
+
+std::string StratigraphicConflict::describe(const Eigen::Vector3d& site_origin) const {
+  return fmt::format(
+      "conflict: {} is recorded above {} but lies up to {:.3f} m below it at E {:.2f} N {:.2f} "
+      "(over {:.3f} m2)",
+      later, earlier, amount_m, where.x() + site_origin.x(), where.y() + site_origin.y(), area_m2);
+}
+
+std::vector<StratigraphicConflict> check_stratigraphy(const HarrisMatrix& matrix,
+                                                      const std::vector<LayerSurface>& layers,
+                                                      const std::vector<UnitSolid>& solids,
+                                                      const CheckOptions& options) {
+  if (layers.empty()) return {};
+  // Each unit with geometry: its top and where it is present.
+  struct Presence {
+    std::string unit;
+    const HeightField* top = nullptr;  // NaN where absent
+  };
+  std::vector<Presence> units;
+  for (const auto& s : solids) units.push_back({s.unit, &s.top});
+  for (const auto& l : layers) {
+    const bool known = std::any_of(units.begin(), units.end(), [&](const Presence& p) { return p.unit == l.unit; });
+    if (!known) units.push_back({l.unit, &l.z});  // not dug: its (first) layer surface
+  }
+  const double cell_area = layers.front().z.cell * layers.front().z.cell;
+  std::vector<StratigraphicConflict> out;
+  for (const auto& a : units)
+    for (const auto& b : units) {
+      if (a.unit == b.unit) continue;
+      bool later = false;
+      try {
+        later = matrix.later_than(a.unit, b.unit);
+      } catch (const Error&) {
+        continue;  // a layer's unit unknown to the matrix: nothing recorded
+      }
+      if (!later) continue;
+      StratigraphicConflict c;
+      c.later = a.unit;
+      c.earlier = b.unit;
+      std::size_t cells = 0;
+      const auto& za = a.top->z;
+      const auto& zb = b.top->z;
+      for (std::size_t i = 0; i < za.size(); ++i) {
+        const double d = zb[i] - za[i];  // how far the later unit's top lies below
+        if (!(d > options.tolerance_m)) continue;  // also false for NaN
+        ++cells;
+        if (d > c.amount_m) {
+          c.amount_m = d;
+          c.where = {a.top->x0 + double(i % a.top->nx) * a.top->cell,
+                     a.top->y0 + double(i / a.top->nx) * a.top->cell};
+        }
+      }
+      c.area_m2 = double(cells) * cell_area;
+      if (c.area_m2 >= options.min_area_m2 && cells > 0) out.push_back(c);
+    }
+  std::sort(out.begin(), out.end(), [](const auto& x, const auto& y) { return x.amount_m > y.amount_m; });
+  return out;
+}
+
+}  // namespace strata

@@ -1,0 +1,146 @@
+#pragma once
+// Volumetric stratigraphy (issue 7): layer surfaces on a common site grid, unit
+// solids between them, their measures (volume, area, thickness, uncertainty), a
+// closed mesh of each solid, and the check of the Harris matrix against geometry.
+//
+// Frames: every coordinate is the site frame (site CRS minus the site origin,
+// metres, double) unless a name says "crs". Heights are site-frame z.
+//
+// A unit's solid is the space between the surface recorded when its top was
+// exposed (its first layer) and the surface recorded after it was removed (the
+// first later layer of another unit that has a height there), limited to where
+// the unit was dug: where the two differ by more than a noise threshold, or
+// inside a footprint polygon given by the user.
+//
+// Standard library, Eigen and the plain structs of dense/ only: OpenVDB lives in
+// voxels.cpp, GDAL in raster_io.cpp and section.cpp.
+#include "dense/dense.hpp"  // HeightField, DenseMesh
+
+#include <Eigen/Core>
+
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace strata {
+
+class HarrisMatrix;
+
+// A regular grid of cell centres in the site frame: centre (i, j) at
+// (x0 + i*cell, y0 + j*cell), j grows northwards. Same convention as HeightField.
+struct SiteGrid {
+  double x0 = 0, y0 = 0;  // metres, site frame, centre of cell (0, 0)
+  double cell = 0;        // metres
+  int nx = 0, ny = 0;
+
+  std::size_t size() const { return std::size_t(nx) * std::size_t(ny); }
+  double x(int i) const { return x0 + i * cell; }
+  double y(int j) const { return y0 + j * cell; }
+  // A grid of NaN heights on these cells.
+  HeightField empty_field() const;
+  static SiteGrid of(const HeightField& f) { return {f.x0, f.y0, f.cell, f.nx, f.ny}; }
+};
+
+// Bilinear height at (x, y) in the site frame from the four surrounding cell
+// centres; when some of them are NaN, the nearest finite centre within one cell;
+// NaN outside the field or where nothing is known.
+double sample_height(const HeightField& f, double x, double y);
+// The field resampled onto another grid with sample_height.
+HeightField resample(const HeightField& f, const SiteGrid& grid);
+
+// One recorded surface state on the common grid.
+struct LayerSurface {
+  std::string layer;        // layer name, e.g. "L2"
+  std::string unit;         // unit code of the layer (the unit whose top it shows)
+  HeightField z;            // metres, site frame; NaN where the surface is unknown
+  std::string source;       // file it came from, for messages and details_json
+  // Uncertainty of the surface, metres, one sigma:
+  double noise_m = 0.003;   // per-cell random noise (dense surface vs sparse points)
+  double vertical_rmse_m = 0;  // vertical georeference error (check or control RMSE z); 0 = unknown
+};
+
+struct VolumeOptions {
+  // Surfaces closer than this count as "not dug": metres. Above the noise of a
+  // photogrammetric surface (2-3 mm), below any real deposit.
+  double noise_threshold_m = 0.005;
+  // Spatial correlation length of surface noise, metres: random errors average
+  // over patches of this size, not over single cells (sigma_V formula below).
+  double noise_correlation_m = 0.05;
+  // Optional footprint per unit code: a polygon in site-frame XY (metres). Inside,
+  // every cell with both surfaces counts (signed thickness: noise does not bias
+  // the volume); outside, nothing. Without one, the noise threshold decides.
+  std::map<std::string, std::vector<Eigen::Vector2d>> footprints;
+
+  // Throws InputError naming the first invalid field.
+  void validate() const;
+};
+
+struct UnitMeasures {
+  double volume_m3 = 0;        // sum of thickness x cell area over dug cells
+  double area_m2 = 0;          // horizontal area of the dug cells
+  double mean_thickness_m = 0; // volume / area
+  double min_thickness_m = 0;
+  double max_thickness_m = 0;
+  // One-sigma volume uncertainty, m3:
+  //   sigma_V^2 = A^2 (g_top^2 + g_bottom^2) + A L^2 (n_top^2 + n_bottom^2)
+  // g: vertical georeference error of each surface (a shift of the whole surface),
+  // n: per-cell noise averaging over A / L^2 independent patches of side L.
+  double volume_sigma_m3 = 0;
+  std::size_t cells = 0;
+};
+
+// The solid of one unit on the common grid: heights where the unit was dug, NaN
+// elsewhere (top and bottom are NaN together).
+struct UnitSolid {
+  std::string unit;                         // unit code
+  std::string top_layer;                    // layer whose surface is the top
+  std::vector<std::string> bottom_layers;   // layers that gave the bottom somewhere
+  HeightField top, bottom;                  // metres, site frame
+  UnitMeasures measures;
+
+  bool dug(std::size_t cell) const { return top.z[cell] == top.z[cell]; }  // not NaN
+  double thickness(std::size_t cell) const { return top.z[cell] - bottom.z[cell]; }
+};
+
+// Builds the solid of every unit that has a layer and a later surface below it,
+// in the order of the units' first layers. `layers` is in capture order, all on
+// one grid. Units whose layer is the last (not dug yet) have no solid.
+std::vector<UnitSolid> build_unit_solids(const std::vector<LayerSurface>& layers,
+                                         const VolumeOptions& options);
+
+// Closed triangle mesh of a solid (site frame): top and bottom surfaces through
+// the cell corners (corner height = mean of the adjacent dug cells, so it is a
+// trapezoid-rule surface, not the raster's flat cells) and vertical walls on the
+// boundary of the dug area. Cells touching only diagonally get separate corner
+// vertices so that the mesh stays 2-manifold. Outward faces counter-clockwise.
+DenseMesh unit_solid_mesh(const UnitSolid& solid);
+
+// ---- Harris matrix against geometry
+
+struct CheckOptions {
+  double tolerance_m = 0.01;    // a height difference below this is no contradiction
+  double min_area_m2 = 0.0025;  // conflicts smaller than this (5 x 5 cm) are noise
+};
+
+// A recorded relation "later above earlier" that the geometry contradicts: where
+// both units are present, the later unit's top lies below the earlier unit's top.
+struct StratigraphicConflict {
+  std::string later, earlier;   // unit codes: the matrix says `later` is above `earlier`
+  double amount_m = 0;          // largest height by which `later` lies below `earlier`, metres
+  Eigen::Vector2d where = Eigen::Vector2d::Zero();  // site frame XY of that place
+  double area_m2 = 0;           // horizontal area of the contradiction
+  std::string describe(const Eigen::Vector3d& site_origin) const;  // one line, CRS coordinates
+};
+
+// For every pair of units with geometry where the matrix says one is later
+// (above, cuts, fills, abuts, transitively), compares their tops where both are
+// present. A unit is present where its solid is; a unit with a layer but no
+// solid (not dug yet) is present wherever its layer has a surface.
+std::vector<StratigraphicConflict> check_stratigraphy(const HarrisMatrix& matrix,
+                                                      const std::vector<LayerSurface>& layers,
+                                                      const std::vector<UnitSolid>& solids,
+                                                      const CheckOptions& options);
+
+}  // namespace strata
