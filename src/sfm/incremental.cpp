@@ -231,11 +231,24 @@ std::pair<int, int> IncrementalMapper::initialise() {
   std::sort(order.rbegin(), order.rend());
   if (int(order.size()) > opt_.init_max_candidates) order.resize(opt_.init_max_candidates);
 
+  // Many inliers, with a bonus for baseline up to twice the minimum angle.
+  auto score = [](const TwoViewGeometry& g, double min_angle) {
+    return g.inliers * std::min(g.median_angle_deg / (2 * min_angle), 1.0);
+  };
   std::vector<std::pair<int, TwoViewGeometry>> candidates;
+  double best_strict = 0;
   for (const auto& [n, i] : order) {
+    // Pairs come by decreasing match count and a score never exceeds the count:
+    // once it is below the best strict score, no later pair can win.
+    if (double(n) <= best_strict) break;
     check_cancelled();
     auto g = two_view(matches_[i]);
-    if (g.ok) candidates.emplace_back(i, g);
+    if (!g.ok) continue;
+    if (g.median_angle_deg >= opt_.init_min_angle_deg &&
+        g.homography_ratio <= opt_.init_max_homography_ratio) {
+      best_strict = std::max(best_strict, score(g, opt_.init_min_angle_deg));
+    }
+    candidates.emplace_back(i, g);
   }
   // Strict criteria first; relaxed ones (with a warning) before giving up.
   int best = -1;
@@ -246,10 +259,8 @@ std::pair<int, int> IncrementalMapper::initialise() {
     for (int c = 0; c < int(candidates.size()); ++c) {
       const auto& g = candidates[c].second;
       if (g.median_angle_deg < min_angle || g.homography_ratio > max_h) continue;
-      // Many inliers, with a bonus for baseline up to twice the minimum angle.
-      const double score = g.inliers * std::min(g.median_angle_deg / (2 * min_angle), 1.0);
-      if (score > best_score) {
-        best_score = score;
+      if (score(g, min_angle) > best_score) {
+        best_score = score(g, min_angle);
         best = c;
       }
     }
@@ -529,8 +540,9 @@ void IncrementalMapper::adjust(const std::vector<int>& variable_images, bool glo
     poses_[image] = pose_from_block(problem.cameras[c].pose);
   }
   for (std::size_t p = 0; p < point_tracks.size(); ++p) tracks_[point_tracks[p]].X = problem.points[p];
-  log::debug("sfm: {} BA over {} images: rmse {:.3f} px, {} iterations", global ? "global" : "local",
-             variable_images.size(), s.rmse_px, s.iterations);
+  log::debug("sfm: {} BA over {} images, {} observations: rmse {:.3f} px, {} iterations, {:.2f} s",
+             global ? "global" : "local", variable_images.size(), s.observations, s.rmse_px,
+             s.iterations, s.seconds);
   filter_points(point_tracks, opt_.max_reprojection_px);
 }
 
@@ -595,11 +607,12 @@ Reconstruction IncrementalMapper::run(IncrementalSummary& summary) {
     }
     progress.step();
     triangulate_image(image);
-    local_adjust(image);
     if (n_registered_ < opt_.early_global_images ||
         n_registered_ >= opt_.global_ba_growth * last_global) {
-      global_adjust(opt_.max_reprojection_px);
+      global_adjust(opt_.max_reprojection_px);  // covers what the local one would do
       last_global = n_registered_;
+    } else {
+      local_adjust(image);
     }
   }
   // Final refinement with a gate that tightens to the calibrated model's level.

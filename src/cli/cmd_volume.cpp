@@ -1,0 +1,286 @@
+// strata volume, strata check, strata export thickness|voxels|section
+#include "cli/commands.hpp"
+#include "cli/common.hpp"
+#include "core/error.hpp"
+#include "core/log.hpp"
+#include "project/project.hpp"
+#include "volume/raster_io.hpp"
+#include "volume/section.hpp"
+#include "volume/site_volumes.hpp"
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <memory>
+
+namespace strata::cli {
+namespace {
+namespace fs = std::filesystem;
+
+// Options every volume command shares: how surfaces are found and solids built.
+struct ModelArgs {
+  std::string dir;
+  std::vector<std::string> surfaces;    // LAYER=FILE
+  std::vector<std::string> footprints;  // UNIT=FILE
+  double cell = 0;
+  double threshold = VolumeOptions{}.noise_threshold_m;
+  double voxel = VoxelOptions{}.voxel_size_m;
+  double noise = SiteVolumeOptions{}.default_noise_m;
+};
+
+void add_model_options(CLI::App* cmd, ModelArgs& a) {
+  cmd->add_option("DIR", a.dir, "project folder")->required();
+  cmd->add_option("--surface", a.surfaces,
+                  "LAYER=FILE: a GeoTIFF of absolute heights (site CRS) to use as the layer's surface "
+                  "instead of its dense surface; repeatable");
+  cmd->add_option("--footprint", a.footprints,
+                  "UNIT=FILE: a polygon (GeoJSON, GeoPackage, shapefile; site CRS) limiting the unit's "
+                  "solid instead of the noise threshold; repeatable");
+  cmd->add_option("--cell", a.cell, "measurement grid cell, metres (default: the DTM's pixel, else 0.005)");
+  cmd->add_option("--threshold", a.threshold, "surfaces closer than this count as not dug, metres (default 0.005)");
+  cmd->add_option("--voxel-size", a.voxel, "voxel edge of the voxel model, metres (default 0.01)");
+  cmd->add_option("--noise", a.noise, "surface noise when no dense quality figure exists, metres (default 0.003)");
+}
+
+std::map<std::string, fs::path> parse_pairs(const std::vector<std::string>& items, const std::string& option) {
+  std::map<std::string, fs::path> out;
+  for (const auto& item : items) {
+    const auto eq = item.find('=');
+    if (eq == std::string::npos || eq == 0 || eq + 1 == item.size())
+      throw InputError(fmt::format("{} '{}': expected NAME=FILE", option, item));
+    out[item.substr(0, eq)] = item.substr(eq + 1);
+  }
+  return out;
+}
+
+SiteVolumeOptions site_options(const ModelArgs& a) {
+  SiteVolumeOptions o;
+  o.cell_m = a.cell;
+  o.volume.noise_threshold_m = a.threshold;
+  o.voxels.voxel_size_m = a.voxel;
+  o.default_noise_m = a.noise;
+  o.surface_files = parse_pairs(a.surfaces, "--surface");
+  o.footprint_files = parse_pairs(a.footprints, "--footprint");
+  o.validate();
+  return o;
+}
+
+const UnitSolid& require_solid(const SiteModel& m, const std::string& unit) {
+  for (const auto& s : m.solids)
+    if (s.unit == unit) return s;
+  for (const auto& u : m.units)
+    if (u.code == unit)
+      throw InputError(fmt::format("unit {} has no solid: it has no layer, or no later surface below it", unit));
+  throw InputError(fmt::format("unit '{}' does not exist", unit));
+}
+
+nlohmann::json measures_json(const UnitSolid& s, const VoxelSummary& v) {
+  const auto& m = s.measures;
+  nlohmann::json j = {{"unit", s.unit},
+                      {"volume_m3", m.volume_m3},
+                      {"area_m2", m.area_m2},
+                      {"mean_thickness_m", m.mean_thickness_m},
+                      {"min_thickness_m", m.min_thickness_m},
+                      {"max_thickness_m", m.max_thickness_m},
+                      {"volume_sigma_m3", m.volume_sigma_m3},
+                      {"top_layer", s.top_layer},
+                      {"bottom_layers", s.bottom_layers}};
+  for (const auto& u : v.units)
+    if (u.unit == s.unit) {
+      j["voxel_volume_m3"] = u.fog_volume_m3;
+      j["labelled_voxels"] = u.labelled_voxels;
+    }
+  return j;
+}
+
+void register_volume(CLI::App& app) {
+  auto* cmd = app.add_subcommand(
+      "volume",
+      "volume, area and thickness of every excavated unit, from the layer surfaces: a unit's solid is\n"
+      "the space between its layer's surface and the next recorded surface below, where they differ\n"
+      "by more than --threshold. Stores the figures (table unit_volumes), the voxel model\n"
+      "(products/volume/units.vdb) and thickness rasters (products/volume/thickness_UNIT.tif).");
+  auto a = std::make_shared<ModelArgs>();
+  auto unit = std::make_shared<std::string>();
+  auto json = std::make_shared<bool>(false);
+  add_model_options(cmd, *a);
+  cmd->add_option("--unit", *unit, "print only this unit");
+  cmd->add_flag("--json", *json, "print a JSON list of {unit, volume_m3, area_m2, mean_thickness_m, ...}");
+  cmd->callback([=] {
+    const SiteVolumeOptions o = site_options(*a);
+    Project p = Project::open(a->dir);
+    const SiteModel m = load_site_model(p, o);
+    if (!unit->empty()) require_solid(m, *unit);
+    const VoxelSummary v = store_site_volumes(p, m, o);
+    nlohmann::json list = nlohmann::json::array();
+    for (const auto& s : m.solids)
+      if (unit->empty() || s.unit == *unit) list.push_back(measures_json(s, v));
+    if (*json) {
+      fmt::print("{}\n", list.dump(2));
+      return;
+    }
+    fmt::print("{:<8} {:>10} {:>9} {:>9} {:>9} {:>9} {:>10}  {}\n", "unit", "volume m3", "+/- m3", "area m2",
+               "mean m", "max m", "voxels m3", "surfaces");
+    for (const auto& s : m.solids) {
+      if (!unit->empty() && s.unit != *unit) continue;
+      const auto& q = s.measures;
+      double vox = 0;
+      for (const auto& u : v.units)
+        if (u.unit == s.unit) vox = u.fog_volume_m3;
+      std::string bottoms;
+      for (const auto& b : s.bottom_layers) bottoms += (bottoms.empty() ? "" : ",") + b;
+      fmt::print("{:<8} {:>10.4f} {:>9.4f} {:>9.3f} {:>9.3f} {:>9.3f} {:>10.4f}  {} -> {}\n", s.unit, q.volume_m3,
+                 q.volume_sigma_m3, q.area_m2, q.mean_thickness_m, q.max_thickness_m, vox, s.top_layer, bottoms);
+    }
+    log::info("wrote {}", (p.products_dir() / "volume" / "units.vdb").string());
+  });
+}
+
+void register_check(CLI::App& app) {
+  auto* cmd = app.add_subcommand(
+      "check",
+      "Harris matrix against geometry: for every pair of units the matrix orders (above, cuts, fills,\n"
+      "abuts, transitively), reports where the later unit's top lies below the earlier one's, with\n"
+      "the place (E, N) and the amount. Exit status 1 when there is a conflict.");
+  auto a = std::make_shared<ModelArgs>();
+  auto tolerance = std::make_shared<double>(CheckOptions{}.tolerance_m);
+  auto min_area = std::make_shared<double>(CheckOptions{}.min_area_m2);
+  add_model_options(cmd, *a);
+  cmd->add_option("--tolerance", *tolerance, "height differences below this are no conflict, metres (default 0.01)");
+  cmd->add_option("--min-area", *min_area, "ignore conflicts smaller than this, m2 (default 0.0025)");
+  cmd->callback([=] {
+    const SiteVolumeOptions o = site_options(*a);
+    Project p = Project::open(a->dir);
+    const SiteModel m = load_site_model(p, o);
+    CheckOptions co;
+    co.tolerance_m = *tolerance;
+    co.min_area_m2 = *min_area;
+    const auto conflicts = check_stratigraphy(site_matrix(m), m.layers, m.solids, co);
+    for (const auto& c : conflicts) fmt::print("{}\n", c.describe(m.site.origin));
+    if (!conflicts.empty())
+      throw ProcessingError(fmt::format("check: {} conflict(s) between the Harris matrix and the geometry",
+                                        conflicts.size()));
+    fmt::print("no conflict between the Harris matrix and the geometry ({} units with geometry, {} layers)\n",
+               m.solids.size(), m.layers.size());
+  });
+}
+
+void register_exports(CLI::App& app) {
+  CLI::App* exp = app.get_subcommand("export");
+  {
+    auto* cmd = exp->add_subcommand("thickness", "thickness of a unit, Float32 GeoTIFF in metres (site CRS, nodata -9999)");
+    auto a = std::make_shared<ModelArgs>();
+    auto unit = std::make_shared<std::string>();
+    auto out = std::make_shared<std::string>();
+    add_model_options(cmd, *a);
+    cmd->add_option("--unit", *unit, "the unit")->required();
+    cmd->add_option("--out", *out, "output GeoTIFF")->required();
+    cmd->callback([=] {
+      const SiteVolumeOptions o = site_options(*a);
+      Project p = Project::open(a->dir);
+      const SiteModel m = load_site_model(p, o);
+      const UnitSolid& s = require_solid(m, *unit);
+      HeightField t = s.top;
+      for (std::size_t c = 0; c < t.z.size(); ++c) t.z[c] = s.dug(c) ? s.thickness(c) : t.z[c];
+      write_field_geotiff(*out, t, m.site.origin, m.site.crs, 0, fmt::format("thickness of unit {} (m)", s.unit));
+      log::info("wrote {} (unit {}: {:.4f} m3 over {:.3f} m2)", *out, s.unit, s.measures.volume_m3, s.measures.area_m2);
+    });
+  }
+  {
+    auto* cmd = exp->add_subcommand(
+        "voxels",
+        "the voxel model of every excavated unit: .vdb (one fog grid per unit + Int32 'labels'), GRASS\n"
+        "3D raster text for r3.in.ascii (.asc, with an import script .sh and a label legend), or VTK\n"
+        "image data for ParaView (.vti). The format follows the extension unless --format is given.");
+    auto a = std::make_shared<ModelArgs>();
+    auto out = std::make_shared<std::string>();
+    auto format = std::make_shared<std::string>();
+    add_model_options(cmd, *a);
+    cmd->add_option("--out", *out, "output file")->required();
+    cmd->add_option("--format", *format, "vdb, grass or vti")->check(CLI::IsMember({"vdb", "grass", "vti"}));
+    cmd->callback([=] {
+      std::string f = *format;
+      const std::string ext = fs::path(*out).extension().string();
+      if (f.empty()) {
+        if (ext == ".vdb") f = "vdb";
+        else if (ext == ".vti") f = "vti";
+        else if (ext == ".asc" || ext == ".txt") f = "grass";
+        else throw InputError(fmt::format("export voxels: cannot tell the format of '{}'; use .vdb, .asc, .vti or --format", *out));
+      }
+      const SiteVolumeOptions o = site_options(*a);
+      Project p = Project::open(a->dir);
+      const SiteModel m = load_site_model(p, o);
+      std::map<std::string, std::int32_t> labels;
+      for (const auto& u : m.units) labels[u.code] = std::int32_t(u.id);
+      const fs::path vdb = f == "vdb" ? fs::path(*out) : fs::path(*out).replace_extension(".vdb.tmp");
+      write_unit_voxels(vdb, m.solids, labels, o.voxels, m.site.origin, m.site.crs);
+      if (f == "vdb") {
+        log::info("wrote {}", *out);
+        return;
+      }
+      const LabelVolume v = read_label_volume(vdb);
+      fs::remove(vdb);
+      if (f == "grass") {
+        const fs::path script = write_grass_ascii(*out, v);
+        log::info("wrote {} ({} x {} x {} voxels of {} m) and {}", *out, v.nx, v.ny, v.nz, v.voxel_size_m,
+                  script.string());
+      } else {
+        write_vti(*out, v);
+        log::info("wrote {} ({} x {} x {} voxels of {} m)", *out, v.nx, v.ny, v.nz, v.voxel_size_m);
+      }
+    });
+  }
+  {
+    auto* cmd = exp->add_subcommand(
+        "section",
+        "a section along the line E1,N1 -> E2,N2 through every layer surface and unit: an SVG drawing\n"
+        "(1:20 by default: units filled and numbered, heights, datum, scale bar) or a GeoPackage of 3D\n"
+        "lines (.gpkg), by extension.");
+    auto a = std::make_shared<ModelArgs>();
+    auto line = std::make_shared<std::string>();
+    auto out = std::make_shared<std::string>();
+    auto scale = std::make_shared<double>(20);
+    auto title = std::make_shared<std::string>("Section");
+    auto step = std::make_shared<double>(0);
+    add_model_options(cmd, *a);
+    cmd->add_option("--line", *line, "E1,N1,E2,N2 in the site CRS")->required();
+    cmd->add_option("--out", *out, "output .svg or .gpkg")->required();
+    cmd->add_option("--scale", *scale, "drawing scale 1:N (default 20)");
+    cmd->add_option("--title", *title, "title of the drawing");
+    cmd->add_option("--step", *step, "sampling step along the line, metres (default: one grid cell)");
+    cmd->callback([=] {
+      const std::string ext = fs::path(*out).extension().string();
+      if (ext != ".svg" && ext != ".gpkg")
+        throw InputError(fmt::format("export section: --out '{}' must end in .svg or .gpkg", *out));
+      const auto v = parse_numbers(*line, 4, "--line");
+      const SiteVolumeOptions o = site_options(*a);
+      Project p = Project::open(a->dir);
+      const SiteModel m = load_site_model(p, o);
+      const Eigen::Vector2d A(v[0] - m.site.origin.x(), v[1] - m.site.origin.y());
+      const Eigen::Vector2d B(v[2] - m.site.origin.x(), v[3] - m.site.origin.y());
+      const SectionProfile profile = cut_section(A, B, m.layers, m.solids, *step);
+      if (ext == ".svg") {
+        SectionDrawingOptions d;
+        d.scale = *scale;
+        d.title = *title;
+        d.crs = m.site.crs;
+        for (const auto& u : m.units) d.unit_types[u.code] = u.type;
+        write_section_svg(*out, profile, m.site.origin, d);
+      } else {
+        write_section_gpkg(*out, profile, m.site.origin, m.site.crs);
+      }
+      log::info("wrote {} ({:.2f} m, {} samples)", *out, profile.length(), profile.s.size());
+    });
+  }
+}
+
+}  // namespace
+
+void register_volume_commands(CLI::App& app) {
+  register_volume(app);
+  register_check(app);
+  register_exports(app);
+}
+
+}  // namespace strata::cli

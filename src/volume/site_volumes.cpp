@@ -1,0 +1,292 @@
+// The volume stage on a project: surfaces in, products and unit_volumes out.
+#include "volume/site_volumes.hpp"
+
+#include "core/error.hpp"
+#include "core/log.hpp"
+#include "volume/raster_io.hpp"
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+#include <ogrsf_frmts.h>
+
+#include <algorithm>
+#include <cmath>
+#include <optional>
+
+namespace strata {
+namespace fs = std::filesystem;
+namespace {
+
+constexpr double kDefaultCell = 0.005;  // metres: a few GSDs of a 1.5 m hand-held photo
+constexpr double kMadToSigma = 1.4826;  // median absolute deviation -> Gaussian sigma
+
+// Where a layer's surface comes from, before sampling on the common grid.
+struct SurfaceSource {
+  LayerRecord layer;
+  fs::path path;
+  bool raster = false;
+  std::optional<HeightField> field;  // rasters: read at once
+  double xmin = 0, ymin = 0, xmax = 0, ymax = 0;  // site frame extent
+};
+
+std::optional<nlohmann::json> quality_json(Database& db, std::int64_t layer_id, const char* stage) {
+  auto st = db.prepare("SELECT quality_json FROM reconstructions WHERE layer_id = ? AND stage = ?");
+  st.bind_all(layer_id, stage);
+  if (!st.step()) return std::nullopt;
+  try {
+    return nlohmann::json::parse(st.get_text(0));
+  } catch (const nlohmann::json::exception&) {
+    return std::nullopt;
+  }
+}
+
+// Vertical georeference error of a layer: check-marker RMSE z when check points
+// exist (independent), else control RMSE z; 0 when not georeferenced by markers.
+double vertical_rmse(Database& db, std::int64_t layer_id) {
+  const auto q = quality_json(db, layer_id, "sparse");
+  if (!q) return 0;
+  for (const char* key : {"check_rmse", "control_rmse"}) {
+    const auto it = q->find(key);
+    if (it != q->end() && it->is_object() && it->value("markers", 0) > 0) return it->value("z_m", 0.0);
+  }
+  return 0;
+}
+
+double surface_noise(Database& db, std::int64_t layer_id, double fallback) {
+  const auto q = quality_json(db, layer_id, "dense");
+  if (!q) return fallback;
+  const double median = q->value("median_distance_sparse_m", 0.0);
+  return median > 0 ? kMadToSigma * median : fallback;
+}
+
+std::vector<LayerRecord> capture_order(std::vector<LayerRecord> layers) {
+  const bool timed = std::all_of(layers.begin(), layers.end(), [](const auto& l) { return l.captured_at.has_value(); });
+  std::stable_sort(layers.begin(), layers.end(), [&](const LayerRecord& a, const LayerRecord& b) {
+    if (timed && *a.captured_at != *b.captured_at) return *a.captured_at < *b.captured_at;
+    return a.id < b.id;
+  });
+  return layers;
+}
+
+}  // namespace
+
+void SiteVolumeOptions::validate() const {
+  volume.validate();
+  voxels.validate();
+  if (!(cell_m == 0 || (cell_m >= 0.001 && cell_m <= 1)))
+    throw InputError(fmt::format("volume options: cell_m = {} is not 0 (automatic) or 0.001..1 m", cell_m));
+  if (!(default_noise_m >= 0 && default_noise_m <= 1))
+    throw InputError(fmt::format("volume options: default_noise_m = {} is not in 0..1 m", default_noise_m));
+  for (const auto& [layer, path] : surface_files)
+    if (!fs::exists(path)) throw InputError(fmt::format("volume: surface of layer {}: {} does not exist", layer, path.string()));
+  for (const auto& [unit, path] : footprint_files)
+    if (!fs::exists(path)) throw InputError(fmt::format("volume: footprint of unit {}: {} does not exist", unit, path.string()));
+}
+
+std::vector<Eigen::Vector2d> read_footprint(const fs::path& path, const Eigen::Vector3d& origin) {
+  GDALAllRegister();
+  GDALDataset* ds = GDALDataset::Open(path.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY);
+  if (!ds) throw IoError(fmt::format("reader.footprint: {}: cannot open as a vector file", path.string()));
+  std::vector<Eigen::Vector2d> ring;
+  for (int li = 0; li < ds->GetLayerCount() && ring.empty(); ++li) {
+    OGRLayer* layer = ds->GetLayer(li);
+    layer->ResetReading();
+    while (OGRFeature* f = layer->GetNextFeature()) {
+      const OGRGeometry* g = f->GetGeometryRef();
+      const OGRPolygon* poly = nullptr;
+      if (g && wkbFlatten(g->getGeometryType()) == wkbPolygon) poly = g->toPolygon();
+      if (g && wkbFlatten(g->getGeometryType()) == wkbMultiPolygon && !g->toMultiPolygon()->IsEmpty())
+        poly = g->toMultiPolygon()->getGeometryRef(0);
+      if (poly && poly->getExteriorRing()) {
+        const OGRLinearRing* r = poly->getExteriorRing();
+        for (int i = 0; i < r->getNumPoints(); ++i) ring.emplace_back(r->getX(i) - origin.x(), r->getY(i) - origin.y());
+      }
+      OGRFeature::DestroyFeature(f);
+      if (!ring.empty()) break;
+    }
+  }
+  GDALClose(GDALDataset::ToHandle(ds));
+  if (ring.size() < 3) throw InputError(fmt::format("reader.footprint: {}: no polygon found", path.string()));
+  return ring;
+}
+
+SiteModel load_site_model(Project& project, const SiteVolumeOptions& options) {
+  options.validate();
+  Database& db = project.db();
+  SiteModel model;
+  model.site = project.site();
+  model.units = list_units(db);
+  model.relations = list_relations(db);
+  const Eigen::Vector3d& origin = model.site.origin;
+
+  for (const auto& [layer, path] : options.surface_files)
+    if (!find_layer(db, layer)) throw InputError(fmt::format("volume: --surface names layer '{}', which does not exist", layer));
+
+  // 1. Where each surface comes from and its extent.
+  std::vector<SurfaceSource> sources;
+  for (const auto& layer : capture_order(list_layers(db))) {
+    SurfaceSource s;
+    s.layer = layer;
+    if (auto f = options.surface_files.find(layer.name); f != options.surface_files.end()) {
+      s.path = f->second;
+      s.raster = true;
+    } else if (auto p = find_product(db, layer.id, "surface")) {
+      s.path = project.dir() / p->path;
+    } else if (auto d = find_product(db, layer.id, "dtm")) {
+      s.path = project.dir() / d->path;
+      s.raster = true;
+    } else {
+      log::warn("volume: layer {} has no surface yet (run 'strata process {} --layer {}'): left out", layer.name,
+                project.dir().string(), layer.name);
+      continue;
+    }
+    if (s.raster) {
+      s.field = read_height_raster(s.path, origin);
+      const auto& f = *s.field;
+      s.xmin = f.x0 - 0.5 * f.cell;
+      s.ymin = f.y0 - 0.5 * f.cell;
+      s.xmax = f.x0 + (f.nx - 0.5) * f.cell;
+      s.ymax = f.y0 + (f.ny - 0.5) * f.cell;
+    } else {
+      const LevelSetInfo info = read_level_set_info(s.path);
+      s.xmin = info.min.x();
+      s.ymin = info.min.y();
+      s.xmax = info.max.x();
+      s.ymax = info.max.y();
+    }
+    sources.push_back(std::move(s));
+  }
+  if (sources.size() < 2)
+    throw InputError(fmt::format("volume: {} layer(s) have a surface; at least two are needed for a volume",
+                                 sources.size()));
+
+  // 2. The common grid: the union of the extents, aligned to the first raster's
+  // pixel centres when its pixel is the cell (no resampling of DTMs), else to
+  // multiples of the cell.
+  double cell = options.cell_m;
+  const SurfaceSource* first_raster = nullptr;
+  for (const auto& s : sources)
+    if (s.raster) {
+      first_raster = &s;
+      break;
+    }
+  if (cell == 0) cell = first_raster ? first_raster->field->cell : kDefaultCell;
+  double ax = 0, ay = 0;  // a cell centre the grid goes through
+  if (first_raster && std::abs(first_raster->field->cell - cell) < 1e-9 * cell) {
+    ax = first_raster->field->x0;
+    ay = first_raster->field->y0;
+  }
+  double xmin = 1e300, ymin = 1e300, xmax = -1e300, ymax = -1e300;
+  for (const auto& s : sources) {
+    xmin = std::min(xmin, s.xmin);
+    ymin = std::min(ymin, s.ymin);
+    xmax = std::max(xmax, s.xmax);
+    ymax = std::max(ymax, s.ymax);
+  }
+  SiteGrid grid;
+  grid.cell = cell;
+  // Cells whose centre ax + k*cell lies inside the union of the extents.
+  const double k0 = std::ceil((xmin - ax) / cell - 1e-6), k1 = std::floor((xmax - ax) / cell + 1e-6);
+  const double l0 = std::ceil((ymin - ay) / cell - 1e-6), l1 = std::floor((ymax - ay) / cell + 1e-6);
+  grid.x0 = ax + k0 * cell;
+  grid.y0 = ay + l0 * cell;
+  grid.nx = int(k1 - k0) + 1;
+  grid.ny = int(l1 - l0) + 1;
+  constexpr double kMaxCells = 200e6;
+  if (double(grid.nx) * grid.ny > kMaxCells)
+    throw InputError(fmt::format("volume: a {} m grid over {:.1f} x {:.1f} m has too many cells; choose a larger --cell",
+                                 cell, xmax - xmin, ymax - ymin));
+  log::info("volume: common grid {} x {} cells of {} mm", grid.nx, grid.ny, 1000 * cell);
+
+  // 3. Sample every surface on it.
+  for (const auto& s : sources) {
+    LayerSurface l;
+    l.layer = s.layer.name;
+    l.unit = s.layer.unit;
+    l.source = s.path.string();
+    l.z = s.raster ? resample(*s.field, grid) : sample_top_surface(s.path, grid.x0, grid.y0, grid.cell, grid.nx, grid.ny);
+    l.noise_m = surface_noise(db, s.layer.id, options.default_noise_m);
+    l.vertical_rmse_m = vertical_rmse(db, s.layer.id);
+    model.layers.push_back(std::move(l));
+  }
+
+  VolumeOptions vo = options.volume;
+  for (const auto& [unit, path] : options.footprint_files) vo.footprints[unit] = read_footprint(path, origin);
+  model.solids = build_unit_solids(model.layers, vo);
+  return model;
+}
+
+HarrisMatrix site_matrix(const SiteModel& model) {
+  std::vector<std::string> codes;
+  for (const auto& u : model.units) codes.push_back(u.code);
+  std::vector<CanonicalRelation> rels;
+  for (const auto& r : model.relations)
+    if (const auto k = relation_kind_from_string(r.kind)) rels.push_back({r.unit_a, *k, r.unit_b});
+  return HarrisMatrix(codes, rels);
+}
+
+VoxelSummary store_site_volumes(Project& project, const SiteModel& model, const SiteVolumeOptions& options) {
+  const fs::path rel_dir = fs::path("products") / "volume";
+  const fs::path dir = project.dir() / rel_dir;
+  fs::create_directories(dir);
+  std::map<std::string, std::int32_t> labels;
+  std::map<std::string, std::int64_t> unit_ids;
+  for (const auto& u : model.units) {
+    labels[u.code] = std::int32_t(u.id);
+    unit_ids[u.code] = u.id;
+  }
+  const VoxelSummary voxels =
+      write_unit_voxels(dir / "units.vdb", model.solids, labels, options.voxels, model.site.origin, model.site.crs);
+  for (const auto& s : model.solids) {
+    HeightField t = s.top;
+    for (std::size_t c = 0; c < t.z.size(); ++c) t.z[c] = s.dug(c) ? s.thickness(c) : t.z[c];
+    write_field_geotiff(dir / fmt::format("thickness_{}.tif", s.unit), t, model.site.origin, model.site.crs, 0,
+                        fmt::format("thickness of unit {} (m)", s.unit));
+  }
+
+  Database& db = project.db();
+  Transaction tx(db);
+  db.exec("DELETE FROM unit_volumes");
+  nlohmann::json sources = nlohmann::json::object();
+  for (const auto& l : model.layers) sources[l.layer] = l.source;
+  for (const auto& s : model.solids) {
+    const auto id = unit_ids.find(s.unit);
+    if (id == unit_ids.end()) continue;
+    const VoxelUnit* vu = nullptr;
+    for (const auto& v : voxels.units)
+      if (v.unit == s.unit) vu = &v;
+    std::string bottoms;
+    for (const auto& b : s.bottom_layers) bottoms += (bottoms.empty() ? "" : ",") + b;
+    const auto& m = s.measures;
+    nlohmann::json details = {{"cell_m", s.top.cell},
+                              {"cells", m.cells},
+                              {"noise_threshold_m", options.volume.noise_threshold_m},
+                              {"footprint", options.footprint_files.count(s.unit) > 0},
+                              {"voxel_size_m", voxels.voxel_size_m},
+                              {"voxel_fog_volume_m3", vu ? vu->fog_volume_m3 : 0.0},
+                              {"voxel_label_volume_m3", vu ? vu->label_volume_m3 : 0.0},
+                              {"sources", sources}};
+    db.prepare(
+          "INSERT INTO unit_volumes(unit_id, top_layer, bottom_layers, volume_m3, area_m2, mean_thickness_m, "
+          "min_thickness_m, max_thickness_m, volume_sigma_m3, method, details_json, computed_at) "
+          "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, 'height-field differencing', ?, strftime('%Y-%m-%dT%H:%M:%SZ','now'))")
+        .bind_all(id->second, s.top_layer, bottoms, m.volume_m3, m.area_m2, m.mean_thickness_m, m.min_thickness_m,
+                  m.max_thickness_m, m.volume_sigma_m3, details.dump())
+        .run();
+    ProductRecord r;
+    r.unit_id = id->second;
+    r.kind = "thickness";
+    r.path = (rel_dir / fmt::format("thickness_{}.tif", s.unit)).string();
+    r.params_json = nlohmann::json{{"cell_m", s.top.cell}}.dump();
+    record_product(db, project.dir(), r);
+  }
+  ProductRecord r;
+  r.kind = "voxels";
+  r.path = (rel_dir / "units.vdb").string();
+  r.params_json = nlohmann::json{{"voxel_size_m", voxels.voxel_size_m}, {"cell_m", model.layers.front().z.cell}}.dump();
+  record_product(db, project.dir(), r);
+  tx.commit();
+  return voxels;
+}
+
+}  // namespace strata

@@ -1,0 +1,59 @@
+#pragma once
+// The volume stage on a project: layer surfaces from the database (or GeoTIFF
+// DTMs the user brings), unit solids, the voxel model and thickness rasters in
+// products/volume/, and the unit_volumes table. Orchestration only: the maths is
+// in volume.hpp / voxels.hpp.
+#include "project/project.hpp"
+#include "project/records.hpp"
+#include "stratigraphy/harris_matrix.hpp"
+#include "volume/voxels.hpp"
+
+#include <filesystem>
+#include <map>
+#include <string>
+#include <vector>
+
+namespace strata {
+
+struct SiteVolumeOptions {
+  VolumeOptions volume;
+  VoxelOptions voxels;
+  // Cell of the common measurement grid, metres. 0: the pixel size of the first
+  // GeoTIFF surface if any (and its pixel centres), else 0.005 m.
+  double cell_m = 0;
+  // Layer name -> GeoTIFF of absolute heights in the site CRS; replaces the
+  // layer's surface product (for DTMs from elsewhere, or the synthetic truth).
+  std::map<std::string, std::filesystem::path> surface_files;
+  // Unit code -> vector file (GeoJSON, GeoPackage, shapefile) whose first polygon,
+  // in site CRS coordinates, limits the unit's solid.
+  std::map<std::string, std::filesystem::path> footprint_files;
+  double default_noise_m = 0.003;  // surface noise when no dense quality figure exists, metres
+
+  void validate() const;  // InputError naming the field
+};
+
+struct SiteModel {
+  SiteInfo site;
+  std::vector<LayerSurface> layers;   // capture order, on one grid
+  std::vector<UnitSolid> solids;      // excavated units
+  std::vector<UnitRecord> units;
+  std::vector<RelationRecord> relations;
+};
+
+// Loads every layer's surface (surface_files, else its "surface" product .vdb,
+// else its "dtm" product GeoTIFF) onto one grid and builds the unit solids.
+// Layers without a surface are left out with a warning. Throws InputError when
+// fewer than two layers have one.
+SiteModel load_site_model(Project& project, const SiteVolumeOptions& options);
+
+// Writes products/volume/units.vdb and thickness_<unit>.tif, records them as
+// products, and replaces the unit_volumes rows, in one transaction.
+VoxelSummary store_site_volumes(Project& project, const SiteModel& model, const SiteVolumeOptions& options);
+
+// The Harris matrix of the project's units and relations.
+HarrisMatrix site_matrix(const SiteModel& model);
+
+// First polygon of a vector file, exterior ring, site frame (CRS minus origin).
+std::vector<Eigen::Vector2d> read_footprint(const std::filesystem::path& path, const Eigen::Vector3d& site_origin);
+
+}  // namespace strata

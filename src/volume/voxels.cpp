@@ -1,0 +1,248 @@
+// The voxel model in OpenVDB: per-unit fog volumes and the label grid. The only
+// translation unit of strata_volume that includes OpenVDB.
+#include "volume/voxels.hpp"
+
+#include "core/error.hpp"
+#include "core/log.hpp"
+
+#include <fmt/format.h>
+#include <openvdb/openvdb.h>
+#include <openvdb/tools/Prune.h>
+
+#include <algorithm>
+#include <cmath>
+
+namespace strata {
+namespace fs = std::filesystem;
+namespace {
+
+constexpr const char* kLabelGrid = "labels";
+// Fractions this close to 1 are stored as 1 so that interior blocks prune to tiles.
+constexpr float kPruneTolerance = 1e-6f;
+
+void init_vdb() {
+  static const bool done = [] {
+    openvdb::initialize();
+    return true;
+  }();
+  (void)done;
+}
+
+}  // namespace
+
+void VoxelOptions::validate() const {
+  if (!(voxel_size_m >= 0.001 && voxel_size_m <= 1.0))
+    throw InputError(fmt::format("voxel options: voxel_size_m = {} is not in 0.001..1 m", voxel_size_m));
+}
+
+VoxelSummary write_unit_voxels(const fs::path& path, const std::vector<UnitSolid>& solids,
+                               const std::map<std::string, std::int32_t>& labels, const VoxelOptions& options,
+                               const Eigen::Vector3d& site_origin, const std::string& crs) {
+  options.validate();
+  init_vdb();
+  const double h = options.voxel_size_m;
+  // Site frame: voxel (i, j, k) centred at (i, j, k) * h.
+  const auto transform = openvdb::math::Transform::createLinearTransform(h);
+  auto label_grid = openvdb::Int32Grid::create(0);
+  label_grid->setName(kLabelGrid);
+  label_grid->setTransform(transform);
+  label_grid->setGridClass(openvdb::GRID_UNKNOWN);
+  label_grid->insertMeta("description", openvdb::StringMetadata("unit label (unit id) per voxel, 0 = none"));
+  auto label_acc = label_grid->getAccessor();
+
+  VoxelSummary summary;
+  summary.voxel_size_m = h;
+  openvdb::GridPtrVec grids;
+  std::int32_t next_label = 1;
+  for (const auto& solid : solids) {
+    VoxelUnit vu;
+    vu.unit = solid.unit;
+    const auto it = labels.find(solid.unit);
+    vu.label = it != labels.end() ? it->second : next_label++;
+    auto grid = openvdb::FloatGrid::create(0.0f);
+    grid->setName(solid.unit);
+    grid->setTransform(transform);
+    grid->setGridClass(openvdb::GRID_FOG_VOLUME);
+    grid->insertMeta("unit", openvdb::StringMetadata(solid.unit));
+    grid->insertMeta("unit_label", openvdb::Int32Metadata(vu.label));
+    grid->insertMeta("top_layer", openvdb::StringMetadata(solid.top_layer));
+    auto acc = grid->getAccessor();
+
+    const HeightField& top = solid.top;
+    const HeightField& bottom = solid.bottom;
+    // Bounding box of the dug cells, as voxel columns.
+    int ci0 = top.nx, ci1 = -1, cj0 = top.ny, cj1 = -1;
+    for (int j = 0; j < top.ny; ++j)
+      for (int i = 0; i < top.nx; ++i)
+        if (std::isfinite(top.at(i, j))) {
+          ci0 = std::min(ci0, i);
+          ci1 = std::max(ci1, i);
+          cj0 = std::min(cj0, j);
+          cj1 = std::max(cj1, j);
+        }
+    if (ci1 < 0) {
+      summary.units.push_back(vu);
+      continue;
+    }
+    const int I0 = int(std::floor((top.x(ci0) / h) + 0.5)), I1 = int(std::floor((top.x(ci1) / h) + 0.5));
+    const int J0 = int(std::floor((top.y(cj0) / h) + 0.5)), J1 = int(std::floor((top.y(cj1) / h) + 0.5));
+    // Cells whose centre lies in [a, b): indices ceil((a - x0)/cell) .. ceil((b - x0)/cell) - 1.
+    auto cell_range = [](double a, double b, double origin, double cell) {
+      return std::pair<int, int>(int(std::ceil((a - origin) / cell - 1e-9)), int(std::ceil((b - origin) / cell - 1e-9)) - 1);
+    };
+    struct Column {
+      double t, b;
+    };
+    std::vector<Column> column;
+    for (int J = J0; J <= J1; ++J) {
+      const auto [ja, jb] = cell_range((J - 0.5) * h, (J + 0.5) * h, top.y0, top.cell);
+      for (int I = I0; I <= I1; ++I) {
+        const auto [ia, ib] = cell_range((I - 0.5) * h, (I + 0.5) * h, top.x0, top.cell);
+        const int cells = (ib - ia + 1) * (jb - ja + 1);
+        if (cells <= 0) continue;  // voxel smaller than the cell: no centre falls in it
+        column.clear();
+        double zmin = 1e300, zmax = -1e300;
+        for (int j = std::max(ja, 0); j <= std::min(jb, top.ny - 1); ++j)
+          for (int i = std::max(ia, 0); i <= std::min(ib, top.nx - 1); ++i) {
+            const double t = top.at(i, j);
+            if (!std::isfinite(t)) continue;
+            const double b = bottom.at(i, j);
+            if (!(t > b)) continue;  // a negative thickness (footprint mode) adds no voxels
+            column.push_back({t, b});
+            zmin = std::min(zmin, b);
+            zmax = std::max(zmax, t);
+          }
+        if (column.empty()) continue;
+        const int K0 = int(std::floor(zmin / h + 0.5)), K1 = int(std::floor(zmax / h + 0.5));
+        for (int K = K0; K <= K1; ++K) {
+          const double lo = (K - 0.5) * h, hi = (K + 0.5) * h;
+          double overlap = 0;  // metres, summed over the column's cells
+          for (const auto& c : column) overlap += std::max(0.0, std::min(c.t, hi) - std::max(c.b, lo));
+          double fraction = overlap / (h * cells);
+          if (fraction <= 0) continue;
+          if (fraction > 1 - kPruneTolerance) fraction = 1;
+          acc.setValue(openvdb::Coord(I, J, K), float(fraction));
+          if (fraction > 0.5) label_acc.setValue(openvdb::Coord(I, J, K), vu.label);
+        }
+      }
+    }
+    openvdb::tools::prune(grid->tree(), kPruneTolerance);
+    double sum = 0;
+    for (auto v = grid->cbeginValueOn(); v; ++v) {
+      sum += double(*v) * double(v.getVoxelCount());
+      vu.active_voxels += v.getVoxelCount();
+    }
+    vu.fog_volume_m3 = sum * h * h * h;
+    grids.push_back(grid);
+    summary.units.push_back(vu);
+  }
+  // Labelled voxels per unit, after every unit has been written (a later unit
+  // may take a voxel an earlier one claimed where solids overlap).
+  std::map<std::int32_t, std::size_t> counts;
+  for (auto v = label_grid->cbeginValueOn(); v; ++v) counts[*v] += v.getVoxelCount();
+  for (auto& vu : summary.units) {
+    vu.labelled_voxels = counts[vu.label];
+    vu.label_volume_m3 = double(vu.labelled_voxels) * h * h * h;
+  }
+  openvdb::tools::prune(label_grid->tree());
+  grids.push_back(label_grid);
+
+  openvdb::MetaMap meta;
+  meta.insertMeta("site_origin_e", openvdb::DoubleMetadata(site_origin.x()));
+  meta.insertMeta("site_origin_n", openvdb::DoubleMetadata(site_origin.y()));
+  meta.insertMeta("site_origin_z", openvdb::DoubleMetadata(site_origin.z()));
+  meta.insertMeta("crs", openvdb::StringMetadata(crs));
+  meta.insertMeta("voxel_size_m", openvdb::DoubleMetadata(h));
+  meta.insertMeta("frame", openvdb::StringMetadata("site frame: CRS coordinates minus site_origin, metres"));
+  for (const auto& vu : summary.units)
+    meta.insertMeta(fmt::format("label_{}", vu.label), openvdb::StringMetadata(vu.unit));
+
+  const fs::path tmp = path.string() + ".partial";
+  try {
+    openvdb::io::File file(tmp.string());
+    file.write(grids, meta);
+    file.close();
+  } catch (const openvdb::Exception& e) {
+    throw IoError(fmt::format("writer.vdb: {}: {}", path.string(), e.what()));
+  }
+  std::error_code ec;
+  fs::rename(tmp, path, ec);
+  if (ec) throw IoError(fmt::format("writer.vdb: {}: {}", path.string(), ec.message()));
+  return summary;
+}
+
+namespace {
+
+struct OpenedVdb {
+  openvdb::GridPtrVecPtr grids;
+  openvdb::MetaMap::Ptr meta;
+};
+
+OpenedVdb open_vdb(const fs::path& path) {
+  init_vdb();
+  if (!fs::exists(path)) throw IoError(fmt::format("reader.vdb: {}: no such file", path.string()));
+  try {
+    openvdb::io::File file(path.string());
+    file.open();
+    OpenedVdb out{file.getGrids(), file.getMetadata()};
+    file.close();
+    return out;
+  } catch (const openvdb::Exception& e) {
+    throw IoError(fmt::format("reader.vdb: {}: {}", path.string(), e.what()));
+  }
+}
+
+}  // namespace
+
+std::map<std::string, double> read_voxel_volumes(const fs::path& path) {
+  const OpenedVdb f = open_vdb(path);
+  std::map<std::string, double> out;
+  for (const auto& base : *f.grids) {
+    auto grid = openvdb::gridPtrCast<openvdb::FloatGrid>(base);
+    if (!grid || grid->getGridClass() != openvdb::GRID_FOG_VOLUME) continue;
+    const openvdb::Vec3d v = grid->voxelSize();
+    double sum = 0;
+    for (auto it = grid->cbeginValueOn(); it; ++it) sum += double(*it) * double(it.getVoxelCount());
+    out[grid->getName()] = sum * v.x() * v.y() * v.z();
+  }
+  return out;
+}
+
+LabelVolume read_label_volume(const fs::path& path) {
+  const OpenedVdb f = open_vdb(path);
+  openvdb::Int32Grid::Ptr grid;
+  for (const auto& base : *f.grids)
+    if (base->getName() == kLabelGrid) grid = openvdb::gridPtrCast<openvdb::Int32Grid>(base);
+  if (!grid) throw IoError(fmt::format("reader.vdb: {}: no Int32 grid named '{}'", path.string(), kLabelGrid));
+  LabelVolume out;
+  out.voxel_size_m = grid->voxelSize().x();
+  auto get_double = [&](const char* key) {
+    auto m = f.meta->getMetadata<openvdb::DoubleMetadata>(key);
+    return m ? m->value() : 0.0;
+  };
+  out.site_origin = {get_double("site_origin_e"), get_double("site_origin_n"), get_double("site_origin_z")};
+  if (auto m = f.meta->getMetadata<openvdb::StringMetadata>("crs")) out.crs = m->value();
+  for (auto it = f.meta->beginMeta(); it != f.meta->endMeta(); ++it) {
+    if (it->first.rfind("label_", 0) != 0) continue;
+    if (auto s = f.meta->getMetadata<openvdb::StringMetadata>(it->first))
+      out.units[std::int32_t(std::stol(it->first.substr(6)))] = s->value();
+  }
+  const openvdb::CoordBBox box = grid->evalActiveVoxelBoundingBox();
+  if (box.empty()) return out;
+  const openvdb::Coord lo = box.min(), dim = box.dim();
+  out.nx = dim.x();
+  out.ny = dim.y();
+  out.nz = dim.z();
+  out.min_centre = Eigen::Vector3d(lo.x(), lo.y(), lo.z()) * out.voxel_size_m;
+  out.labels.assign(std::size_t(out.nx) * out.ny * out.nz, 0);
+  for (auto it = grid->cbeginValueOn(); it; ++it) {
+    const openvdb::CoordBBox b = it.getBoundingBox();  // a voxel or a tile
+    for (auto c = b.begin(); c; ++c) {
+      const openvdb::Coord q = *c - lo;
+      out.labels[(std::size_t(q.z()) * out.ny + q.y()) * out.nx + q.x()] = *it;
+    }
+  }
+  return out;
+}
+
+}  // namespace strata

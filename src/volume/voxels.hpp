@@ -1,0 +1,86 @@
+#pragma once
+// The voxel model of the excavated volume (OpenVDB stays in voxels.cpp) and its
+// exports for GRASS (r3.in.ascii) and ParaView (VTK image data).
+//
+// One .vdb file holds, in the site frame (voxel (i, j, k) centred at
+// (i, j, k) x voxel size, metres):
+//   - one FloatGrid per unit, named by its code, class "fog volume": the fraction
+//     of each voxel inside the unit's solid (0..1]. Built by height-field
+//     differencing per voxel column: fraction = sum over the grid cells whose
+//     centres fall in the column of the overlap of [bottom, top] with the voxel's
+//     z range, divided by (voxel size x cells in the column). The sum of
+//     fractions x voxel volume is therefore the raster volume.
+//   - one Int32Grid "labels": the unit label (unit id) of every voxel more than
+//     half inside a unit, the classified model of the whole excavated volume.
+// File metadata: site_origin_e/n/z, crs, voxel_size_m, and "label_<n>" = unit code.
+#include "volume/volume.hpp"
+
+#include <Eigen/Core>
+
+#include <cstdint>
+#include <filesystem>
+#include <map>
+#include <string>
+#include <vector>
+
+namespace strata {
+
+struct VoxelOptions {
+  double voxel_size_m = 0.01;  // metres; 1 cm keeps a 2 m3 unit near 2 million voxels
+  void validate() const;       // InputError naming the field
+};
+
+struct VoxelUnit {
+  std::string unit;
+  std::int32_t label = 0;
+  double fog_volume_m3 = 0;    // sum of fractions x voxel volume
+  double label_volume_m3 = 0;  // labelled voxels x voxel volume
+  std::size_t active_voxels = 0;
+  std::size_t labelled_voxels = 0;
+};
+
+struct VoxelSummary {
+  double voxel_size_m = 0;
+  std::vector<VoxelUnit> units;
+};
+
+// Voxelizes the solids and writes the .vdb (temporary file, then rename).
+// labels: unit code -> label written into the label grid (the unit's database
+// id); units without an entry get 1, 2, ... in order.
+VoxelSummary write_unit_voxels(const std::filesystem::path& path, const std::vector<UnitSolid>& solids,
+                               const std::map<std::string, std::int32_t>& labels, const VoxelOptions& options,
+                               const Eigen::Vector3d& site_origin, const std::string& crs);
+
+// Sum of fractions x voxel volume of every unit grid in a .vdb written above, m3,
+// by unit code. Throws IoError when unreadable.
+std::map<std::string, double> read_voxel_volumes(const std::filesystem::path& path);
+
+// The label grid as a dense block over its active bounding box.
+struct LabelVolume {
+  double voxel_size_m = 0;
+  Eigen::Vector3d min_centre = Eigen::Vector3d::Zero();  // site frame, centre of voxel (0, 0, 0)
+  int nx = 0, ny = 0, nz = 0;
+  std::vector<std::int32_t> labels;                     // (k * ny + j) * nx + i; 0 = no unit
+  std::map<std::int32_t, std::string> units;            // label -> unit code
+  Eigen::Vector3d site_origin = Eigen::Vector3d::Zero();  // E, N, Z
+  std::string crs;
+
+  std::int32_t at(int i, int j, int k) const {
+    return labels[(std::size_t(k) * std::size_t(ny) + std::size_t(j)) * std::size_t(nx) + std::size_t(i)];
+  }
+};
+LabelVolume read_label_volume(const std::filesystem::path& path);
+
+// ---- exports of the label volume (no OpenVDB) --------------------------------------
+
+// GRASS ASCII 3D raster for r3.in.ascii (header version grass7, order nsbt,
+// real CRS bounds; null voxels "*") plus `<stem>.sh`, a script that imports it
+// and sets the 3D region, and `<stem>_units.csv` (label,unit). Returns the
+// script's path.
+std::filesystem::path write_grass_ascii(const std::filesystem::path& path, const LabelVolume& volume);
+
+// VTK XML ImageData (.vti) with cell data "unit" (Int32, raw appended). The
+// origin is in real CRS coordinates; field data "site_origin" and "unit_codes".
+void write_vti(const std::filesystem::path& path, const LabelVolume& volume);
+
+}  // namespace strata
