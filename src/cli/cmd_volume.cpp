@@ -75,9 +75,9 @@ const UnitSolid& require_solid(const SiteModel& m, const std::string& unit) {
   throw InputError(fmt::format("unit '{}' does not exist", unit));
 }
 
-nlohmann::json measures_json(const UnitSolid& s, const VoxelSummary& v) {
+nlohmann::ordered_json measures_json(const UnitSolid& s, const VoxelSummary& v) {
   const auto& m = s.measures;
-  nlohmann::json j = {{"unit", s.unit},
+  nlohmann::ordered_json j = {{"unit", s.unit},
                       {"volume_m3", m.volume_m3},
                       {"area_m2", m.area_m2},
                       {"mean_thickness_m", m.mean_thickness_m},
@@ -113,7 +113,7 @@ void register_volume(CLI::App& app) {
     const SiteModel m = load_site_model(p, o);
     if (!unit->empty()) require_solid(m, *unit);
     const VoxelSummary v = store_site_volumes(p, m, o);
-    nlohmann::json list = nlohmann::json::array();
+    nlohmann::ordered_json list = nlohmann::ordered_json::array();
     for (const auto& s : m.solids)
       if (unit->empty() || s.unit == *unit) list.push_back(measures_json(s, v));
     if (*json) {

@@ -10,7 +10,6 @@
 #include <Eigen/Geometry>
 
 #include <algorithm>
-#include <cstdlib>
 #include <cmath>
 #include <limits>
 #include <map>
@@ -237,7 +236,7 @@ BundleSummary solve_bundle(const BundleOptions& options, BaProblem& problem) {
   summary.converged = ceres_summary.termination_type == ceres::CONVERGENCE;
   summary.initial_cost = ceres_summary.initial_cost;
   summary.final_cost = ceres_summary.final_cost;
-  summary.message = std::getenv("STRATA_BA_FULL") ? ceres_summary.FullReport() : ceres_summary.BriefReport();
+  summary.message = ceres_summary.BriefReport();
   double sum2 = 0;
   std::size_t n = 0;
   for (const auto& obs : problem.observations) {

@@ -14,6 +14,7 @@
 #include <opencv2/core/eigen.hpp>
 
 #include <algorithm>
+#include <cstdlib>
 #include <cmath>
 #include <map>
 #include <numeric>
@@ -415,27 +416,26 @@ bool IncrementalMapper::try_register(int image) {
   cv::Mat rvec, tvec;
   std::vector<int> inliers;
   const cv::Mat K = cv::Mat::eye(3, 3, CV_64F);
-  bool ok = false;
   try {
-    ok = cv::solvePnPRansac(object, image_points, K, cv::noArray(), rvec, tvec, false,
-                            opt_.ransac_max_iterations, float(threshold), opt_.ransac_confidence,
-                            inliers, cv::SOLVEPNP_AP3P);
+    const bool ok = cv::solvePnPRansac(object, image_points, K, cv::noArray(), rvec, tvec, false,
+                                       opt_.ransac_max_iterations, float(threshold),
+                                       opt_.ransac_confidence, inliers, cv::SOLVEPNP_AP3P);
+    if (!ok || int(inliers.size()) < opt_.resection_min_inliers ||
+        double(inliers.size()) < opt_.resection_min_inlier_ratio * double(object.size())) {
+      return false;
+    }
+    // Levenberg-Marquardt on the inliers (the minimal-sample pose is noisy).
+    std::vector<cv::Point3d> in_obj;
+    std::vector<cv::Point2d> in_img;
+    for (int i : inliers) {
+      in_obj.push_back(object[i]);
+      in_img.push_back(image_points[i]);
+    }
+    cv::solvePnPRefineLM(in_obj, in_img, K, cv::noArray(), rvec, tvec);
   } catch (const cv::Exception& e) {
     log::debug("sfm: resection of {} failed in OpenCV: {}", images_[image].name, e.what());
     return false;
   }
-  if (!ok || int(inliers.size()) < opt_.resection_min_inliers ||
-      double(inliers.size()) < opt_.resection_min_inlier_ratio * double(object.size())) {
-    return false;
-  }
-  // Levenberg-Marquardt on the inliers (the minimal-sample pose is noisy).
-  std::vector<cv::Point3d> in_obj;
-  std::vector<cv::Point2d> in_img;
-  for (int i : inliers) {
-    in_obj.push_back(object[i]);
-    in_img.push_back(image_points[i]);
-  }
-  cv::solvePnPRefineLM(in_obj, in_img, K, cv::noArray(), rvec, tvec);
   cv::Mat Rcv;
   cv::Rodrigues(rvec, Rcv);
   Eigen::Matrix3d R;
@@ -583,6 +583,9 @@ Reconstruction IncrementalMapper::run(IncrementalSummary& summary) {
   Stopwatch clock;
   prepare_intrinsics();
   build_track_index(summary);
+  if (std::getenv("STRATA_DEBUG_PAIRS")) {  // TEMP
+    for (const auto& m : matches_) log::info("pair {} {} {}", images_[m.image_a].name, images_[m.image_b].name, m.matches.size());
+  }
   registered_.assign(images_.size(), 0);
   poses_.assign(images_.size(), Pose{});
   failed_at_.assign(images_.size(), -1);
@@ -599,10 +602,12 @@ Reconstruction IncrementalMapper::run(IncrementalSummary& summary) {
     check_cancelled();
     const int image = register_next();
     if (image < 0) {
-      // Stuck: a global refinement may add points that let another image in.
+      // Stuck: a global refinement may add points that let another image in, so every
+      // image that failed gets another try.
       if (last_global == n_registered_) break;
       global_adjust(opt_.max_reprojection_px);
       last_global = n_registered_;
+      std::fill(failed_at_.begin(), failed_at_.end(), -1);
       continue;
     }
     progress.step();

@@ -89,7 +89,7 @@ struct IncrementalSummary {
 // gets the default prior f = 1.2 x long side, principal point at the centre);
 // `keypoints[i]` belongs to `images[i]`; `matches` are verified pairwise inliers.
 // The result is in an arbitrary frame (georeferenced = false): the first image of the
-// initial pair at the origin, the baseline to the second of unit length.
+// initial pair at the origin, the baseline to the second of about unit length.
 // Throws ProcessingError when no initial pair can be found; Cancelled on request.
 Reconstruction reconstruct_incremental(const IncrementalOptions& options,
                                        const std::vector<CameraGroup>& groups,

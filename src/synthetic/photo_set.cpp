@@ -88,7 +88,11 @@ std::vector<PlannedPhoto> plan_photos(const Scene& scene, int layer, const Intri
     else if ((s -= h) < w) c = {x1 + off - s, y1 + off};
     else c = {x0 - off, y1 + off - (s - w)};
     const Eigen::Vector3d centre(c.x(), c.y(), scene.ground_smooth(c.x(), c.y()) + rng.uniform(1.45, 1.7));
-    Eigen::Vector2d t(x0 + se * rng.uniform(0.25, 0.75), y0 + sn * rng.uniform(0.25, 0.75));
+    // Aim beyond the trench centre: the near floor fills the bottom of the frame,
+    // the far side and the targets around it the top.
+    const Eigen::Vector2d mid(0.5 * (x0 + x1), 0.5 * (y0 + y1));
+    const Eigen::Vector2d away = (mid - c).normalized(), side(-away.y(), away.x());
+    Eigen::Vector2d t = mid + away * rng.uniform(0.0, 0.3) * std::min(se, sn) + side * rng.uniform(-0.2, 0.2) * se;
     Eigen::Vector3d target(t.x(), t.y(), surface.sample(t.x(), t.y()));
     // Not flatter than kMaxObliqueTilt from nadir: pull the target towards the camera.
     for (int it = 0; it < 20; ++it) {

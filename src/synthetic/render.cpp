@@ -60,9 +60,10 @@ bool traverse(double ox, double oy, double dx, double dy, double ta, double tb, 
   const double px = ox + ta * dx, py = oy + ta * dy;
   int i = std::clamp(int(std::floor(px)), 0, nx - 1), j = std::clamp(int(std::floor(py)), 0, ny - 1);
   const int si = dx > 0 ? 1 : -1, sj = dy > 0 ? 1 : -1;
-  double tmx = dx != 0 ? ta + (double(i + (dx > 0 ? 1 : 0)) - px) / dx : kInf;
-  double tmy = dy != 0 ? ta + (double(j + (dy > 0 ? 1 : 0)) - py) / dy : kInf;
-  const double tdx = dx != 0 ? 1.0 / std::abs(dx) : kInf, tdy = dy != 0 ? 1.0 / std::abs(dy) : kInf;
+  const double idx = dx != 0 ? 1.0 / dx : kInf, idy = dy != 0 ? 1.0 / dy : kInf;
+  double tmx = dx != 0 ? ta + (double(i + (dx > 0 ? 1 : 0)) - px) * idx : kInf;
+  double tmy = dy != 0 ? ta + (double(j + (dy > 0 ? 1 : 0)) - py) * idy : kInf;
+  const double tdx = std::abs(idx), tdy = std::abs(idy);
   double t = ta;
   while (true) {
     const double tn = std::max(t, std::min({tmx, tmy, tb}));

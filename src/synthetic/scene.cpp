@@ -405,13 +405,14 @@ void Scene::build_surfaces() {
 
   for (auto& m : markers_) m.centre.z() = surfaces_[0].sample(m.centre.x(), m.centre.y());
 
-  // Max-height pyramid for empty-space skipping: factor 4 per level, up to one block.
+  // Max-height pyramid for empty-space skipping: factor 4 per level.
   pyramids_.assign(std::size_t(layers()), {});
   for (int k = 0; k < layers(); ++k) {
     const HeightGrid& g = surfaces_[std::size_t(k)];
     auto& pyr = pyramids_[std::size_t(k)];
     pyr.push_back(MaxLevel{1, g.nx - 1, g.ny - 1, {}});  // level 0: the cells themselves
-    while (pyr.back().nx > 1 || pyr.back().ny > 1) {
+    // Three levels (4, 16, 64 cells): coarser blocks only add descent overhead.
+    while (pyr.size() < 4 && (pyr.back().nx > 1 || pyr.back().ny > 1)) {
       const MaxLevel& f = pyr.back();
       MaxLevel c;
       c.block = 4 * f.block;
@@ -433,6 +434,8 @@ void Scene::build_surfaces() {
         }
       pyr.push_back(std::move(c));
     }
+    const auto& top = pyr.back().max;
+    surface_max_.push_back(*std::max_element(top.begin(), top.end()));
   }
 }
 
@@ -478,6 +481,11 @@ Material Scene::material_at(double x, double y, double z, int layer, bool floor)
     return m;
   }
   if (z > ground_smooth(x, y) - kSurfaceSkin) return m;  // top edge of the trench side
+  // A floor away from the pit shows the unit just exposed: no need to find it.
+  if (floor && pit_profile(x, y) <= 0.0) {
+    m.kind = layer + 1;
+    return m;
+  }
   int unit = 1;
   double b = ground_smooth(x, y);
   for (int j = 1; j <= stages_; ++j) {

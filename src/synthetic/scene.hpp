@@ -107,14 +107,14 @@ class Scene {
 
   const HeightGrid& surface(int layer) const { return surfaces_.at(std::size_t(layer)); }
   // Maximum-height pyramid of a layer: level l holds the highest node of each
-  // block of 4^l x 4^l cells (level 0 unused). Lets the ray marcher skip empty space.
+  // block of 4^l x 4^l cells (level 0: the cells, max unused). Lets the ray marcher skip empty space.
   struct MaxLevel {
     int block = 1;       // cells per block side
     int nx = 0, ny = 0;  // blocks
     std::vector<float> max;
   };
   const std::vector<MaxLevel>& max_pyramid(int layer) const { return pyramids_.at(std::size_t(layer)); }
-  float surface_max(int layer) const { return pyramids_.at(std::size_t(layer)).back().max.front(); }
+  float surface_max(int layer) const { return surface_max_.at(std::size_t(layer)); }
   // Upper bound of |grad ground_smooth|, for conservative ray marching.
   double ground_slope_bound() const { return ground_slope_bound_; }
 
@@ -181,6 +181,7 @@ class Scene {
   Pit pit_;
   std::vector<HeightGrid> surfaces_;
   std::vector<std::vector<MaxLevel>> pyramids_;
+  std::vector<float> surface_max_;
   double ground_slope_bound_ = 0;
   std::vector<UnitRecord> units_;
   std::vector<RelationRecord> relations_;

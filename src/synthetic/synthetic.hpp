@@ -51,8 +51,8 @@ struct SyntheticExcavationOptions {
   } photos;
 
   struct Render {
-    double height_cell = 0.004;    // metres, height-field node spacing (2..5 mm)
-    double texel = 0.003;          // metres, baked surface texture resolution
+    double height_cell = 0.005;    // metres, height-field node spacing (2..5 mm)
+    double texel = 0.0035;         // metres, baked surface texture resolution
     int edge_samples = 4;          // extra rays per pixel on depth edges (0 = none)
     double truth_cell = 0.005;     // metres, cell of the truth surface GeoTIFFs
     int threads = 0;               // 0 = all cores

@@ -124,29 +124,29 @@ void write_section_svg(const fs::path& path, const SectionProfile& p, const Eige
 
   std::string svg;
   auto add = [&](const std::string& s) { svg += s; svg += '\n'; };
-  add(R"(<?xml version="1.0" encoding="UTF-8"?>)");
-  add(fmt::format(R"(<svg xmlns="http://www.w3.org/2000/svg" width="{0:.1f}mm" height="{1:.1f}mm" viewBox="0 0 {0:.2f} {1:.2f}" font-family="DejaVu Sans, Arial, sans-serif">)",
+  add(R"~(<?xml version="1.0" encoding="UTF-8"?>)~");
+  add(fmt::format(R"~(<svg xmlns="http://www.w3.org/2000/svg" width="{0:.1f}mm" height="{1:.1f}mm" viewBox="0 0 {0:.2f} {1:.2f}" font-family="DejaVu Sans, Arial, sans-serif">)~",
                   page_w, page_h));
-  add(R"(<defs><pattern id="natural" patternUnits="userSpaceOnUse" width="2" height="2" patternTransform="rotate(45)"><rect width="2" height="2" fill="#efe6c8"/><line x1="0" y1="0" x2="0" y2="2" stroke="#8a7a50" stroke-width="0.25"/></pattern></defs>)");
-  add(fmt::format(R"(<rect x="0" y="0" width="{:.2f}" height="{:.2f}" fill="white"/>)", page_w, page_h));
+  add(R"~(<defs><pattern id="natural" patternUnits="userSpaceOnUse" width="2" height="2" patternTransform="rotate(45)"><rect width="2" height="2" fill="#efe6c8"/><line x1="0" y1="0" x2="0" y2="2" stroke="#8a7a50" stroke-width="0.25"/></pattern></defs>)~");
+  add(fmt::format(R"~(<rect x="0" y="0" width="{:.2f}" height="{:.2f}" fill="white"/>)~", page_w, page_h));
 
   // Title and the ends of the line.
   const Eigen::Vector2d A = p.a + origin.head<2>(), B = p.b + origin.head<2>();
-  add(fmt::format(R"(<text x="{:.2f}" y="8" font-size="5" font-weight="bold">{} A-B</text>)", left, xml_escape(o.title)));
-  add(fmt::format(R"(<text x="{:.2f}" y="13.5" font-size="2.8">A: E {:.2f} N {:.2f}   B: E {:.2f} N {:.2f}   length {:.2f} m   {}   scale 1:{:g}   heights in m</text>)",
+  add(fmt::format(R"~(<text x="{:.2f}" y="8" font-size="5" font-weight="bold">{} A-B</text>)~", left, xml_escape(o.title)));
+  add(fmt::format(R"~(<text x="{:.2f}" y="13.5" font-size="2.8">A: E {:.2f} N {:.2f}   B: E {:.2f} N {:.2f}   length {:.2f} m   {}   scale 1:{:g}   heights in m</text>)~",
                   left, A.x(), A.y(), B.x(), B.y(), p.length(), xml_escape(o.crs), o.scale));
-  add(fmt::format(R"(<text x="{:.2f}" y="{:.2f}" font-size="4" font-weight="bold" text-anchor="middle">A</text>)", X(0), top - 3));
-  add(fmt::format(R"(<text x="{:.2f}" y="{:.2f}" font-size="4" font-weight="bold" text-anchor="middle">B</text>)", X(p.length()), top - 3));
+  add(fmt::format(R"~(<text x="{:.2f}" y="{:.2f}" font-size="4" font-weight="bold" text-anchor="middle">A</text>)~", X(0), top - 3));
+  add(fmt::format(R"~(<text x="{:.2f}" y="{:.2f}" font-size="4" font-weight="bold" text-anchor="middle">B</text>)~", X(p.length()), top - 3));
 
   // Height scale on the left, absolute heights every 10 cm, light grid lines.
-  add(fmt::format(R"(<line x1="{0:.2f}" y1="{1:.2f}" x2="{0:.2f}" y2="{2:.2f}" stroke="black" stroke-width="0.3"/>)",
+  add(fmt::format(R"~(<line x1="{0:.2f}" y1="{1:.2f}" x2="{0:.2f}" y2="{2:.2f}" stroke="black" stroke-width="0.3"/>)~",
                   left - 4, Y(z_hi), Y(z_lo)));
   for (double z = z_lo; z <= z_hi + 1e-9; z += tick) {
-    add(fmt::format(R"(<line x1="{:.2f}" y1="{:.2f}" x2="{:.2f}" y2="{:.2f}" stroke="black" stroke-width="0.3"/>)",
+    add(fmt::format(R"~(<line x1="{:.2f}" y1="{:.2f}" x2="{:.2f}" y2="{:.2f}" stroke="black" stroke-width="0.3"/>)~",
                     left - 6, Y(z), left - 4, Y(z)));
-    add(fmt::format(R"(<line x1="{:.2f}" y1="{:.2f}" x2="{:.2f}" y2="{:.2f}" stroke="#cccccc" stroke-width="0.1"/>)",
+    add(fmt::format(R"~(<line x1="{:.2f}" y1="{:.2f}" x2="{:.2f}" y2="{:.2f}" stroke="#cccccc" stroke-width="0.1"/>)~",
                     left - 4, Y(z), X(p.length()), Y(z)));
-    add(fmt::format(R"(<text x="{:.2f}" y="{:.2f}" font-size="2.5" text-anchor="end">{:.2f}</text>)", left - 7,
+    add(fmt::format(R"~(<text x="{:.2f}" y="{:.2f}" font-size="2.5" text-anchor="end">{:.2f}</text>)~", left - 7,
                     Y(z) + 0.9, z + origin.z()));
   }
 
@@ -159,10 +159,10 @@ void write_section_svg(const fs::path& path, const SectionProfile& p, const Eige
         std::string d;
         for (std::size_t i = i0; i <= i1; ++i) d += fmt::format("{}{:.2f},{:.2f} ", i == i0 ? "M" : "L", X(p.s[i]), Y(last.z[i]));
         for (std::size_t i = i1 + 1; i-- > i0;) d += fmt::format("L{:.2f},{:.2f} ", X(p.s[i]), Y(last.z[i] - kNaturalBand));
-        add(fmt::format(R"(<path d="{}Z" fill="url(#natural)" stroke="none"/>)", d));
+        add(fmt::format(R"~(<path d="{}Z" fill="url(#natural)" stroke="none"/>)~", d));
         if (i1 - i0 >= 2) {
           const std::size_t mid = (i0 + i1) / 2;
-          add(fmt::format(R"(<text x="{:.2f}" y="{:.2f}" font-size="3" text-anchor="middle" font-style="italic">{} not excavated</text>)",
+          add(fmt::format(R"~(<text x="{:.2f}" y="{:.2f}" font-size="3" text-anchor="middle" font-style="italic">{} not excavated</text>)~",
                           X(p.s[mid]), Y(last.z[mid] - 0.5 * kNaturalBand) + 1, label_of(last.unit, o)));
         }
       }
@@ -177,7 +177,7 @@ void write_section_svg(const fs::path& path, const SectionProfile& p, const Eige
       std::string d;
       for (std::size_t i = i0; i <= i1; ++i) d += fmt::format("{}{:.2f},{:.2f} ", i == i0 ? "M" : "L", X(p.s[i]), Y(body.top[i]));
       for (std::size_t i = i1 + 1; i-- > i0;) d += fmt::format("L{:.2f},{:.2f} ", X(p.s[i]), Y(body.bottom[i]));
-      add(fmt::format(R"(<path d="{}Z" fill="{}" stroke="{}" stroke-width="0.15"/>)", d, fill, fill));
+      add(fmt::format(R"~(<path d="{}Z" fill="{}" stroke="{}" stroke-width="0.15"/>)~", d, fill, fill));
       // Label at the thickest point, when 3.5 mm of paper or more.
       std::size_t best = i0;
       for (std::size_t i = i0; i <= i1; ++i)
@@ -186,26 +186,31 @@ void write_section_svg(const fs::path& path, const SectionProfile& p, const Eige
       const double run_mm = (p.s[i1] - p.s[i0]) * mm_per_m;
       if (paper >= 3.5 && run_mm >= 8) {
         const double xs = std::clamp(X(p.s[best]), X(p.s[i0]) + 5, X(p.s[i1]) - 5);
-        add(fmt::format(R"(<text x="{:.2f}" y="{:.2f}" font-size="3.2" font-weight="bold" text-anchor="middle">{}</text>)",
+        add(fmt::format(R"~(<text x="{:.2f}" y="{:.2f}" font-size="3.2" font-weight="bold" text-anchor="middle">{}</text>)~",
                         xs, Y(0.5 * (body.top[best] + body.bottom[best])) + 1.1, label_of(body.unit, o)));
       }
     }
   }
 
   // Layer surfaces: thin lines; the last (limit of excavation) heavier.
+  std::vector<double> name_y;  // paper y of the layer names written so far
   for (std::size_t k = 0; k < p.surfaces.size(); ++k) {
     const auto& s = p.surfaces[k];
     const bool last = k + 1 == p.surfaces.size();
     for (const auto& [i0, i1] : runs(n, [&](std::size_t i) { return std::isfinite(s.z[i]); })) {
       std::string pts;
       for (std::size_t i = i0; i <= i1; ++i) pts += fmt::format("{:.2f},{:.2f} ", X(p.s[i]), Y(s.z[i]));
-      add(fmt::format(R"(<polyline points="{}" fill="none" stroke="black" stroke-width="{}" stroke-linejoin="round"/>)",
+      add(fmt::format(R"~(<polyline points="{}" fill="none" stroke="black" stroke-width="{}" stroke-linejoin="round"/>)~",
                       pts, last ? 0.5 : 0.25));
     }
-    // Layer name at the right end of its line.
+    // Layer name at the right end of its line, unless another name is already there
+    // (outside the cutting all surfaces coincide).
     for (std::size_t i = n; i-- > 0;)
       if (std::isfinite(s.z[i])) {
-        add(fmt::format(R"(<text x="{:.2f}" y="{:.2f}" font-size="2.2" fill="#444444">{}</text>)", X(p.s[i]) + 1,
+        const double y = Y(s.z[i]);
+        if (std::any_of(name_y.begin(), name_y.end(), [&](double q) { return std::abs(q - y) < 2.5; })) break;
+        name_y.push_back(y);
+        add(fmt::format(R"~(<text x="{:.2f}" y="{:.2f}" font-size="2.2" fill="#444444">{}</text>)~", X(p.s[i]) + 1,
                         Y(s.z[i]) + 0.8, xml_escape(s.layer)));
         break;
       }
@@ -214,21 +219,21 @@ void write_section_svg(const fs::path& path, const SectionProfile& p, const Eige
   // Datum line: dashed, at the round height just above the highest surface.
   {
     const double datum = std::ceil((zmax + origin.z() + 0.005) / tick) * tick - origin.z();
-    add(fmt::format(R"(<line x1="{:.2f}" y1="{:.2f}" x2="{:.2f}" y2="{:.2f}" stroke="black" stroke-width="0.25" stroke-dasharray="3,1.5"/>)",
+    add(fmt::format(R"~(<line x1="{:.2f}" y1="{:.2f}" x2="{:.2f}" y2="{:.2f}" stroke="black" stroke-width="0.25" stroke-dasharray="3,1.5"/>)~",
                     X(0), Y(datum), X(p.length()), Y(datum)));
-    add(fmt::format(R"(<text x="{:.2f}" y="{:.2f}" font-size="2.5">datum {:.2f} m</text>)", X(0) + 1, Y(datum) - 1,
+    add(fmt::format(R"~(<text x="{:.2f}" y="{:.2f}" font-size="2.5">datum {:.2f} m</text>)~", X(0) + 1, Y(datum) - 1,
                     datum + origin.z()));
   }
 
   // Scale bar: 1 m in 10 cm divisions, alternating black and white.
   const double bar_y = top + height_draw + 8;
   for (int i = 0; i < 10; ++i)
-    add(fmt::format(R"(<rect x="{:.2f}" y="{:.2f}" width="{:.2f}" height="1.5" fill="{}" stroke="black" stroke-width="0.15"/>)",
+    add(fmt::format(R"~(<rect x="{:.2f}" y="{:.2f}" width="{:.2f}" height="1.5" fill="{}" stroke="black" stroke-width="0.15"/>)~",
                     left + i * 0.1 * mm_per_m, bar_y, 0.1 * mm_per_m, i % 2 ? "white" : "black"));
   for (double m : {0.0, 0.5, 1.0})
-    add(fmt::format(R"(<text x="{:.2f}" y="{:.2f}" font-size="2.5" text-anchor="middle">{:g}</text>)",
+    add(fmt::format(R"~(<text x="{:.2f}" y="{:.2f}" font-size="2.5" text-anchor="middle">{:g}</text>)~",
                     left + m * mm_per_m, bar_y + 4.5, m));
-  add(fmt::format(R"(<text x="{:.2f}" y="{:.2f}" font-size="2.5">m   scale 1:{:g}</text>)", left + mm_per_m + 3,
+  add(fmt::format(R"~(<text x="{:.2f}" y="{:.2f}" font-size="2.5">m   scale 1:{:g}</text>)~", left + mm_per_m + 3,
                   bar_y + 1.4, o.scale));
 
   // Legend: fills of the excavated units, the hatched natural, the lines.
@@ -236,7 +241,7 @@ void write_section_svg(const fs::path& path, const SectionProfile& p, const Eige
   int col = 0;
   auto legend_item = [&](const std::string& swatch, const std::string& text) {
     add(swatch);
-    add(fmt::format(R"(<text x="{:.2f}" y="{:.2f}" font-size="2.5">{}</text>)", lx + 8, ly + 2.6, xml_escape(text)));
+    add(fmt::format(R"~(<text x="{:.2f}" y="{:.2f}" font-size="2.5">{}</text>)~", lx + 8, ly + 2.6, xml_escape(text)));
     if (++col == 3) {
       col = 0;
       lx = left;
@@ -248,15 +253,15 @@ void write_section_svg(const fs::path& path, const SectionProfile& p, const Eige
   for (std::size_t u = 0; u < p.bodies.size(); ++u) {
     const auto& unit = p.bodies[u].unit;
     const auto t = o.unit_types.find(unit);
-    legend_item(fmt::format(R"(<rect x="{:.2f}" y="{:.2f}" width="6" height="3.5" fill="{}" stroke="black" stroke-width="0.15"/>)",
+    legend_item(fmt::format(R"~(<rect x="{:.2f}" y="{:.2f}" width="6" height="3.5" fill="{}" stroke="black" stroke-width="0.15"/>)~",
                             lx, ly, kFills[u % std::size(kFills)]),
                 fmt::format("{} {}", label_of(unit, o), t != o.unit_types.end() ? t->second : "unit"));
   }
-  legend_item(fmt::format(R"(<rect x="{:.2f}" y="{:.2f}" width="6" height="3.5" fill="url(#natural)" stroke="black" stroke-width="0.15"/>)", lx, ly),
+  legend_item(fmt::format(R"~(<rect x="{:.2f}" y="{:.2f}" width="6" height="3.5" fill="url(#natural)" stroke="black" stroke-width="0.15"/>)~", lx, ly),
               "not excavated");
-  legend_item(fmt::format(R"(<line x1="{:.2f}" y1="{:.2f}" x2="{:.2f}" y2="{:.2f}" stroke="black" stroke-width="0.25"/>)", lx, ly + 1.75, lx + 6, ly + 1.75),
+  legend_item(fmt::format(R"~(<line x1="{:.2f}" y1="{:.2f}" x2="{:.2f}" y2="{:.2f}" stroke="black" stroke-width="0.25"/>)~", lx, ly + 1.75, lx + 6, ly + 1.75),
               "recorded surface (layer)");
-  legend_item(fmt::format(R"(<line x1="{:.2f}" y1="{:.2f}" x2="{:.2f}" y2="{:.2f}" stroke="black" stroke-width="0.5"/>)", lx, ly + 1.75, lx + 6, ly + 1.75),
+  legend_item(fmt::format(R"~(<line x1="{:.2f}" y1="{:.2f}" x2="{:.2f}" y2="{:.2f}" stroke="black" stroke-width="0.5"/>)~", lx, ly + 1.75, lx + 6, ly + 1.75),
               "limit of excavation");
   add("</svg>");
 

@@ -42,7 +42,15 @@ VoxelSummary write_unit_voxels(const fs::path& path, const std::vector<UnitSolid
   init_vdb();
   const double h = options.voxel_size_m;
   // Site frame: voxel (i, j, k) centred at (i, j, k) * h.
-  const auto transform = openvdb::math::Transform::createLinearTransform(h);
+  // Site frame: voxel (i, j, k) centred at (ox + i*h, oy + j*h, k*h). The offsets put
+  // voxel faces on cell faces of the measurement grid, so that no cell centre lies
+  // on a voxel face (where rounding would pick a column at random).
+  openvdb::math::Transform::Ptr transform = openvdb::math::Transform::createLinearTransform(h);
+  if (!solids.empty()) {
+    const HeightField& g = solids.front().top;
+    const double ox = std::fmod(g.x0 - 0.5 * g.cell + 0.5 * h, h), oy = std::fmod(g.y0 - 0.5 * g.cell + 0.5 * h, h);
+    transform->postTranslate(openvdb::Vec3d(ox, oy, 0));
+  }
   auto label_grid = openvdb::Int32Grid::create(0);
   label_grid->setName(kLabelGrid);
   label_grid->setTransform(transform);
@@ -68,63 +76,47 @@ VoxelSummary write_unit_voxels(const fs::path& path, const std::vector<UnitSolid
     grid->insertMeta("top_layer", openvdb::StringMetadata(solid.top_layer));
     auto acc = grid->getAccessor();
 
+    // Every dug cell goes to the voxel column its centre falls in; a voxel's
+    // fraction is the solid's volume inside it (sum over the column's cells of
+    // overlap x cell area) over the voxel's volume, so the fog conserves the
+    // raster volume exactly whatever the ratio of voxel to cell.
     const HeightField& top = solid.top;
     const HeightField& bottom = solid.bottom;
-    // Bounding box of the dug cells, as voxel columns.
-    int ci0 = top.nx, ci1 = -1, cj0 = top.ny, cj1 = -1;
-    for (int j = 0; j < top.ny; ++j)
-      for (int i = 0; i < top.nx; ++i)
-        if (std::isfinite(top.at(i, j))) {
-          ci0 = std::min(ci0, i);
-          ci1 = std::max(ci1, i);
-          cj0 = std::min(cj0, j);
-          cj1 = std::max(cj1, j);
-        }
-    if (ci1 < 0) {
-      summary.units.push_back(vu);
-      continue;
-    }
-    const int I0 = int(std::floor((top.x(ci0) / h) + 0.5)), I1 = int(std::floor((top.x(ci1) / h) + 0.5));
-    const int J0 = int(std::floor((top.y(cj0) / h) + 0.5)), J1 = int(std::floor((top.y(cj1) / h) + 0.5));
-    // Cells whose centre lies in [a, b): indices ceil((a - x0)/cell) .. ceil((b - x0)/cell) - 1.
-    auto cell_range = [](double a, double b, double origin, double cell) {
-      return std::pair<int, int>(int(std::ceil((a - origin) / cell - 1e-9)), int(std::ceil((b - origin) / cell - 1e-9)) - 1);
-    };
-    struct Column {
+    struct CellColumn {
+      int I, J;
       double t, b;
     };
-    std::vector<Column> column;
-    for (int J = J0; J <= J1; ++J) {
-      const auto [ja, jb] = cell_range((J - 0.5) * h, (J + 0.5) * h, top.y0, top.cell);
-      for (int I = I0; I <= I1; ++I) {
-        const auto [ia, ib] = cell_range((I - 0.5) * h, (I + 0.5) * h, top.x0, top.cell);
-        const int cells = (ib - ia + 1) * (jb - ja + 1);
-        if (cells <= 0) continue;  // voxel smaller than the cell: no centre falls in it
-        column.clear();
-        double zmin = 1e300, zmax = -1e300;
-        for (int j = std::max(ja, 0); j <= std::min(jb, top.ny - 1); ++j)
-          for (int i = std::max(ia, 0); i <= std::min(ib, top.nx - 1); ++i) {
-            const double t = top.at(i, j);
-            if (!std::isfinite(t)) continue;
-            const double b = bottom.at(i, j);
-            if (!(t > b)) continue;  // a negative thickness (footprint mode) adds no voxels
-            column.push_back({t, b});
-            zmin = std::min(zmin, b);
-            zmax = std::max(zmax, t);
-          }
-        if (column.empty()) continue;
-        const int K0 = int(std::floor(zmin / h + 0.5)), K1 = int(std::floor(zmax / h + 0.5));
-        for (int K = K0; K <= K1; ++K) {
-          const double lo = (K - 0.5) * h, hi = (K + 0.5) * h;
-          double overlap = 0;  // metres, summed over the column's cells
-          for (const auto& c : column) overlap += std::max(0.0, std::min(c.t, hi) - std::max(c.b, lo));
-          double fraction = overlap / (h * cells);
-          if (fraction <= 0) continue;
-          if (fraction > 1 - kPruneTolerance) fraction = 1;
-          acc.setValue(openvdb::Coord(I, J, K), float(fraction));
-          if (fraction > 0.5) label_acc.setValue(openvdb::Coord(I, J, K), vu.label);
-        }
+    std::vector<CellColumn> cells;
+    for (int j = 0; j < top.ny; ++j)
+      for (int i = 0; i < top.nx; ++i) {
+        const double t = top.at(i, j), b = bottom.at(i, j);
+        if (!std::isfinite(t) || !(t > b)) continue;  // a negative thickness (footprint mode) adds no voxels
+        const openvdb::Vec3d idx = transform->worldToIndex(openvdb::Vec3d(top.x0 + i * top.cell, top.y0 + j * top.cell, 0));
+        cells.push_back({int(std::floor(idx.x() + 0.5)), int(std::floor(idx.y() + 0.5)), t, b});
       }
+    std::sort(cells.begin(), cells.end(), [](const auto& p, const auto& q) { return p.J != q.J ? p.J < q.J : p.I < q.I; });
+    const double cell_area_over_voxel = top.cell * top.cell / (h * h * h);
+    for (std::size_t c0 = 0; c0 < cells.size();) {
+      std::size_t c1 = c0;
+      double zmin = 1e300, zmax = -1e300;
+      while (c1 < cells.size() && cells[c1].I == cells[c0].I && cells[c1].J == cells[c0].J) {
+        zmin = std::min(zmin, cells[c1].b);
+        zmax = std::max(zmax, cells[c1].t);
+        ++c1;
+      }
+      const int I = cells[c0].I, J = cells[c0].J;
+      const int K0 = int(std::floor(zmin / h + 0.5)), K1 = int(std::floor(zmax / h + 0.5));
+      for (int K = K0; K <= K1; ++K) {
+        const double lo = (K - 0.5) * h, hi = (K + 0.5) * h;
+        double overlap = 0;  // metres, summed over the column's cells
+        for (std::size_t c = c0; c < c1; ++c) overlap += std::max(0.0, std::min(cells[c].t, hi) - std::max(cells[c].b, lo));
+        double fraction = overlap * cell_area_over_voxel;
+        if (fraction <= 0) continue;
+        if (std::abs(fraction - 1) < kPruneTolerance) fraction = 1;
+        acc.setValue(openvdb::Coord(I, J, K), float(fraction));
+        if (fraction > 0.5) label_acc.setValue(openvdb::Coord(I, J, K), vu.label);
+      }
+      c0 = c1;
     }
     openvdb::tools::prune(grid->tree(), kPruneTolerance);
     double sum = 0;
@@ -233,7 +225,8 @@ LabelVolume read_label_volume(const fs::path& path) {
   out.nx = dim.x();
   out.ny = dim.y();
   out.nz = dim.z();
-  out.min_centre = Eigen::Vector3d(lo.x(), lo.y(), lo.z()) * out.voxel_size_m;
+  const openvdb::Vec3d c = grid->transform().indexToWorld(lo);
+  out.min_centre = Eigen::Vector3d(c.x(), c.y(), c.z());
   out.labels.assign(std::size_t(out.nx) * out.ny * out.nz, 0);
   for (auto it = grid->cbeginValueOn(); it; ++it) {
     const openvdb::CoordBBox b = it.getBoundingBox();  // a voxel or a tile

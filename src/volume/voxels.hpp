@@ -2,14 +2,14 @@
 // The voxel model of the excavated volume (OpenVDB stays in voxels.cpp) and its
 // exports for GRASS (r3.in.ascii) and ParaView (VTK image data).
 //
-// One .vdb file holds, in the site frame (voxel (i, j, k) centred at
-// (i, j, k) x voxel size, metres):
+// One .vdb file holds, in the site frame (the grids' linear transform: voxel
+// (i, j, k) centred at (ox + i*h, oy + j*h, k*h), metres, with 0 <= ox, oy < h
+// chosen so that voxel faces fall on faces of the measurement grid):
 //   - one FloatGrid per unit, named by its code, class "fog volume": the fraction
-//     of each voxel inside the unit's solid (0..1]. Built by height-field
-//     differencing per voxel column: fraction = sum over the grid cells whose
-//     centres fall in the column of the overlap of [bottom, top] with the voxel's
-//     z range, divided by (voxel size x cells in the column). The sum of
-//     fractions x voxel volume is therefore the raster volume.
+//     of each voxel inside the unit's solid, by height-field differencing per
+//     voxel column: (sum over the grid cells whose centres fall in the column of
+//     the overlap of [bottom, top] with the voxel's z range x cell area) / h^3.
+//     The sum of fractions x h^3 is therefore exactly the raster volume.
 //   - one Int32Grid "labels": the unit label (unit id) of every voxel more than
 //     half inside a unit, the classified model of the whole excavated volume.
 // File metadata: site_origin_e/n/z, crs, voxel_size_m, and "label_<n>" = unit code.

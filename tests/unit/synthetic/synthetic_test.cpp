@@ -37,8 +37,11 @@ constexpr double kSurveyNoiseBound = 5 * 0.003;
 // A detected ArUco centre (diagonal intersection of 4 corners found to ~0.1-0.3 px
 // after JPEG and noise) vs the true projection of the printed centre.
 constexpr double kArucoCentreTol = 1.0;  // pixels
-// Share of markers fully inside a photo and large enough that ArUco must find.
-constexpr double kMinDetectionRate = 0.6;
+// ArUco must find the markers whose code cells appear at least this large (pixels,
+// across the foreshortened direction) ...
+constexpr double kMinCellPixels = 4.0;
+// ... at least this often (JPEG, noise and grazing views defeat a few).
+constexpr double kMinDetectionRate = 0.7;
 // The centroid of a painted 1.5 cm disc vs the projection of its centre: pixel
 // quantisation and the tiny perspective bias of a disc (radius^2 / distance).
 constexpr double kSpotTol = 0.3;  // pixels
@@ -128,6 +131,7 @@ class SmallExcavation : public ::testing::Test {
     fs::remove_all(*dir_);
     options_ = SyntheticExcavationOptions::preset(SyntheticExcavationOptions::Size::small);
     options_.seed = 3;
+    options_.photos.per_layer = 8;  // the small preset, fewer photos: keeps the suite fast
     summary_ = new SyntheticExcavationSummary(generate_excavation(options_, *dir_));
   }
   static void TearDownTestSuite() {
@@ -276,55 +280,84 @@ TEST_F(SmallExcavation, MarkersProjectOntoTheGcpListPixels) {
     EXPECT_NEAR(g.e, surveyed.at(g.marker).x(), 1e-4);
     ++per_image[g.image];
   }
-  // Hand-held sets keep markers in view: most photos show three or more.
+  // Oblique views keep markers in view (the near-vertical ones over the trench
+  // do not): a quarter of all photos show three or more, and each layer sees
+  // all but at most two of the markers.
   int with_three = 0;
   for (const auto& [image, n] : per_image) with_three += n >= 3;
-  EXPECT_GE(with_three, int(cameras.size()) / 2);
+  EXPECT_GE(with_three, int(cameras.size()) / 4);
+  std::map<std::string, std::set<std::string>> seen;
+  for (const auto& g : gcp) seen[g.image.substr(0, g.image.find('_'))].insert(g.marker);
+  EXPECT_EQ(int(seen.size()), options_.site.stages + 1);
+  for (const auto& [layer, names] : seen) EXPECT_GE(int(names.size()), options_.site.markers - 2) << layer;
 }
 
 // The photos themselves: ArUco finds the printed targets where the truth says.
 TEST_F(SmallExcavation, ArucoFindsTheMarkersAtTheTruePixels) {
   std::string first;
   const auto gcp = read_gcp(*dir_ / "gcp_list.txt", &first);
-  std::map<std::string, std::map<int, Eigen::Vector2d>> expected;
-  for (const auto& g : gcp) expected[g.image][std::stoi(g.marker.substr(3))] = {g.u, g.v};
+  std::map<std::string, Eigen::Vector3d> truth;
+  for (const auto& m : read_csv(*dir_ / "truth" / "markers.csv"))
+    truth[m.at("name")] = Eigen::Vector3d(std::stod(m.at("E")), std::stod(m.at("N")), std::stod(m.at("Z"))) - origin();
+  std::map<std::string, Camera> cameras;
+  for (int k = 1; k <= options_.site.stages + 1; ++k)
+    for (const auto& row : read_csv(*dir_ / "truth" / ("L" + std::to_string(k)) / "cameras.csv"))
+      cameras[row.at("image")] = camera_from_row(row, origin(), options_.photos.width, options_.photos.height);
+  // Expected: per image, marker id -> (true pixel, apparent cell size in pixels).
+  std::map<std::string, std::map<int, std::pair<Eigen::Vector2d, double>>> expected;
+  for (const auto& g : gcp) {
+    const Camera& cam = cameras.at(g.image);
+    const Eigen::Vector3d ray = truth.at(g.marker) - cam.pose.centre();
+    double cell = options_.site.marker_size / 8 * cam.intrinsics.fx / ray.norm() * (-ray.normalized().z());
+    // A marker cut by the frame cannot be decoded: count it as small.
+    const double reach = 0.75 * options_.site.marker_size * cam.intrinsics.fx / ray.norm();  // px, half diagonal
+    if (g.u < reach || g.v < reach || g.u > cam.intrinsics.width - 1 - reach || g.v > cam.intrinsics.height - 1 - reach)
+      cell = 0;
+    expected[g.image][std::stoi(g.marker.substr(3))] = {{g.u, g.v}, cell};
+  }
   auto dict = cv::aruco::getPredefinedDictionary(cv::aruco::DICT_4X4_50);
   auto params = cv::aruco::DetectorParameters::create();
   params->cornerRefinementMethod = cv::aruco::CORNER_REFINE_SUBPIX;
-  int found = 0, checked = 0, expected_count = 0;
-  for (int k = 1; k <= options_.site.stages + 1; ++k) {
-    const std::string l = "L" + std::to_string(k);
-    for (int i : {1, 4}) {  // an oblique photo and another one of each layer
-      const std::string name = l + "_" + (i < 10 ? "000" : "00") + std::to_string(i) + ".jpg";
-      const cv::Mat img = cv::imread((*dir_ / "photos" / l / name).string());
-      ASSERT_FALSE(img.empty()) << name;
-      std::vector<int> ids;
-      std::vector<std::vector<cv::Point2f>> corners;
-      cv::aruco::detectMarkers(img, dict, corners, ids, params);
-      expected_count += int(expected[name].size());
-      for (std::size_t m = 0; m < ids.size(); ++m) {
-        EXPECT_GE(ids[m], 1);
-        EXPECT_LE(ids[m], options_.site.markers);
-        auto it = expected[name].find(ids[m]);
-        if (it == expected[name].end()) {
-          ADD_FAILURE() << name << ": detected id " << ids[m] << " that the truth does not see";
-          continue;
-        }
-        // Centre of the printed square = intersection of the diagonals of its corners.
-        const auto& c = corners[m];
-        const Eigen::Vector3d a = Eigen::Vector3d(c[0].x, c[0].y, 1).cross(Eigen::Vector3d(c[2].x, c[2].y, 1));
-        const Eigen::Vector3d b = Eigen::Vector3d(c[1].x, c[1].y, 1).cross(Eigen::Vector3d(c[3].x, c[3].y, 1));
-        const Eigen::Vector3d x = a.cross(b);
-        const Eigen::Vector2d centre = x.head<2>() / x.z();
-        EXPECT_LT((centre - it->second).norm(), kArucoCentreTol) << name << " GCP" << ids[m];
-        ++found;
+  int found = 0, must_find = 0, found_of_must = 0;
+  for (const auto& [name, markers] : expected) {
+    const std::string layer = name.substr(0, name.find('_'));
+    const cv::Mat img = cv::imread((*dir_ / "photos" / layer / name).string());
+    ASSERT_FALSE(img.empty()) << name;
+    std::vector<int> ids;
+    std::vector<std::vector<cv::Point2f>> corners;
+    cv::aruco::detectMarkers(img, dict, corners, ids, params);
+    std::set<int> detected;
+    for (std::size_t m = 0; m < ids.size(); ++m) {
+      // Soil texture occasionally decodes as some other code, as real ground does;
+      // an id of ours where the truth sees none would be a rendering error.
+      if (ids[m] < 1 || ids[m] > options_.site.markers) continue;
+      auto it = markers.find(ids[m]);
+      if (it == markers.end()) {
+        ADD_FAILURE() << name << ": detected GCP" << ids[m] << " that the truth does not see";
+        continue;
       }
-      ++checked;
+      detected.insert(ids[m]);
+      ++found;
+      // Position accuracy is only meaningful for markers imaged large enough.
+      if (it->second.second < kMinCellPixels) continue;
+      // Centre of the printed square = intersection of the diagonals of its corners.
+      const auto& c = corners[m];
+      const Eigen::Vector3d a = Eigen::Vector3d(c[0].x, c[0].y, 1).cross(Eigen::Vector3d(c[2].x, c[2].y, 1));
+      const Eigen::Vector3d b = Eigen::Vector3d(c[1].x, c[1].y, 1).cross(Eigen::Vector3d(c[3].x, c[3].y, 1));
+      const Eigen::Vector3d x = a.cross(b);
+      const Eigen::Vector2d centre = x.head<2>() / x.z();
+      EXPECT_LT((centre - it->second.first).norm(), kArucoCentreTol)
+          << name << " GCP" << ids[m] << " cell " << it->second.second << " px";
     }
+    for (const auto& [id, e] : markers)
+      if (e.second >= kMinCellPixels) {
+        ++must_find;
+        found_of_must += detected.count(id) ? 1 : 0;
+      }
   }
-  EXPECT_GT(checked, 0);
-  EXPECT_GE(double(found), kMinDetectionRate * expected_count)
-      << found << " of " << expected_count << " visible marker centres detected";
+  EXPECT_GT(must_find, 0);
+  EXPECT_GE(double(found_of_must), kMinDetectionRate * must_find)
+      << found_of_must << " of " << must_find << " well-imaged markers detected (" << found << " in all)";
 }
 
 // ---- internal API: the renderer agrees with the camera model ------------------------
@@ -335,6 +368,7 @@ SyntheticExcavationOptions tiny_options() {
   o.photos.per_layer = 3;
   o.photos.width = 320;
   o.photos.height = 214;
+  o.render.texel = 0.005;  // coarse: these tests check geometry, not texture
   return o;
 }
 
@@ -349,7 +383,8 @@ TEST(SyntheticRender, ASurfacePointAppearsWhereTheCameraProjectsIt) {
   const Eigen::Vector3d point(x, y, scene.surface(layer).sample(x, y));
   synthetic::RenderSettings settings;
   settings.edge_samples = 0;
-  settings.spot = synthetic::RenderSettings::Spot{{x, y}, 0.015, {0.9f, 0.02f, 0.02f}};
+  // Blue: no soil, stone or grass colour comes near it.
+  settings.spot = synthetic::RenderSettings::Spot{{x, y}, 0.015, {0.02f, 0.02f, 0.9f}};
   Intrinsics k{640, 427, 560, 560, 331.7, 209.2, -0.08, 0.02};
   for (const Eigen::Vector3d& eye : {Eigen::Vector3d(x + 0.2, y - 0.1, point.z() + 1.8),
                                      Eigen::Vector3d(x - 0.6, scene.trench_y0() - 0.5, point.z() + 2.0)}) {
@@ -361,8 +396,8 @@ TEST(SyntheticRender, ASurfacePointAppearsWhereTheCameraProjectsIt) {
     for (int v = 0; v < img.height; ++v)
       for (int u = 0; u < img.width; ++u) {
         const float* p = &img.rgb[3 * (std::size_t(v) * std::size_t(img.width) + std::size_t(u))];
-        // Weight: how much redder than the soil the pixel is.
-        const double w = std::max(0.0, double(p[0]) - 2.0 * double(std::max(p[1], p[2])));
+        // Weight: how much bluer than anything else in the scene the pixel is.
+        const double w = std::max(0.0, double(p[2]) - 2.0 * double(std::max(p[0], p[1])));
         su += w * u;
         sv += w * v;
         sw += w;

@@ -1,0 +1,216 @@
+#include "pipeline/products_layer.hpp"
+
+#include "core/error.hpp"
+#include "core/hash.hpp"
+#include "core/log.hpp"
+#include "core/progress.hpp"
+#include "core/resources.hpp"
+#include "crs/crs.hpp"
+#include "pipeline/alignment_store.hpp"
+#include "pipeline/dense_layer.hpp"
+#include "project/records.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+
+namespace fs = std::filesystem;
+
+namespace strata {
+
+void ProductsOptions::validate() const {
+  dtm.validate();
+  ortho.validate();
+  contours.validate();
+  if (!(ortho_cell_m >= 0)) {
+    throw InputError(fmt::format("products: ortho_cell_m must be >= 0 metres (0 = DTM cell), got {}", ortho_cell_m));
+  }
+  if (!(min_footprint_area_m2 >= 0)) {
+    throw InputError(fmt::format("products: min_footprint_area_m2 must be >= 0, got {}", min_footprint_area_m2));
+  }
+}
+
+fs::path layer_surface_path(Project& project, const std::string& layer_name) {
+  const LayerRecord layer = require_layer(project.db(), layer_name);
+  const auto surface = find_product(project.db(), layer.id, "surface");
+  if (!surface || !fs::exists(project.dir() / surface->path)) {
+    throw ProcessingError(fmt::format(
+        "layer {} has no fused surface; run 'strata process {} --layer {} --until dense' first", layer.name,
+        project.dir().string(), layer.name));
+  }
+  return project.dir() / surface->path;
+}
+
+std::vector<OrthoView> layer_ortho_views(Project& project, const std::string& layer_name) {
+  const LayerRecord layer = require_layer(project.db(), layer_name);
+  const auto a = load_alignment(project.db(), layer);
+  if (!a) {
+    throw ProcessingError(fmt::format("layer {} is not aligned; run 'strata process {} --layer {}' first", layer.name,
+                                      project.dir().string(), layer.name));
+  }
+  std::vector<OrthoView> views;
+  for (std::size_t i = 0; i < a->rec.images.size(); ++i) {
+    const RegisteredImage& im = a->rec.images[i];
+    if (!im.registered) continue;
+    OrthoView v;
+    v.name = a->images[i].name;
+    v.camera.intrinsics = a->rec.groups.at(std::size_t(im.group)).intrinsics;
+    v.camera.pose = im.pose;
+    v.photo = project.dir() / a->images[i].media_path;
+    views.push_back(std::move(v));
+  }
+  return views;
+}
+
+namespace {
+
+// |DTM - sparse point| where a sparse point falls on a valid cell: an independent
+// check of the surface against the bundle adjustment (metres).
+std::pair<double, std::size_t> median_sparse_distance(const Dtm& dtm, const Reconstruction& rec) {
+  std::vector<double> d;
+  const RasterGrid& g = dtm.grid;
+  for (const SparsePoint& p : rec.points) {
+    const int c = int(std::floor((p.X.x() - g.x_min) / g.cell)), r = int(std::floor((g.y_max - p.X.y()) / g.cell));
+    if (c < 0 || r < 0 || c >= g.width || r >= g.height || !dtm.valid(c, r)) continue;
+    d.push_back(std::abs(double(dtm.at(c, r)) - p.X.z()));
+  }
+  if (d.empty()) return {0.0, 0};
+  std::nth_element(d.begin(), d.begin() + std::ptrdiff_t(d.size() / 2), d.end());
+  return {d[d.size() / 2], d.size()};
+}
+
+nlohmann::json step_json(const Stopwatch& w) {
+  return {{"seconds", w.seconds()}, {"peak_memory_mb", double(peak_memory_bytes()) / 1048576.0}};
+}
+
+}  // namespace
+
+ProductsLayerResult products_layer(Project& project, const std::string& layer_name, const ProductsOptions& options,
+                                   bool force) {
+  options.validate();
+  auto& db = project.db();
+  const LayerRecord layer = require_layer(db, layer_name);
+  const fs::path vdb = layer_surface_path(project, layer.name);
+  const auto alignment = load_alignment(db, layer);
+  if (!alignment) throw ProcessingError(fmt::format("layer {} is not aligned", layer.name));
+  const SiteInfo site = project.site();
+  const auto surface = find_product(db, layer.id, "surface");
+
+  const std::string inputs_key = sha256_hex(fmt::format(
+      "{}|{}|{}|{}|{}|{}|{}|{}|{}", surface->sha256, alignment->inputs_key, options.dtm.cell_m, options.ortho_cell_m,
+      options.contours.interval_m, options.ortho.radiometric_balance, options.ortho.smoothness,
+      options.ortho.feather_m, options.geotiff.cog));
+  ProductsLayerResult result;
+  if (!force) {
+    auto st = db.prepare("SELECT inputs_key, quality_json FROM reconstructions WHERE layer_id = ? AND stage = 'products'");
+    st.bind(1, layer.id);
+    const auto dtm_rec = find_product(db, layer.id, "dtm");
+    if (st.step() && st.get_text(0) == inputs_key && dtm_rec && fs::exists(project.dir() / dtm_rec->path)) {
+      result.skipped = true;
+      result.quality = nlohmann::json::parse(st.get_text(1));
+      return result;
+    }
+  }
+
+  Stopwatch total;
+  nlohmann::json steps;
+  const RasterGeoreference geo{describe_crs(site.crs).wkt, site.origin};
+  const std::string rel_dir = layer_product_dir(layer.name);
+  const fs::path out_dir = project.dir() / rel_dir;
+  fs::create_directories(out_dir);
+
+  // DTM
+  Stopwatch w;
+  const Dtm dtm = build_dtm(vdb, options.dtm);
+  const DtmStatistics stats = dtm_statistics(dtm, site.origin.z());
+  if (stats.valid_cells == 0) throw ProcessingError(fmt::format("layer {}: the surface gives an empty DTM", layer.name));
+  write_dtm_geotiff(out_dir / "dtm.tif", dtm, geo, options.geotiff);
+  steps["dtm"] = step_json(w);
+  check_cancelled();
+
+  // True orthophoto
+  w = Stopwatch();
+  Dtm ortho_dtm;
+  if (options.ortho_cell_m > 0 && std::abs(options.ortho_cell_m - options.dtm.cell_m) > 1e-12) {
+    DtmOptions o = options.dtm;
+    o.cell_m = options.ortho_cell_m;
+    ortho_dtm = build_dtm(vdb, o);
+  }
+  const std::vector<OrthoView> views = layer_ortho_views(project, layer.name);
+  OrthoSummary os;
+  const RgbaRaster ortho = build_orthophoto(ortho_dtm.z.empty() ? dtm : ortho_dtm, views, options.ortho, &os);
+  write_rgba_geotiff(out_dir / "ortho.tif", ortho, geo, options.geotiff);
+  steps["ortho"] = step_json(w);
+  check_cancelled();
+
+  // Site-plan vectors
+  w = Stopwatch();
+  const std::vector<ContourLine> contours = dtm_contours(dtm, site.origin, options.contours);
+  const Footprint footprint = dtm_footprint(dtm, site.origin, options.min_footprint_area_m2);
+  steps["vectors"] = step_json(w);
+
+  const auto [sparse_median, sparse_n] = median_sparse_distance(dtm, alignment->rec);
+  double gain_min = 1, gain_max = 1;
+  for (const auto& g : os.gains) {
+    for (double v : g) {
+      gain_min = std::min(gain_min, v);
+      gain_max = std::max(gain_max, v);
+    }
+  }
+  nlohmann::json q;
+  q["layer"] = layer.name;
+  q["dtm"] = {{"path", rel_dir + "/dtm.tif"},     {"cell_m", dtm.grid.cell},       {"width", dtm.grid.width},
+              {"height", dtm.grid.height},        {"valid_cells", stats.valid_cells}, {"area_m2", stats.area_m2},
+              {"min_m", stats.min},               {"max_m", stats.max},            {"mean_m", stats.mean},
+              {"median_distance_sparse_m", sparse_median}, {"sparse_points_compared", sparse_n}};
+  q["ortho"] = {{"path", rel_dir + "/ortho.tif"},  {"cell_m", ortho.grid.cell},     {"views", os.views},
+                {"views_used", os.views_used},     {"coverage", os.coverage},       {"seam_fraction", os.seam_fraction},
+                {"balance_rms_before", os.balance_rms_before}, {"balance_rms_after", os.balance_rms_after},
+                {"gain_min", gain_min},            {"gain_max", gain_max}};
+  q["contours"] = {{"interval_m", options.contours.interval_m}, {"lines", contours.size()}};
+  q["footprint"] = {{"area_m2", footprint.area_m2}, {"perimeter_m", footprint.perimeter_m},
+                    {"polygons", footprint.polygons.size()}};
+
+  // Record everything in one transaction.
+  {
+    Transaction tx(db);
+    db.prepare("DELETE FROM reconstructions WHERE layer_id = ? AND stage = 'products'").bind_all(layer.id).run();
+    steps["total"] = step_json(total);
+    q["steps"] = steps;
+    db.prepare(
+          "INSERT INTO reconstructions(layer_id, stage, created_at, inputs_key, georeferenced, quality_json) "
+          "VALUES (?, 'products', strftime('%Y-%m-%dT%H:%M:%SZ','now'), ?, ?, ?)")
+        .bind_all(layer.id, inputs_key, alignment->rec.georeferenced ? 1 : 0, q.dump())
+        .run();
+    for (const auto& [kind, file, params] :
+         {std::tuple{"dtm", "dtm.tif", nlohmann::json{{"cell_m", dtm.grid.cell}, {"nodata", kDtmNoData}}},
+          std::tuple{"ortho", "ortho.tif", nlohmann::json{{"cell_m", ortho.grid.cell}}}}) {
+      ProductRecord r;
+      r.layer_id = layer.id;
+      r.kind = kind;
+      r.path = rel_dir + "/" + file;
+      r.params_json = params.dump();
+      record_product(db, project.dir(), r);
+    }
+    store_site_plan(db, site.srs_id, layer.name, options.contours.interval_m, contours, footprint);
+    register_site_plan_views(db, site.srs_id);
+    tx.commit();
+  }
+
+  // Raster tables through GDAL's own connection, with no strata transaction open.
+  if (options.gpkg_rasters) {
+    Stopwatch g;
+    write_gpkg_raster(project.database_path(), out_dir / "dtm.tif", raster_table_name("dtm", layer.name),
+                      GpkgRasterKind::gridded_coverage, fmt::format("DTM of layer {} (metres, {})", layer.name, site.crs));
+    write_gpkg_raster(project.database_path(), out_dir / "ortho.tif", raster_table_name("ortho", layer.name),
+                      GpkgRasterKind::tiles_png, fmt::format("true orthophoto of layer {}", layer.name));
+    q["steps"]["gpkg_rasters"] = step_json(g);
+  }
+  log::info("layer {}: DTM {} x {} at {} m, orthophoto coverage {:.1f} %, {} contour lines", layer.name,
+            dtm.grid.width, dtm.grid.height, dtm.grid.cell, 100 * os.coverage, contours.size());
+  result.quality = q;
+  return result;
+}
+
+}  // namespace strata

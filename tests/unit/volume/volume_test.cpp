@@ -1,0 +1,460 @@
+// Volumetric stratigraphy: unit solids from analytic height fields and from the
+// synthetic excavation's truth rasters, volumes three ways, the voxel model and
+// its exports, sections, and the Harris-matrix check.
+#include "core/error.hpp"
+#include "dense/dense_mesh.hpp"
+#include "project/project.hpp"
+#include "project/records.hpp"
+#include "stratigraphy/harris_matrix.hpp"
+#include "support/test_support.hpp"
+#include "synthetic/synthetic.hpp"
+#include "volume/raster_io.hpp"
+#include "volume/section.hpp"
+#include "volume/site_volumes.hpp"
+#include "volume/voxels.hpp"
+
+#include <gdal_priv.h>
+#include <gtest/gtest.h>
+#include <ogrsf_frmts.h>
+
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <map>
+#include <numbers>
+#include <sstream>
+
+namespace strata {
+namespace {
+namespace fs = std::filesystem;
+
+// ---- tolerances, each with its reason
+// Issue 7: volumes from the truth rasters within 1 % of the truth...
+constexpr double kTruthVolumeRel = 0.01;
+// ...and the mean thickness within 3 mm.
+constexpr double kTruthMeanThickness = 0.003;
+// Issue 7: voxels, mesh and raster sum agree within 0.5 %.
+constexpr double kThreeWayRel = 0.005;
+// Midpoint rule on 5 mm cells over a smooth analytic thickness: far below 0.1 %.
+constexpr double kAnalyticRel = 1e-3;
+// The fog volume is the raster volume redistributed over voxels (float storage).
+constexpr double kFogConservationRel = 1e-5;
+
+// ---- analytic scene: a 2 x 1.5 m trench, dug 0.1-0.2 m deep inside [0.5, 1.5] x [0.25, 1.25]
+constexpr double kX0 = 0.5, kX1 = 1.5, kY0 = 0.25, kY1 = 1.25;
+double ground(double x, double y) { return 0.2 + 0.03 * std::sin(2.0 * x) + 0.02 * std::cos(3.0 * y); }
+double dug_depth(double x, double y) {
+  if (x < kX0 || x > kX1 || y < kY0 || y > kY1) return 0;
+  return 0.15 + 0.05 * std::sin(std::numbers::pi * (x - kX0)) * std::cos(std::numbers::pi * (y - 0.75));
+}
+// Exact volume: int 0.15 dA + 0.05 * int sin(pi u) du * int cos(pi (y - .75)) dy over the unit square.
+double analytic_volume() { return 0.15 * 1.0 + 0.05 * (2 / std::numbers::pi) * (2 / std::numbers::pi); }
+
+LayerSurface analytic_layer(const std::string& name, const std::string& unit, double cell, int which) {
+  SiteGrid g{0.5 * cell, 0.5 * cell, cell, int(std::lround(2.0 / cell)), int(std::lround(1.5 / cell))};
+  LayerSurface l;
+  l.layer = name;
+  l.unit = unit;
+  l.z = g.empty_field();
+  for (int j = 0; j < g.ny; ++j)
+    for (int i = 0; i < g.nx; ++i) {
+      const double x = g.x(i), y = g.y(j);
+      l.z.z[std::size_t(j) * g.nx + i] = ground(x, y) - (which >= 1 ? dug_depth(x, y) : 0) -
+                                         (which >= 2 ? 0.5 * dug_depth(x, y) : 0);
+    }
+  return l;
+}
+
+TEST(VolumeAnalytic, RasterVolumeMatchesTheIntegral) {
+  const double cell = 0.005;
+  std::vector<LayerSurface> layers{analytic_layer("L1", "1", cell, 0), analytic_layer("L2", "2", cell, 1)};
+  const auto solids = build_unit_solids(layers, VolumeOptions{});
+  ASSERT_EQ(solids.size(), 1u);  // unit 2 is the last: not dug
+  const auto& m = solids[0].measures;
+  EXPECT_NEAR(m.volume_m3, analytic_volume(), kAnalyticRel * analytic_volume());
+  EXPECT_NEAR(m.area_m2, 1.0, 1e-9);
+  EXPECT_NEAR(m.min_thickness_m, 0.15, 1e-3);  // at the edges of the dug rectangle
+  EXPECT_NEAR(m.max_thickness_m, 0.20, 1e-3);
+  EXPECT_EQ(solids[0].top_layer, "L1");
+  EXPECT_EQ(solids[0].bottom_layers, std::vector<std::string>{"L2"});
+}
+
+TEST(VolumeAnalytic, ThreeWaysAgree) {
+  // Voxels (OpenVDB fog and label grids read back from the .vdb), the closed mesh
+  // (CGAL Polygon_mesh_processing::volume) and the raster sum.
+  const double cell = 0.01;
+  std::vector<LayerSurface> layers{analytic_layer("L1", "1", cell, 0), analytic_layer("L2", "2", cell, 1),
+                                   analytic_layer("L3", "3", cell, 2)};
+  const auto solids = build_unit_solids(layers, VolumeOptions{});
+  ASSERT_EQ(solids.size(), 2u);
+  test::ScratchDir dir("volume_three_ways");
+  VoxelOptions vo;
+  vo.voxel_size_m = 0.01;
+  const VoxelSummary vs = write_unit_voxels(dir / "units.vdb", solids, {{"1", 101}, {"2", 102}}, vo,
+                                            Eigen::Vector3d(734000, 4174000, 1450), "EPSG:32636");
+  const auto from_file = read_voxel_volumes(dir / "units.vdb");
+  for (std::size_t u = 0; u < solids.size(); ++u) {
+    const double raster = solids[u].measures.volume_m3;
+    const double mesh = closed_mesh_volume_m3(unit_solid_mesh(solids[u]));
+    const double fog = from_file.at(solids[u].unit);
+    const double label = vs.units[u].label_volume_m3;
+    SCOPED_TRACE(fmt::format("unit {}: raster {:.6f} mesh {:.6f} fog {:.6f} label {:.6f}", solids[u].unit, raster,
+                             mesh, fog, label));
+    EXPECT_NEAR(mesh, raster, kThreeWayRel * raster);
+    EXPECT_NEAR(fog, raster, kThreeWayRel * raster);
+    EXPECT_NEAR(label, raster, kThreeWayRel * raster);
+    EXPECT_NEAR(vs.units[u].fog_volume_m3, raster, kFogConservationRel * raster);
+  }
+  EXPECT_EQ(vs.units[0].label, 101);
+  // The label grid has both units, one above the other.
+  const LabelVolume lv = read_label_volume(dir / "units.vdb");
+  EXPECT_EQ(lv.units.at(101), "1");
+  EXPECT_EQ(lv.units.at(102), "2");
+  EXPECT_NEAR(lv.site_origin.x(), 734000, 1e-9);
+  std::size_t n101 = 0, n102 = 0;
+  for (auto v : lv.labels) n101 += v == 101, n102 += v == 102;
+  EXPECT_EQ(n101, vs.units[0].labelled_voxels);
+  EXPECT_EQ(n102, vs.units[1].labelled_voxels);
+  // In the centre column, unit 2 (dug later) lies below unit 1.
+  const int ci = int(std::lround((1.0 - lv.min_centre.x()) / lv.voxel_size_m));
+  const int cj = int(std::lround((0.75 - lv.min_centre.y()) / lv.voxel_size_m));
+  int top101 = -1, top102 = -1;
+  for (int k = 0; k < lv.nz; ++k) {
+    if (lv.at(ci, cj, k) == 101) top101 = k;
+    if (lv.at(ci, cj, k) == 102) top102 = k;
+  }
+  EXPECT_GT(top101, top102);
+  EXPECT_GE(top102, 0);
+}
+
+TEST(VolumeAnalytic, FootprintLimitsTheSolid) {
+  const double cell = 0.01;
+  std::vector<LayerSurface> layers{analytic_layer("L1", "1", cell, 0), analytic_layer("L2", "2", cell, 1)};
+  VolumeOptions o;
+  o.footprints["1"] = {{0.5, 0.25}, {1.0, 0.25}, {1.0, 1.25}, {0.5, 1.25}};  // west half of the dug area
+  const auto solids = build_unit_solids(layers, o);
+  ASSERT_EQ(solids.size(), 1u);
+  EXPECT_NEAR(solids[0].measures.area_m2, 0.5, 0.02);
+  EXPECT_NEAR(solids[0].measures.volume_m3, 0.5 * analytic_volume(), 0.02 * analytic_volume());
+}
+
+TEST(VolumeAnalytic, UncertaintyGrowsWithGeoreferenceError) {
+  const double cell = 0.01;
+  std::vector<LayerSurface> layers{analytic_layer("L1", "1", cell, 0), analytic_layer("L2", "2", cell, 1)};
+  const double s0 = build_unit_solids(layers, VolumeOptions{})[0].measures.volume_sigma_m3;
+  for (auto& l : layers) l.vertical_rmse_m = 0.005;
+  const double s1 = build_unit_solids(layers, VolumeOptions{})[0].measures.volume_sigma_m3;
+  EXPECT_GT(s0, 0);
+  // A = 1 m2: the two surfaces' shifts give sqrt(2) x 5 mm x 1 m2 = 7.1 dm3 at least.
+  EXPECT_GT(s1, 0.007);
+  EXPECT_LT(s1, 0.008);
+}
+
+TEST(VolumeOptions, RefusesInvalidValues) {
+  VolumeOptions o;
+  o.noise_threshold_m = -1;
+  EXPECT_THROW(o.validate(), InputError);
+  VoxelOptions v;
+  v.voxel_size_m = 0;
+  EXPECT_THROW(v.validate(), InputError);
+  EXPECT_THROW(read_height_raster("/nonexistent/dtm.tif", Eigen::Vector3d::Zero()), IoError);
+}
+
+// ---- the synthetic excavation -------------------------------------------------------
+
+struct TruthUnit {
+  double volume, area, mean, max;
+};
+
+class SyntheticVolumes : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new test::ScratchDir("volume_synthetic");
+    auto o = SyntheticExcavationOptions::preset(SyntheticExcavationOptions::Size::small);
+    // Only the truth rasters matter here: the fewest, smallest photos the generator allows.
+    o.photos.per_layer = 3;
+    o.photos.width = 96;
+    o.photos.height = 64;
+    o.render.texel = 0.01;
+    o.render.edge_samples = 0;
+    generate_excavation(o, *dir_ / "synth");
+    std::ifstream in(*dir_ / "synth" / "truth" / "units.csv");
+    std::string line;
+    std::getline(in, line);
+    while (std::getline(in, line)) {
+      std::stringstream ss(line);
+      std::string unit, v, a, m, x;
+      std::getline(ss, unit, ',');
+      std::getline(ss, v, ',');
+      std::getline(ss, a, ',');
+      std::getline(ss, m, ',');
+      std::getline(ss, x, ',');
+      truth_[unit] = {std::stod(v), std::stod(a), std::stod(m), std::stod(x)};
+    }
+  }
+  static void TearDownTestSuite() {
+    delete dir_;
+    dir_ = nullptr;
+  }
+  static fs::path synth() { return *dir_ / "synth"; }
+  static const Eigen::Vector3d origin() {
+    static const Eigen::Vector3d o(734000.0, 4174000.0, 1450.0);  // SyntheticExcavationOptions::Site defaults
+    return o;
+  }
+  // L1..L4 in excavation order, units 101..104, on the rasters' own grid.
+  static std::vector<LayerSurface> truth_layers() {
+    std::vector<LayerSurface> out;
+    for (int k = 1; k <= 4; ++k) {
+      LayerSurface l;
+      l.layer = fmt::format("L{}", k);
+      l.unit = std::to_string(100 + k);
+      l.z = read_height_raster(synth() / "truth" / l.layer / "surface.tif", origin());
+      out.push_back(std::move(l));
+    }
+    return out;
+  }
+  static test::ScratchDir* dir_;
+  static std::map<std::string, TruthUnit> truth_;
+};
+test::ScratchDir* SyntheticVolumes::dir_ = nullptr;
+std::map<std::string, TruthUnit> SyntheticVolumes::truth_;
+
+TEST_F(SyntheticVolumes, VolumesMatchTruth) {
+  ASSERT_EQ(truth_.size(), 3u);
+  const auto layers = truth_layers();
+  for (double threshold : {0.001, 0.005}) {  // the generator's 1 mm, and our default 5 mm
+    VolumeOptions o;
+    o.noise_threshold_m = threshold;
+    const auto solids = build_unit_solids(layers, o);
+    ASSERT_EQ(solids.size(), 3u);
+    for (const auto& s : solids) {
+      const TruthUnit& t = truth_.at(s.unit);
+      const auto& m = s.measures;
+      const std::string figures =
+          fmt::format("threshold {} unit {}: volume {:.5f} (truth {:.5f}), area {:.4f} (truth {:.4f}), mean {:.5f} "
+                      "(truth {:.5f}), max {:.4f} (truth {:.4f})",
+                      threshold, s.unit, m.volume_m3, t.volume, m.area_m2, t.area, m.mean_thickness_m, t.mean,
+                      m.max_thickness_m, t.max);
+      fmt::print("{}\n", figures);
+      SCOPED_TRACE(figures);
+      EXPECT_NEAR(m.volume_m3, t.volume, kTruthVolumeRel * t.volume);
+      EXPECT_NEAR(m.mean_thickness_m, t.mean, kTruthMeanThickness);
+      EXPECT_NEAR(m.area_m2, t.area, 0.01 * t.area);
+      EXPECT_NEAR(m.max_thickness_m, t.max, 0.01);
+    }
+  }
+}
+
+TEST_F(SyntheticVolumes, ThreeWaysAgreeOnTheSyntheticUnits) {
+  auto layers = truth_layers();
+  // A 1 cm grid keeps the CGAL mesh near half a million faces.
+  const SiteGrid g0 = SiteGrid::of(layers[0].z);
+  const SiteGrid grid{g0.x0 + 0.0025, g0.y0 + 0.0025, 0.01, g0.nx / 2, g0.ny / 2};
+  for (auto& l : layers) l.z = resample(l.z, grid);
+  const auto solids = build_unit_solids(layers, VolumeOptions{});
+  ASSERT_EQ(solids.size(), 3u);
+  test::ScratchDir dir("volume_synthetic_voxels");
+  const VoxelSummary vs = write_unit_voxels(dir / "units.vdb", solids, {}, VoxelOptions{}, origin(), "EPSG:32636");
+  const auto fog = read_voxel_volumes(dir / "units.vdb");
+  for (std::size_t u = 0; u < solids.size(); ++u) {
+    const double raster = solids[u].measures.volume_m3;
+    const double mesh = closed_mesh_volume_m3(unit_solid_mesh(solids[u]));
+    const std::string figures = fmt::format("unit {}: raster {:.5f} mesh {:.5f} voxels {:.5f} labels {:.5f} truth {:.5f} m3",
+                                            solids[u].unit, raster, mesh, fog.at(solids[u].unit),
+                                            vs.units[u].label_volume_m3, truth_.at(solids[u].unit).volume);
+    fmt::print("{}\n", figures);
+    SCOPED_TRACE(figures);
+    EXPECT_NEAR(mesh, raster, kThreeWayRel * raster);
+    EXPECT_NEAR(fog.at(solids[u].unit), raster, kThreeWayRel * raster);
+    EXPECT_NEAR(vs.units[u].label_volume_m3, raster, kThreeWayRel * raster);
+    EXPECT_NEAR(raster, truth_.at(solids[u].unit).volume, kTruthVolumeRel * raster);
+  }
+}
+
+TEST_F(SyntheticVolumes, ProjectStoresVolumesAndProducts) {
+  test::ScratchDir dir("volume_project");
+  CreateOptions co;
+  co.crs = "EPSG:32636";
+  co.origin = origin();
+  Project p = Project::create(dir / "site", co);
+  {
+    Transaction tx(p.db());
+    for (int k = 1; k <= 4; ++k) {
+      UnitRecord u;
+      u.code = std::to_string(100 + k);
+      insert_unit(p.db(), u);
+    }
+    for (int k = 1; k <= 3; ++k)
+      insert_relation(p.db(), {0, std::to_string(100 + k), "above", std::to_string(101 + k)});
+    for (int k = 1; k <= 4; ++k) {
+      LayerRecord l;
+      l.name = fmt::format("L{}", k);
+      l.unit = std::to_string(100 + k);
+      l.captured_at = fmt::format("2024-06-1{}T09:00:00", k);
+      insert_layer(p.db(), l);
+    }
+    tx.commit();
+  }
+  SiteVolumeOptions o;
+  for (int k = 1; k <= 4; ++k)
+    o.surface_files[fmt::format("L{}", k)] = synth() / "truth" / fmt::format("L{}", k) / "surface.tif";
+  o.voxels.voxel_size_m = 0.02;
+  const SiteModel m = load_site_model(p, o);
+  ASSERT_EQ(m.solids.size(), 3u);
+  EXPECT_EQ(m.layers.front().z.cell, 0.005);  // the DTMs' own pixels
+  const VoxelSummary vs = store_site_volumes(p, m, o);
+  EXPECT_EQ(vs.units.size(), 3u);
+  auto st = p.db().prepare(
+      "SELECT u.code, v.volume_m3, v.mean_thickness_m, v.top_layer, v.bottom_layers, v.volume_sigma_m3 "
+      "FROM unit_volumes v JOIN units u ON u.id = v.unit_id ORDER BY u.code");
+  int rows = 0;
+  while (st.step()) {
+    ++rows;
+    const TruthUnit& t = truth_.at(st.get_text(0));
+    EXPECT_NEAR(st.get_double(1), t.volume, kTruthVolumeRel * t.volume);
+    EXPECT_NEAR(st.get_double(2), t.mean, kTruthMeanThickness);
+    EXPECT_GT(st.get_double(5), 0);
+  }
+  EXPECT_EQ(rows, 3);
+  EXPECT_TRUE(fs::exists(p.products_dir() / "volume" / "units.vdb"));
+  EXPECT_EQ(list_products(p.db(), std::nullopt, "thickness").size(), 3u);
+  EXPECT_EQ(list_products(p.db(), std::nullopt, "voxels").size(), 1u);
+
+  // The thickness raster: real coordinates, nodata, values = solid thickness.
+  GDALAllRegister();
+  GDALDataset* ds = GDALDataset::Open((p.products_dir() / "volume" / "thickness_101.tif").c_str(), GDAL_OF_RASTER);
+  ASSERT_NE(ds, nullptr);
+  double gt[6];
+  ds->GetGeoTransform(gt);
+  EXPECT_GT(gt[0], 733990);
+  EXPECT_NEAR(gt[1], 0.005, 1e-12);
+  int has = 0;
+  EXPECT_EQ(ds->GetRasterBand(1)->GetNoDataValue(&has), -9999.0);
+  EXPECT_TRUE(has);
+  EXPECT_EQ(ds->GetRasterBand(1)->GetRasterDataType(), GDT_Float32);
+  double mm[2];
+  ds->GetRasterBand(1)->ComputeRasterMinMax(FALSE, mm);
+  EXPECT_NEAR(mm[1], truth_.at("101").max, 0.01);
+  EXPECT_NE(std::string(ds->GetProjectionRef()).find("UTM zone 36N"), std::string::npos);
+  GDALClose(ds);
+
+  // The recorded relations agree with the geometry: no conflict.
+  const HarrisMatrix matrix = site_matrix(m);
+  EXPECT_TRUE(check_stratigraphy(matrix, m.layers, m.solids, CheckOptions{}).empty());
+}
+
+TEST_F(SyntheticVolumes, CheckReportsAContradiction) {
+  const auto layers = truth_layers();
+  const auto solids = build_unit_solids(layers, VolumeOptions{});
+  // Recorded the wrong way round: 103 above 102 (and 104 above 101).
+  const HarrisMatrix wrong({"101", "102", "103", "104"},
+                           {{"103", RelationKind::above, "102"}, {"104", RelationKind::above, "101"}});
+  const auto conflicts = check_stratigraphy(wrong, layers, solids, CheckOptions{});
+  ASSERT_EQ(conflicts.size(), 2u);
+  // Sorted by amount: 104 lies under all three excavated units.
+  EXPECT_EQ(conflicts[0].later, "104");
+  EXPECT_EQ(conflicts[0].earlier, "101");
+  EXPECT_NEAR(conflicts[0].amount_m, truth_.at("101").max + 0.3, 0.6);
+  EXPECT_EQ(conflicts[1].later, "103");
+  EXPECT_EQ(conflicts[1].earlier, "102");
+  EXPECT_NEAR(conflicts[1].amount_m, truth_.at("102").max, 0.02);  // 102's thickest point
+  EXPECT_GT(conflicts[1].area_m2, 5.0);
+  const std::string line = conflicts[1].describe(origin());
+  EXPECT_NE(line.find("103 is recorded above 102"), std::string::npos) << line;
+  EXPECT_NE(line.find("E 7340"), std::string::npos) << line;
+}
+
+TEST_F(SyntheticVolumes, SectionDrawingAndGeoPackage) {
+  const auto layers = truth_layers();
+  const auto solids = build_unit_solids(layers, VolumeOptions{});
+  // West-east through the middle of the 4 x 3 m trench, 20 cm beyond each end.
+  const SiteGrid g = SiteGrid::of(layers.front().z);
+  const double ym = g.y(g.ny / 2), xa = g.x(0) + 0.05;
+  const SectionProfile p = cut_section({xa, ym}, {xa + 4.4, ym}, layers, solids);
+  EXPECT_EQ(p.surfaces.size(), 4u);
+  EXPECT_EQ(p.bodies.size(), 3u);
+  EXPECT_NEAR(p.length(), 4.4, 1e-12);
+  test::ScratchDir dir("volume_section");
+  SectionDrawingOptions d;
+  d.crs = "EPSG:32636";
+  d.title = "Section 1";
+  d.unit_types = {{"101", "deposit"}, {"104", "deposit"}};
+  write_section_svg(dir / "s.svg", p, origin(), d);
+  const std::string svg = test::read_text(dir / "s.svg");
+  EXPECT_NE(svg.find("width=\"270.0mm\""), std::string::npos) << svg.substr(0, 300);  // 4.4 m at 1:20 + margins
+  EXPECT_NE(svg.find(">(101)<"), std::string::npos);
+  EXPECT_NE(svg.find("not excavated"), std::string::npos);
+  EXPECT_NE(svg.find("scale 1:20"), std::string::npos);
+  EXPECT_NE(svg.find("datum"), std::string::npos);
+
+  write_section_gpkg(dir / "s.gpkg", p, origin(), "EPSG:32636");
+  GDALAllRegister();
+  GDALDataset* ds = GDALDataset::Open((dir / "s.gpkg").c_str(), GDAL_OF_VECTOR);
+  ASSERT_NE(ds, nullptr);
+  OGRLayer* surfaces = ds->GetLayerByName("section_surfaces");
+  ASSERT_NE(surfaces, nullptr);
+  EXPECT_GE(surfaces->GetFeatureCount(), 4);
+  OGRLayer* units = ds->GetLayerByName("section_units");
+  ASSERT_NE(units, nullptr);
+  EXPECT_GE(units->GetFeatureCount(), 3);
+  OGRFeature* f = surfaces->GetNextFeature();
+  ASSERT_NE(f, nullptr);
+  const OGRLineString* line = f->GetGeometryRef()->toLineString();
+  EXPECT_TRUE(line->Is3D());
+  EXPECT_NEAR(line->getY(0), origin().y() + ym, 1e-6);
+  EXPECT_GT(line->getZ(0), 1440);
+  OGRFeature::DestroyFeature(f);
+  GDALClose(ds);
+}
+
+// ---- exports of the label volume ------------------------------------------------------
+
+LabelVolume small_label_volume() {
+  LabelVolume v;
+  v.voxel_size_m = 0.1;
+  v.min_centre = {1.05, 2.05, -0.45};
+  v.nx = 3;
+  v.ny = 2;
+  v.nz = 2;
+  v.labels = {1, 1, 0, 1, 2, 2, /* k = 1 */ 0, 0, 0, 7, 7, 0};
+  v.units = {{1, "101"}, {2, "102"}, {7, "107"}};
+  v.site_origin = {734000, 4174000, 1450};
+  v.crs = "EPSG:32636";
+  return v;
+}
+
+TEST(VoxelExport, GrassAsciiLayout) {
+  test::ScratchDir dir("volume_grass_ascii");
+  const fs::path script = write_grass_ascii(dir / "units.asc", small_label_volume());
+  const std::string text = test::read_text(dir / "units.asc");
+  EXPECT_EQ(text.rfind("version: grass7\norder: nsbt\n", 0), 0u);
+  EXPECT_NE(text.find("north: 4174002.2000"), std::string::npos) << text;
+  EXPECT_NE(text.find("west: 734001.0000"), std::string::npos);
+  EXPECT_NE(text.find("bottom: 1449.5000\n"), std::string::npos);
+  EXPECT_NE(text.find("rows: 2\ncols: 3\nlevels: 2\n"), std::string::npos);
+  // Level 0 first, the north row (j = 1) first: "1 2 2" then "1 1 *".
+  EXPECT_NE(text.find("levels: 2\n1 2 2\n1 1 *\n7 7 *\n* * *\n"), std::string::npos) << text;
+  EXPECT_TRUE(fs::exists(script));
+  EXPECT_NE(test::read_text(script).find("r3.in.ascii"), std::string::npos);
+  EXPECT_NE(test::read_text(dir / "units_units.csv").find("7,107"), std::string::npos);
+}
+
+TEST(VoxelExport, VtiHeaderAndPayload) {
+  test::ScratchDir dir("volume_vti");
+  write_vti(dir / "units.vti", small_label_volume());
+  const std::string text = test::read_text(dir / "units.vti");
+  EXPECT_NE(text.find("WholeExtent=\"0 3 0 2 0 2\""), std::string::npos);
+  EXPECT_NE(text.find("Origin=\"734001.0000 4174002.0000 1449.5000\""), std::string::npos);
+  const auto at = text.find("<AppendedData encoding=\"raw\">\n   _");
+  ASSERT_NE(at, std::string::npos);
+  const std::size_t data = at + std::string("<AppendedData encoding=\"raw\">\n   _").size();
+  std::uint64_t bytes = 0;
+  std::memcpy(&bytes, text.data() + data, 8);
+  EXPECT_EQ(bytes, 12u * 4u);
+  std::int32_t v4 = 0;
+  std::memcpy(&v4, text.data() + data + 8 + 4 * 4, 4);
+  EXPECT_EQ(v4, 2);
+}
+
+}  // namespace
+}  // namespace strata
