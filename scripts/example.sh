@@ -40,13 +40,29 @@ if [[ ! -f "$site/project.gpkg" ]]; then
   "$strata" -q import markers "$site" "$data/markers.csv"
 fi
 
-if "$strata" process --help >/dev/null 2>&1; then
-  echo "== processing every layer"
-  "$strata" process "$site" --all
+echo "== processing every layer (alignment -> dense surface -> DTM, orthophoto, site plan)"
+"$strata" process "$site" --all
+
+echo "== unit volumes (between consecutive layer surfaces)"
+"$strata" volume "$site"
+"$strata" check "$site" || echo "(the geometry contradicts a recorded relation: see above)"
+
+echo "== exports"
+mkdir -p "$site/exports"
+"$strata" export qgis "$site" --out "$site/exports/site.qgz"
+"$strata" export grass "$site" --out "$site/exports/grass"
+"$strata" export voxels "$site" --out "$site/exports/units.vdb"
+if "$strata" report --help >/dev/null 2>&1; then
+  "$strata" report "$site" --out "$site/exports/report.html"
 fi
 
 echo "== the project"
 "$strata" info "$site"
 echo
-echo "Harris matrix: $strata matrix $site --format dot"
-echo "Project database (open in QGIS): $site/project.gpkg"
+echo "Everything is in $site:"
+echo "  project database (open in QGIS):  $site/project.gpkg"
+echo "  QGIS project:                      $site/exports/site.qgz"
+echo "  per-layer products:                $site/products/<layer>/ (dtm.tif, ortho.tif, dense/mesh.ply, ...)"
+echo "  GRASS import script:               $site/exports/grass/import.sh"
+[[ -f "$site/exports/report.html" ]] && echo "  field report:                      $site/exports/report.html"
+echo "  Harris matrix:                     $strata matrix $site --format svg --out matrix.svg"

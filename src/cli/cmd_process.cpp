@@ -5,6 +5,7 @@
 #include "features/targets.hpp"
 #include "pipeline/align_layer.hpp"
 #include "pipeline/dense_layer.hpp"
+#include "pipeline/products_layer.hpp"
 #include "project/project.hpp"
 #include "project/records.hpp"
 
@@ -61,6 +62,21 @@ void print_dense(const nlohmann::json& q, bool skipped) {
   fmt::print("    time                {:.1f} s\n", q["steps"]["total"]["seconds"].get<double>());
 }
 
+void print_products(const nlohmann::json& q, bool skipped) {
+  fmt::print("  products{}\n", skipped ? " (up to date, not recomputed)" : "");
+  const auto& d = q["dtm"];
+  fmt::print("    DTM                 {}  {}x{} cells of {:.1f} mm, {:.2f} m2, heights {:.3f}..{:.3f} m\n",
+             d["path"].get<std::string>(), d["width"].get<int>(), d["height"].get<int>(),
+             1000 * d["cell_m"].get<double>(), d["area_m2"].get<double>(), d["min_m"].get<double>(),
+             d["max_m"].get<double>());
+  const auto& o = q["ortho"];
+  fmt::print("    orthophoto          {}  coverage {:.1f} %, {} photos used\n", o["path"].get<std::string>(),
+             100 * o["coverage"].get<double>(), o["views_used"].get<int>());
+  fmt::print("    contours            {} lines every {:.0f} mm\n", q["contours"]["lines"].get<int>(),
+             1000 * q["contours"]["interval_m"].get<double>());
+  fmt::print("    footprint           {:.2f} m2\n", q["footprint"]["area_m2"].get<double>());
+}
+
 }  // namespace
 
 void register_process_commands(CLI::App& app) {
@@ -73,7 +89,8 @@ void register_process_commands(CLI::App& app) {
   auto dir = std::make_shared<std::string>();
   auto layer = std::make_shared<std::string>();
   auto all = std::make_shared<bool>(false);
-  auto until = std::make_shared<std::string>("dense");
+  auto until = std::make_shared<std::string>("products");
+  auto products = std::make_shared<ProductsOptions>();
   auto dense = std::make_shared<DenseOptions>();
   auto json = std::make_shared<bool>(false);
   auto options = std::make_shared<AlignOptions>();
@@ -83,9 +100,12 @@ void register_process_commands(CLI::App& app) {
   auto* all_opt = cmd->add_flag("--all", *all, "process every layer");
   layer_opt->excludes(all_opt);
   cmd->add_option("--until", *until,
-                  "last stage to run: sparse (alignment and georeference) or dense (depth maps, "
-                  "fused surface, mesh, point cloud); default dense")
-      ->check(CLI::IsMember({"sparse", "dense"}));
+                  "last stage to run: sparse (alignment and georeference), dense (depth maps, "
+                  "fused surface, mesh, point cloud) or products (DTM, true orthophoto, contours, "
+                  "footprint; the default)")
+      ->check(CLI::IsMember({"sparse", "dense", "products"}));
+  cmd->add_option("--cell", products->dtm.cell_m, "DTM and orthophoto cell size in metres (default 0.005)");
+  cmd->add_option("--contour-interval", products->contours.interval_m, "contour interval in metres (default 0.05)");
   cmd->add_option("--dense-scale", dense->patch_match.scale,
                   "depth-map resolution relative to the photos: 1, 0.5 or 0.25 (default 0.25)");
   cmd->add_option("--voxel-size", dense->fusion.voxel_size_m,
@@ -126,6 +146,12 @@ void register_process_commands(CLI::App& app) {
         const DenseLayerResult d = dense_layer(p, name, *dense, options->force || !r.skipped);
         q["dense"] = d.quality;
         if (!*json) print_dense(d.quality, d.skipped);
+        if (*until == "products") {
+          log::info("== layer {}: DTM, orthophoto, site plan", name);
+          const ProductsLayerResult pr = products_layer(p, name, *products, options->force || !d.skipped);
+          q["products"] = pr.quality;
+          if (!*json) print_products(pr.quality, pr.skipped);
+        }
       }
       out.push_back(q);
     }

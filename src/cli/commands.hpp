@@ -15,5 +15,6 @@ void register_process_commands(CLI::App& app);   // process, (later) volume, che
 void register_export_commands(CLI::App& app);    // export ...
 void register_products_commands(CLI::App& app);  // export dtm|ortho|qgis|grass
 void register_volume_commands(CLI::App& app);    // volume, check, export thickness|voxels|section
+void register_report_command(CLI::App& app);      // report
 
 }  // namespace strata::cli

@@ -46,6 +46,9 @@ int main(int argc, char** argv) {
 #ifdef STRATA_HAS_VOLUME_COMMANDS
   strata::cli::register_volume_commands(app);
 #endif
+#ifdef STRATA_HAS_REPORT_COMMANDS
+  strata::cli::register_report_command(app);
+#endif
 
   strata::install_cancel_handler();
   try {

@@ -267,6 +267,11 @@ GeoreferenceSummary georeference(const GeoreferenceOptions& options,
     summary.control_used.push_back(usable[i]->name);
   }
   summary.similarity = fit_similarity(src, dst, options.min_spread_ratio);
+  for (std::size_t i = 0; i < n_usable; ++i) {
+    const Eigen::Vector3d d = summary.similarity.apply(usable_local[i]) - usable_site[i];
+    log::debug("georeference: {} after the similarity: dE {:+.3f} dN {:+.3f} dZ {:+.3f} m", usable[i]->name,
+               d.x(), d.y(), d.z());
+  }
 
   // 3. Into the site frame.
   transform_reconstruction(summary.similarity, rec);
@@ -280,6 +285,8 @@ GeoreferenceSummary georeference(const GeoreferenceOptions& options,
       if (used.count(m.name)) constraints.push_back(m);
     }
     summary.bundle = bundle_adjust(options.bundle, rec, keypoints, constraints, observations);
+    log::debug("georeference: adjustment {} ({} iterations, {:.1f} s, rmse {:.3f} px)", summary.bundle.message,
+               summary.bundle.iterations, summary.bundle.seconds, summary.bundle.rmse_px);
   }
 
   // 5. Residuals from the final cameras, photos only.

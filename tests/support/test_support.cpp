@@ -50,6 +50,7 @@ ScratchDir::~ScratchDir() {
 fs::path source_dir() { return env_path("STRATA_SOURCE_DIR"); }
 fs::path shared_data_dir() { return source_dir().parent_path() / "shared" / "data"; }
 fs::path strata_exe() { return env_path("STRATA_EXE"); }
+fs::path binary_dir() { return env_path("STRATA_BINARY_DIR"); }
 
 CommandResult run_strata(const std::vector<std::string>& args) {
   int out_pipe[2], err_pipe[2];

@@ -22,6 +22,7 @@ class ScratchDir {
 std::filesystem::path source_dir();      // the repository root
 std::filesystem::path shared_data_dir(); // ../shared/data beside the repository (may not exist)
 std::filesystem::path strata_exe();      // the built `strata` executable
+std::filesystem::path binary_dir();      // the build tree (scratch space lives under it)
 
 struct CommandResult {
   int exit_code = -1;

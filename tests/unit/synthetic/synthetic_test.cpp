@@ -9,6 +9,7 @@
 
 #include <gdal_priv.h>
 #include <gtest/gtest.h>
+#include <unistd.h>
 #include <opencv2/aruco.hpp>
 #include <opencv2/imgcodecs.hpp>
 
@@ -127,7 +128,8 @@ Camera camera_from_row(const std::map<std::string, std::string>& row, const Eige
 class SmallExcavation : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    dir_ = new fs::path(fs::path(std::getenv("STRATA_BINARY_DIR")) / "scratch" / "synthetic_small");
+    // One folder per process: ctest runs the tests of this suite in parallel processes.
+    dir_ = new fs::path(test::binary_dir() / "scratch" / ("synthetic_small." + std::to_string(::getpid())));
     fs::remove_all(*dir_);
     options_ = SyntheticExcavationOptions::preset(SyntheticExcavationOptions::Size::small);
     options_.seed = 3;

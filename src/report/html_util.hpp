@@ -1,0 +1,80 @@
+#pragma once
+// Internal to the report module: HTML escaping, inline PNG data, plan drawings in
+// SVG and thumbnails of GeoTIFF products. OpenCV and GDAL stay behind this header's
+// .cpp; images cross it as plain byte buffers.
+#include <Eigen/Core>
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace strata::report_detail {
+
+std::string escape(std::string_view text);
+std::string base64(const std::vector<std::uint8_t>& bytes);
+
+// 8-bit image, row-major, `channels` 1, 3 (RGB) or 4 (RGBA).
+struct Image {
+  int width = 0, height = 0, channels = 3;
+  std::vector<std::uint8_t> pixels;
+  std::uint8_t* at(int x, int y) { return pixels.data() + (std::size_t(y) * std::size_t(width) + std::size_t(x)) * std::size_t(channels); }
+};
+// "data:image/png;base64,..." (cv::imencode).
+std::string png_data_uri(const Image& image);
+// Nearest-neighbour enlargement by an integer factor (crisp cells in coverage maps).
+Image enlarge(const Image& image, int factor);
+
+// An axis-aligned box in the site frame, metres.
+struct Extent {
+  double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
+  void add(double x, double y);
+  void add(const Extent& e);
+  bool empty() const { return !(x1 > x0 && y1 > y0); }
+  Extent padded(double fraction) const;
+};
+
+// Maps a site-frame plan onto an SVG of given width, north up, and draws the
+// decorations every plan needs (scale bar, north arrow).
+class PlanFrame {
+ public:
+  PlanFrame(const Extent& extent, int width_px, int max_height_px);
+  Eigen::Vector2d px(double x, double y) const;
+  double scale() const { return scale_; }  // pixels per metre
+  int width() const { return width_; }
+  int height() const { return height_; }
+  std::string open(const std::string& label) const;  // <svg ...> with a background
+  std::string image(const std::string& data_uri, const Extent& where, bool pixelated = false) const;
+  std::string decorations() const;  // scale bar bottom-left, north arrow top-right
+  static std::string close() { return "</svg>\n"; }
+
+ private:
+  Extent extent_;
+  double scale_ = 1;
+  int width_ = 0, height_ = 0;
+};
+
+// A raster product read at reduced size (GDAL RasterIO with resampling).
+struct Thumbnail {
+  int width = 0, height = 0, bands = 0;
+  std::vector<std::vector<float>> band;  // row-major north-up
+  std::vector<std::uint8_t> valid;       // 1 where band 1 is not nodata
+  Extent extent;                         // CRS coordinates (not the site frame)
+};
+// Reads at most `max_px` pixels along the longer side. Throws IoError naming the file.
+Thumbnail read_thumbnail(const std::filesystem::path& path, int max_px, bool average);
+
+// Colour ramps, t in [0, 1].
+void ramp_viridis(double t, std::uint8_t rgb[3]);
+void ramp_terrain(double t, std::uint8_t rgb[3]);
+
+// Removes the XML prolog, doctype, comments and namespace declarations of an SVG
+// file's text so that it can sit inline in HTML5 (which needs none of them and
+// where they would be the only URLs of the report).
+std::string inline_svg(std::string svg);
+
+// Writes `text` to `path` through a temporary file renamed into place.
+void write_file_atomically(const std::filesystem::path& path, const std::string& text);
+
+}  // namespace strata::report_detail

@@ -1,0 +1,202 @@
+#include "report/quality_rules.hpp"
+
+#include "core/error.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+
+namespace strata {
+namespace {
+
+std::string list_names(const std::vector<std::string>& names, std::size_t max_listed = 6) {
+  std::string s;
+  for (std::size_t i = 0; i < names.size() && i < max_listed; ++i) s += (i ? ", " : "") + names[i];
+  if (names.size() > max_listed) s += fmt::format(" and {} more", names.size() - max_listed);
+  return s;
+}
+
+std::string photos_word(int n) { return n == 1 ? "photo" : "photos"; }
+
+}  // namespace
+
+void QualityThresholds::validate() const {
+  auto require = [](bool ok, const char* field) {
+    if (!ok) throw InputError(fmt::format("report thresholds: {} is out of range", field));
+  };
+  require(min_photos >= 1, "min_photos");
+  require(min_photos_per_area >= 1, "min_photos_per_area");
+  require(min_shortfall_fraction > 0 && min_shortfall_fraction <= 1, "min_shortfall_fraction");
+  require(max_gsd_m > 0, "max_gsd_m");
+  require(min_marker_photos >= 2, "min_marker_photos");
+  require(min_control_markers >= 3, "min_control_markers");
+  require(max_control_rmse_m > 0, "max_control_rmse_m");
+  require(max_check_rmse_m > 0, "max_check_rmse_m");
+  require(max_marker_residual_m > 0, "max_marker_residual_m");
+  require(max_reprojection_rmse_px > 0, "max_reprojection_rmse_px");
+  require(max_unaligned_fraction >= 0 && max_unaligned_fraction <= 1, "max_unaligned_fraction");
+}
+
+const char* to_string(Severity s) {
+  switch (s) {
+    case Severity::problem:
+      return "problem";
+    case Severity::warning:
+      return "warning";
+    case Severity::note:
+      return "note";
+  }
+  return "note";
+}
+
+std::string format_mm(double metres) {
+  const double mm = metres * 1000.0;
+  if (std::abs(mm) >= 10) return fmt::format("{:.0f} mm", mm);
+  return fmt::format("{:.1f} mm", mm);
+}
+
+std::vector<Finding> evaluate_layer(const LayerFigures& f, const QualityThresholds& t) {
+  std::vector<Finding> out;
+  auto add = [&](Severity s, std::string rule, std::string message, std::string advice) {
+    out.push_back({s, std::move(rule), std::move(message), std::move(advice)});
+  };
+
+  // ---- photos
+  if (f.photos == 0) {
+    add(Severity::problem, "no_photos", "no photos have been imported for this layer",
+        fmt::format("photograph the layer (30-60 photos, markers in view) and run: strata import photos DIR "
+                    "--layer {} PHOTOS...", f.layer));
+    return out;
+  }
+  if (f.photos < t.min_photos) {
+    add(Severity::warning, "few_photos",
+        fmt::format("only {} {} of this layer (at least {} recommended)", f.photos, photos_word(f.photos), t.min_photos),
+        "walk once more around the trench taking overlapping photos (every step, about 60-80 % overlap)");
+  }
+  if (!f.aligned) {
+    add(Severity::problem, "not_processed", "the photos have not been aligned yet: no quality figures exist",
+        fmt::format("run: strata process DIR --layer {}", f.layer));
+    return out;
+  }
+
+  // ---- alignment
+  if (!f.unaligned.empty()) {
+    const int n = int(f.unaligned.size());
+    const double fraction = double(n) / double(std::max(1, f.photos));
+    add(fraction > t.max_unaligned_fraction ? Severity::problem : Severity::note, "unaligned_photos",
+        fmt::format("{} {} could not be aligned: {}", n, photos_word(n), list_names(f.unaligned)),
+        fraction > t.max_unaligned_fraction
+            ? "these photos overlap too little with the others or are blurred: retake that part of the walk with "
+              "smaller steps between photos"
+            : "nothing to do if the coverage map shows no gap; otherwise retake them with more overlap");
+  }
+  if (f.reprojection_rmse_px && *f.reprojection_rmse_px > t.max_reprojection_rmse_px) {
+    add(Severity::warning, "reprojection_rmse",
+        fmt::format("mean reprojection error {:.2f} px exceeds {:.1f} px", *f.reprojection_rmse_px,
+                    t.max_reprojection_rmse_px),
+        "photos are probably blurred (camera shake, focus) or something moved (people, shadows, water): "
+        "retake blurred photos with a faster shutter");
+  }
+
+  // ---- georeference
+  int control = 0, check = 0;
+  for (const auto& m : f.markers) {
+    if (m.role == "control" && m.triangulated) ++control;
+    if (m.role == "check" && m.triangulated) ++check;
+  }
+  if (!f.georeferenced) {
+    add(Severity::problem, "not_georeferenced",
+        "layer not georeferenced: it has no real-world position, scale or orientation" +
+            (f.georeference_message.empty() ? std::string() : " (" + f.georeference_message + ")"),
+        fmt::format("place at least {} surveyed markers around the trench, visible in the photos; survey them and "
+                    "run: strata import markers DIR survey.csv, then process the layer again",
+                    t.min_control_markers));
+  } else if (control < t.min_control_markers) {
+    add(Severity::problem, "few_control_markers",
+        fmt::format("only {} control {} located (at least {} needed)", control, control == 1 ? "marker" : "markers",
+                    t.min_control_markers),
+        "make sure at least 3 control markers, spread around the trench, each appear in 3 or more photos");
+  }
+  for (const auto& m : f.markers) {
+    if (m.role == "rejected") {
+      add(Severity::warning, "marker_rejected",
+          fmt::format("marker {} was rejected as an outlier ({} off)", m.name, format_mm(m.residual_m.norm())),
+          fmt::format("check the surveyed coordinates of {} and that its target is the right one", m.name));
+      continue;
+    }
+    if (!m.triangulated) {
+      add(Severity::warning, "marker_not_located",
+          fmt::format("marker {} could not be located (seen in {} {})", m.name, m.images, photos_word(m.images)),
+          fmt::format("take photos that show {} clearly from at least {} positions", m.name, t.min_marker_photos));
+      continue;
+    }
+    if (m.images < t.min_marker_photos) {
+      add(Severity::warning, "marker_photos",
+          fmt::format("marker {} seen in only {} {}", m.name, m.images, photos_word(m.images)),
+          fmt::format("take {} more photos that show {} from different positions", t.min_marker_photos - m.images + 1,
+                      m.name));
+    }
+    if (m.residual_m.norm() > t.max_marker_residual_m) {
+      add(Severity::warning, "marker_residual",
+          fmt::format("{} marker {} is {} from its surveyed position (over {})", m.role, m.name,
+                      format_mm(m.residual_m.norm()), format_mm(t.max_marker_residual_m)),
+          fmt::format("check the survey of {} (typing error, wrong target, moved marker)", m.name));
+    }
+  }
+  if (f.georeferenced && f.control_rmse_m && *f.control_rmse_m > t.max_control_rmse_m) {
+    add(Severity::problem, "control_rmse",
+        fmt::format("control RMSE {} exceeds {}", format_mm(*f.control_rmse_m), format_mm(t.max_control_rmse_m)),
+        "check the survey of the markers with the largest residuals in the table below, then process again");
+  }
+  if (f.georeferenced && f.check_rmse_m && *f.check_rmse_m > t.max_check_rmse_m) {
+    add(Severity::problem, "check_rmse",
+        fmt::format("check RMSE {} exceeds {}", format_mm(*f.check_rmse_m), format_mm(t.max_check_rmse_m)),
+        "the model is less accurate than required: add control markers on the side of the worst check marker, "
+        "or check its survey");
+  }
+  if (f.georeferenced && check == 0) {
+    add(Severity::note, "no_check_markers", "no check marker: the accuracy is not measured independently",
+        "survey one more marker and mark it as 'check' in the survey file");
+  }
+
+  // ---- coverage
+  if (f.coverage_known) {
+    for (const auto& g : f.gaps) {
+      const int more = std::max(2, t.min_photos_per_area - g.min_count + 1);
+      const std::string side = side_to_photograph(g, f.camera_centres, f.trench_centre);
+      add(Severity::problem, "coverage_gap",
+          fmt::format("the {} is seen by fewer than {} photos ({:.0f} % of it, {:.2f} m²)", g.sector.name,
+                      t.min_photos_per_area, 100 * g.fraction, g.area_m2),
+          side.empty() ? fmt::format("take {} more photos from above the centre of the trench, looking down", more)
+                       : fmt::format("take {} more photos from the {} side, aimed at the {}", more, side,
+                                     g.sector.name));
+    }
+    for (const auto& g : f.low_resolution) {
+      const std::string side = side_to_photograph(g, f.camera_centres, f.trench_centre);
+      add(Severity::warning, "low_resolution",
+          fmt::format("the {} is photographed only at low resolution ({} per pixel at best, over {})", g.sector.name,
+                      format_mm(g.worst_gsd_m), format_mm(t.max_gsd_m)),
+          side.empty() ? "take a few photos closer to the centre of the trench"
+                       : fmt::format("take a few photos closer to the {} from the {} side", g.sector.name, side));
+    }
+  } else {
+    add(Severity::note, "coverage_unknown", "the photo coverage could not be mapped (no plan of the surface)",
+        "process the layer to the products stage for a full coverage map");
+  }
+
+  // ---- later stages
+  if (!f.dense) {
+    add(Severity::note, "no_dense", "no dense surface yet",
+        fmt::format("run: strata process DIR --layer {} (the dense stage follows the alignment)", f.layer));
+  } else if (!f.products) {
+    add(Severity::note, "no_products", "no DTM or orthophoto yet",
+        fmt::format("run: strata process DIR --layer {} --until products", f.layer));
+  }
+
+  std::stable_sort(out.begin(), out.end(),
+                   [](const Finding& a, const Finding& b) { return int(a.severity) < int(b.severity); });
+  return out;
+}
+
+}  // namespace strata
