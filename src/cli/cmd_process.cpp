@@ -12,6 +12,8 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
+#include <cmath>
 #include <memory>
 
 namespace strata::cli {
@@ -104,7 +106,9 @@ void register_process_commands(CLI::App& app) {
                   "fused surface, mesh, point cloud) or products (DTM, true orthophoto, contours, "
                   "footprint; the default)")
       ->check(CLI::IsMember({"sparse", "dense", "products"}));
-  cmd->add_option("--cell", products->dtm.cell_m, "DTM and orthophoto cell size in metres (default 0.005)");
+  auto* cell_opt = cmd->add_option("--cell", products->dtm.cell_m,
+                                   "DTM and orthophoto cell size in metres (default: the dense surface's ground "
+                                   "sampling distance, at least 0.005)");
   cmd->add_option("--contour-interval", products->contours.interval_m, "contour interval in metres (default 0.05)");
   cmd->add_option("--dense-scale", dense->patch_match.scale,
                   "depth-map resolution relative to the photos: 1, 0.5 or 0.25 (default 0.25)");
@@ -148,7 +152,14 @@ void register_process_commands(CLI::App& app) {
         if (!*json) print_dense(d.quality, d.skipped);
         if (*until == "products") {
           log::info("== layer {}: DTM, orthophoto, site plan", name);
-          const ProductsLayerResult pr = products_layer(p, name, *products, options->force || !d.skipped);
+          ProductsOptions po = *products;
+          if (cell_opt->count() == 0) {
+            // Cells finer than the dense surface's sampling only interpolate; coarser
+            // ones lose detail. Round to the millimetre so reruns agree.
+            const double gsd = d.quality.value("gsd_m", 0.0);
+            po.dtm.cell_m = std::max(0.005, std::round(gsd * 1000.0) / 1000.0);
+          }
+          const ProductsLayerResult pr = products_layer(p, name, po, options->force || !d.skipped);
           q["products"] = pr.quality;
           if (!*json) print_products(pr.quality, pr.skipped);
         }

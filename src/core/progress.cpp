@@ -9,6 +9,8 @@
 #include <cmath>
 #include <csignal>
 #include <cstdio>
+#include <cstdlib>
+#include <string_view>
 #include <mutex>
 #include <unistd.h>
 
@@ -33,6 +35,11 @@ void request_cancel() { g_cancel = true; }
 bool cancel_requested() { return g_cancel; }
 void check_cancelled() {
   if (g_cancel) throw Cancelled();
+}
+
+void fault_point(const char* name) {
+  const char* at = std::getenv("STRATA_FAULT_AT");
+  if (at && std::string_view(at) == name) std::raise(SIGKILL);
 }
 
 Progress::Progress(std::string label, std::size_t total)

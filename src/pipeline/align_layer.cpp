@@ -124,6 +124,7 @@ AlignResult align_layer(Project& project, const std::string& layer_name, const A
   FeatureExtractionSummary fs;
   const auto keypoints = extract_features(options.features, feature_images, cache, &fs);
   timings["features_s"] = fs.seconds;
+  fault_point("align.after_features");
   check_cancelled();
   PairSelectionSummary ps;
   const auto pairs = select_pairs(options.pairs, keypoints, cache, times, &ps);
@@ -169,6 +170,7 @@ AlignResult align_layer(Project& project, const std::string& layer_name, const A
   IncrementalSummary is;
   Reconstruction rec = reconstruct_incremental(options.sfm, groups, inputs, keypoints, matches, &is);
   timings["sfm_s"] = is.seconds;
+  fault_point("align.after_sfm");
   if (is.registered < 2) {
     throw ProcessingError(fmt::format(
         "layer {}: only {} of {} photos could be aligned; the photos overlap too little or show too "
@@ -263,6 +265,7 @@ AlignResult align_layer(Project& project, const std::string& layer_name, const A
   stored.quality = quality;
   stored.inputs_key = inputs_key;
   store_alignment(db, layer, site, stored, residuals);
+  fault_point("align.before_commit");
   tx.commit();
   result.quality = quality;
   return result;

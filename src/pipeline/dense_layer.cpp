@@ -3,6 +3,7 @@
 #include "core/error.hpp"
 #include "core/hash.hpp"
 #include "core/log.hpp"
+#include "core/progress.hpp"
 #include "pipeline/alignment_store.hpp"
 #include "project/records.hpp"
 
@@ -105,6 +106,7 @@ DenseLayerResult dense_layer(Project& project, const std::string& layer_name, co
                 {"fusion", step(s.fusion)},                 {"meshing", step(s.meshing)},
                 {"writing", step(s.writing)},               {"total", step(s.total)}};
 
+  fault_point("dense.before_swap");
   const fs::path old_dir = final_dir.string() + ".old";
   fs::remove_all(old_dir);
   if (fs::exists(final_dir)) fs::rename(final_dir, old_dir);

@@ -5,6 +5,7 @@
 #include "report/html_util.hpp"
 #include "report/report_internal.hpp"
 
+#include <fmt/chrono.h>
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -18,6 +19,7 @@ namespace rd = report_detail;
 using rd::escape;
 using rd::Extent;
 using rd::PlanFrame;
+using rd::LayerData;
 
 namespace {
 

@@ -14,7 +14,6 @@
 #include <opencv2/core/eigen.hpp>
 
 #include <algorithm>
-#include <cstdlib>
 #include <cmath>
 #include <map>
 #include <numeric>
@@ -583,9 +582,6 @@ Reconstruction IncrementalMapper::run(IncrementalSummary& summary) {
   Stopwatch clock;
   prepare_intrinsics();
   build_track_index(summary);
-  if (std::getenv("STRATA_DEBUG_PAIRS")) {  // TEMP
-    for (const auto& m : matches_) log::info("pair {} {} {}", images_[m.image_a].name, images_[m.image_b].name, m.matches.size());
-  }
   registered_.assign(images_.size(), 0);
   poses_.assign(images_.size(), Pose{});
   failed_at_.assign(images_.size(), -1);
