@@ -6,6 +6,9 @@
 #include "pipeline/align_layer.hpp"
 #include "pipeline/dense_layer.hpp"
 #include "pipeline/products_layer.hpp"
+#ifdef STRATA_HAS_REPORT_COMMANDS
+#include "report/report.hpp"
+#endif
 #include "project/project.hpp"
 #include "project/records.hpp"
 
@@ -164,6 +167,17 @@ void register_process_commands(CLI::App& app) {
           if (!*json) print_products(pr.quality, pr.skipped);
         }
       }
+#ifdef STRATA_HAS_REPORT_COMMANDS
+      // The field report is rewritten after every run, so the trench edge always
+      // has the current verdict. A report failure is said, but does not undo the
+      // processing that succeeded.
+      try {
+        const auto report = write_layer_report_product(p, name);
+        log::info("field report: {}", report.string());
+      } catch (const Error& e) {
+        log::warn("layer {}: the field report could not be written: {}", name, e.what());
+      }
+#endif
       out.push_back(q);
     }
     if (*json) fmt::print("{}\n", (*all ? out : out.front()).dump(2));

@@ -259,6 +259,12 @@ GeoreferenceSummary georeference(const GeoreferenceOptions& options,
       }
     }
     // No consistent triple at all: keep every marker; the residuals will show it.
+    if (best.size() < 3) {
+      log::warn("georeference: no 3 of the {} control markers agree with one similarity within "
+                "their limit ({:.3f} m or more): the survey and the photo geometry disagree (wrong "
+                "marker clicks or names, or a deformed reconstruction); all are kept, see the "
+                "residual table", n_usable, options.outlier_threshold_m);
+    }
   }
   std::vector<Eigen::Vector3d> src, dst;
   for (int i : inliers) {

@@ -79,26 +79,6 @@ double ring_length(const std::vector<Eigen::Vector2d>& pts) {
   return s;
 }
 
-class BlobWriter {
- public:
-  explicit BlobWriter(int srs_id) {
-    out_ = {'G', 'P', 0, 0x01};  // version 0; little endian, no envelope (OGC 12-128 2.1.3)
-    u32(std::uint32_t(srs_id));
-  }
-  void u8(std::uint8_t v) { out_.push_back(v); }
-  void u32(std::uint32_t v) {
-    for (int i = 0; i < 4; ++i) out_.push_back(std::uint8_t(v >> (8 * i)));
-  }
-  void f64(double d) {
-    std::uint64_t bits;
-    std::memcpy(&bits, &d, 8);
-    for (int i = 0; i < 8; ++i) out_.push_back(std::uint8_t(bits >> (8 * i)));
-  }
-  std::vector<std::uint8_t> take() { return std::move(out_); }
-
- private:
-  std::vector<std::uint8_t> out_;
-};
 
 }  // namespace
 
@@ -192,7 +172,7 @@ Footprint dtm_footprint(const Dtm& dtm, const Eigen::Vector3d& origin, double mi
 }
 
 std::vector<std::uint8_t> gpkg_multipolygon(int srs_id, const Footprint& footprint) {
-  BlobWriter w(srs_id);
+  GpkgBlobWriter w(srs_id);
   w.u8(1);
   w.u32(6);  // MultiPolygon
   w.u32(std::uint32_t(footprint.polygons.size()));

@@ -28,28 +28,23 @@ bool table_exists(Database& db, const std::string& name) {
   return st.step();
 }
 
-class WkbWriter {
- public:
-  explicit WkbWriter(int srs_id) {
-    out_ = {'G', 'P', 0, 0x01};  // version 0; flags: little endian, no envelope
-    put_u32(std::uint32_t(srs_id));
-  }
-  void put_u8(std::uint8_t v) { out_.push_back(v); }
-  void put_u32(std::uint32_t v) {
-    for (int i = 0; i < 4; ++i) out_.push_back(std::uint8_t(v >> (8 * i)));
-  }
-  void put_double(double d) {
-    std::uint64_t bits;
-    std::memcpy(&bits, &d, 8);
-    for (int i = 0; i < 8; ++i) out_.push_back(std::uint8_t(bits >> (8 * i)));
-  }
-  std::vector<std::uint8_t> take() { return std::move(out_); }
-
- private:
-  std::vector<std::uint8_t> out_;
-};
 
 }  // namespace
+
+GpkgBlobWriter::GpkgBlobWriter(int srs_id) {
+  out_ = {'G', 'P', 0, 0x01};  // version 0; flags: little endian, no envelope
+  u32(std::uint32_t(srs_id));
+}
+
+void GpkgBlobWriter::u32(std::uint32_t v) {
+  for (int i = 0; i < 4; ++i) out_.push_back(std::uint8_t(v >> (8 * i)));
+}
+
+void GpkgBlobWriter::f64(double d) {
+  std::uint64_t bits;
+  std::memcpy(&bits, &d, 8);
+  for (int i = 0; i < 8; ++i) out_.push_back(std::uint8_t(bits >> (8 * i)));
+}
 
 int register_srs(Database& db, const CrsInfo& crs) {
   int srs_id = 0;
@@ -85,42 +80,42 @@ void register_feature_tables(Database& db, int srs_id) {
 }
 
 std::vector<std::uint8_t> gpkg_point_z(int srs_id, const Eigen::Vector3d& p) {
-  WkbWriter w(srs_id);
-  w.put_u8(1);
-  w.put_u32(1001);  // ISO WKB Point Z
-  w.put_double(p.x());
-  w.put_double(p.y());
-  w.put_double(p.z());
+  GpkgBlobWriter w(srs_id);
+  w.u8(1);
+  w.u32(1001);  // ISO WKB Point Z
+  w.f64(p.x());
+  w.f64(p.y());
+  w.f64(p.z());
   return w.take();
 }
 
 std::vector<std::uint8_t> gpkg_linestring_z(int srs_id, const std::vector<Eigen::Vector3d>& pts) {
-  WkbWriter w(srs_id);
-  w.put_u8(1);
-  w.put_u32(1002);  // ISO WKB LineString Z
-  w.put_u32(std::uint32_t(pts.size()));
+  GpkgBlobWriter w(srs_id);
+  w.u8(1);
+  w.u32(1002);  // ISO WKB LineString Z
+  w.u32(std::uint32_t(pts.size()));
   for (const auto& p : pts) {
-    w.put_double(p.x());
-    w.put_double(p.y());
-    w.put_double(p.z());
+    w.f64(p.x());
+    w.f64(p.y());
+    w.f64(p.z());
   }
   return w.take();
 }
 
 std::vector<std::uint8_t> gpkg_polygon(int srs_id, const std::vector<Eigen::Vector2d>& ring) {
-  WkbWriter w(srs_id);
-  w.put_u8(1);
-  w.put_u32(3);  // Polygon
-  w.put_u32(1);  // one ring
+  GpkgBlobWriter w(srs_id);
+  w.u8(1);
+  w.u32(3);  // Polygon
+  w.u32(1);  // one ring
   const bool closed = !ring.empty() && ring.front() == ring.back();
-  w.put_u32(std::uint32_t(ring.size() + (closed ? 0 : 1)));
+  w.u32(std::uint32_t(ring.size() + (closed ? 0 : 1)));
   for (const auto& p : ring) {
-    w.put_double(p.x());
-    w.put_double(p.y());
+    w.f64(p.x());
+    w.f64(p.y());
   }
   if (!closed && !ring.empty()) {
-    w.put_double(ring.front().x());
-    w.put_double(ring.front().y());
+    w.f64(ring.front().x());
+    w.f64(ring.front().y());
   }
   return w.take();
 }

@@ -21,6 +21,21 @@ int register_srs(Database& db, const CrsInfo& crs);
 // the site CRS. Idempotent: safe after every migration.
 void register_feature_tables(Database& db, int srs_id);
 
+// Builds a GeoPackage binary geometry (OGC 12-128 clause 2.1.3): the header
+// (magic "GP", version 0, little-endian flag, no envelope, srs_id), then the
+// caller appends little-endian ISO WKB with u8/u32/f64.
+class GpkgBlobWriter {
+ public:
+  explicit GpkgBlobWriter(int srs_id);
+  void u8(std::uint8_t v) { out_.push_back(v); }
+  void u32(std::uint32_t v);
+  void f64(double d);
+  std::vector<std::uint8_t> take() { return std::move(out_); }
+
+ private:
+  std::vector<std::uint8_t> out_;
+};
+
 // GeoPackage binary geometry (OGC 12-128 clause 2.1.3): header without envelope,
 // then little-endian ISO WKB.
 std::vector<std::uint8_t> gpkg_point_z(int srs_id, const Eigen::Vector3d& p);

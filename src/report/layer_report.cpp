@@ -9,7 +9,9 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
+#include <regex>
 #include <cmath>
 #include <numbers>
 #include <set>
@@ -344,7 +346,13 @@ std::string residual_plot(const LayerData& d, const ReportOptions& o) {
                               "aria-label=\"marker residuals\">",
                               w, h, w, h);
   // Grid lines at round millimetres and the check RMSE tolerance.
-  const double step_mm = vmax * 1000 > 40 ? 20 : vmax * 1000 > 15 ? 5 : 2;
+  // Grid every 1-2-5 x 10^k mm, about four lines each side of zero.
+  double step_mm = 1;
+  for (double decade = 1; decade < 1e7; decade *= 10) {
+    for (double m : {1.0, 2.0, 5.0}) {
+      if (m * decade * 4 <= vmax * 1000 * 1.2) step_mm = m * decade;
+    }
+  }
   for (double v = -std::floor(vmax * 1000 / step_mm) * step_mm; v <= vmax * 1000; v += step_mm) {
     const double y = mid - v * k;
     s += fmt::format("<line x1=\"{}\" x2=\"{}\" y1=\"{:.1f}\" y2=\"{:.1f}\" stroke=\"#ddd\"/>"
@@ -400,8 +408,8 @@ std::string markers_section(const LayerData& d, const ReportOptions& o) {
       const auto v = json_number(q, {key, axis});
       return v ? format_mm(*v) : std::string("–");
     };
-    return fmt::format("<tr><th>{} RMSE ({} markers)</th><td>{}</td><td>{}</td><td>{}</td><td><b>{}</b></td></tr>",
-                       label, *n, mm("e_m"), mm("n_m"), mm("z_m"), mm("xyz_m"));
+    return fmt::format("<tr><th>{} RMSE ({} {})</th><td>{}</td><td>{}</td><td>{}</td><td><b>{}</b></td></tr>",
+                       label, *n, *n == 1 ? "marker" : "markers", mm("e_m"), mm("n_m"), mm("z_m"), mm("xyz_m"));
   };
   s += "<table class=\"grid\"><tr><th></th><th>east</th><th>north</th><th>height</th><th>3D</th></tr>";
   s += rmse_row("control_rmse", "control") + rmse_row("check_rmse", "check") + "</table>\n";
@@ -793,13 +801,25 @@ svg text.halo{paint-order:stroke;stroke:#fff;stroke-width:3px}svg text.gap{font-
 .layer{border-top:1px solid #ccc;margin-top:18px}
 footer{color:#888;font-size:12px;margin-top:30px;border-top:1px solid #ddd;padding-top:6px}
 )";
+  // Every section gets an id from its heading, so that a note can point at report.html#coverage.
+  static const std::regex heading("<section><h2>([^<]+)</h2>");
+  std::string linked;
+  auto it = std::sregex_iterator(body.begin(), body.end(), heading);
+  std::size_t at = 0;
+  for (; it != std::sregex_iterator(); ++it) {
+    std::string id;
+    for (char c : (*it)[1].str()) id += std::isalnum(static_cast<unsigned char>(c)) ? char(std::tolower(c)) : '-';
+    linked += body.substr(at, std::size_t(it->position()) - at) + "<section id=\"" + id + "\"><h2>" + (*it)[1].str() + "</h2>";
+    at = std::size_t(it->position() + it->length());
+  }
+  linked += body.substr(at);
   const auto now = std::chrono::floor<std::chrono::seconds>(std::chrono::system_clock::now());
   return fmt::format(
       "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<meta name=\"viewport\" "
       "content=\"width=device-width, initial-scale=1\">\n<title>{}</title>\n<style>{}</style>\n</head>\n<body>\n"
       "<h1>{}</h1>\n<p class=\"sub\">{}</p>\n{}<footer>strata field report, generated {:%Y-%m-%d %H:%M} UTC. "
       "Self-contained: images and drawings are inside this file.</footer>\n</body>\n</html>\n",
-      escape(title), kStyle, escape(title), escape(subtitle), body, now);
+      escape(title), kStyle, escape(title), escape(subtitle), linked, now);
 }
 
 }  // namespace report_detail

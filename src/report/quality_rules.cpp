@@ -50,6 +50,10 @@ const char* to_string(Severity s) {
   return "note";
 }
 
+namespace {
+std::vector<Finding> evaluate_unsorted(const LayerFigures& f, const QualityThresholds& t);
+}  // namespace
+
 std::string format_mm(double metres) {
   const double mm = metres * 1000.0;
   if (std::abs(mm) >= 10) return fmt::format("{:.0f} mm", mm);
@@ -57,6 +61,15 @@ std::string format_mm(double metres) {
 }
 
 std::vector<Finding> evaluate_layer(const LayerFigures& f, const QualityThresholds& t) {
+  std::vector<Finding> out = evaluate_unsorted(f, t);
+  std::stable_sort(out.begin(), out.end(),
+                   [](const Finding& a, const Finding& b) { return int(a.severity) < int(b.severity); });
+  return out;
+}
+
+namespace {
+
+std::vector<Finding> evaluate_unsorted(const LayerFigures& f, const QualityThresholds& t) {
   std::vector<Finding> out;
   auto add = [&](Severity s, std::string rule, std::string message, std::string advice) {
     out.push_back({s, std::move(rule), std::move(message), std::move(advice)});
@@ -172,7 +185,19 @@ std::vector<Finding> evaluate_layer(const LayerFigures& f, const QualityThreshol
                        : fmt::format("take {} more photos from the {} side, aimed at the {}", more, side,
                                      g.sector.name));
     }
-    for (const auto& g : f.low_resolution) {
+    // When most of the trench falls short, one finding says so: nine sector
+    // messages would bury the other findings.
+    constexpr std::size_t kMostSectors = 5;
+    if (f.low_resolution.size() >= kMostSectors) {
+      double worst = 0;
+      for (const auto& g : f.low_resolution) worst = std::max(worst, g.worst_gsd_m);
+      add(Severity::warning, "low_resolution",
+          fmt::format("most of the trench ({} of 9 parts) is photographed only at low resolution (down to {} per "
+                      "pixel, over {})",
+                      f.low_resolution.size(), format_mm(worst), format_mm(t.max_gsd_m)),
+          "photograph from closer (about 1-1.5 m from the surface) or at the camera's full resolution");
+    }
+    for (const auto& g : f.low_resolution.size() >= kMostSectors ? std::vector<CoverageShortfall>{} : f.low_resolution) {
       const std::string side = side_to_photograph(g, f.camera_centres, f.trench_centre);
       add(Severity::warning, "low_resolution",
           fmt::format("the {} is photographed only at low resolution ({} per pixel at best, over {})", g.sector.name,
@@ -194,9 +219,8 @@ std::vector<Finding> evaluate_layer(const LayerFigures& f, const QualityThreshol
         fmt::format("run: strata process DIR --layer {} --until products", f.layer));
   }
 
-  std::stable_sort(out.begin(), out.end(),
-                   [](const Finding& a, const Finding& b) { return int(a.severity) < int(b.severity); });
   return out;
 }
 
+}  // namespace
 }  // namespace strata

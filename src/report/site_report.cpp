@@ -179,8 +179,7 @@ std::string thickness_section(Project& project, const ReportOptions& o) {
         rd::ramp_viridis(k / 10.0, rgb);
         ramp += fmt::format("<i style=\"background:#{:02x}{:02x}{:02x}\"></i>", rgb[0], rgb[1], rgb[2]);
       }
-      s += "<div class=\"legend\"><span>0 mm</span>" + ramp + "</div>" +
-           fmt::format("<span>{:.0f} mm</span></div>\n", 1000 * hi);
+      s += "<div class=\"legend\"><span>0 mm</span>" + ramp + fmt::format("<span>{:.0f} mm</span></div>\n", 1000 * hi);
     } catch (const Error& e) {
       s += missing(fmt::format("{} could not be read: {}", p.path, e.what()));
     }

@@ -28,6 +28,7 @@ void IncrementalOptions::validate() const {
   if (init_min_inliers < 8) fail("init_min_inliers", init_min_inliers, ">= 8");
   if (!(init_min_angle_deg > 0 && init_min_angle_deg < 90)) fail("init_min_angle_deg", init_min_angle_deg, "in (0, 90)");
   if (!(init_max_homography_ratio > 0 && init_max_homography_ratio <= 1)) fail("init_max_homography_ratio", init_max_homography_ratio, "in (0, 1]");
+  if (!(init_planar_min_angle_deg >= init_min_angle_deg && init_planar_min_angle_deg < 90)) fail("init_planar_min_angle_deg", init_planar_min_angle_deg, "in [init_min_angle_deg, 90)");
   if (init_max_candidates < 1) fail("init_max_candidates", init_max_candidates, ">= 1");
   if (!(ransac_threshold_px > 0)) fail("ransac_threshold_px", ransac_threshold_px, "> 0");
   if (!(ransac_confidence > 0 && ransac_confidence < 1)) fail("ransac_confidence", ransac_confidence, "in (0, 1)");
@@ -235,6 +236,15 @@ std::pair<int, int> IncrementalMapper::initialise() {
   auto score = [](const TwoViewGeometry& g, double min_angle) {
     return g.inliers * std::min(g.median_angle_deg / (2 * min_angle), 1.0);
   };
+  // A homography explains a pair seen from one spot (pure rotation: no depth) but also
+  // any pair of a flat surface, as a freshly trowelled layer nearly is. The median
+  // triangulation angle tells them apart (Schoenberger & Frahm 2016, sec. 4.2: a
+  // planar scene with enough parallax is a valid initialisation), so the ratio only
+  // rules out pairs whose angle is below `init_planar_min_angle_deg`.
+  auto conditioned = [&](const TwoViewGeometry& g, double min_angle, double max_h) {
+    if (g.median_angle_deg < min_angle) return false;
+    return g.homography_ratio <= max_h || g.median_angle_deg >= opt_.init_planar_min_angle_deg;
+  };
   std::vector<std::pair<int, TwoViewGeometry>> candidates;
   double best_strict = 0;
   for (const auto& [n, i] : order) {
@@ -244,8 +254,7 @@ std::pair<int, int> IncrementalMapper::initialise() {
     check_cancelled();
     auto g = two_view(matches_[i]);
     if (!g.ok) continue;
-    if (g.median_angle_deg >= opt_.init_min_angle_deg &&
-        g.homography_ratio <= opt_.init_max_homography_ratio) {
+    if (conditioned(g, opt_.init_min_angle_deg, opt_.init_max_homography_ratio)) {
       best_strict = std::max(best_strict, score(g, opt_.init_min_angle_deg));
     }
     candidates.emplace_back(i, g);
@@ -258,7 +267,7 @@ std::pair<int, int> IncrementalMapper::initialise() {
     const double max_h = pass == 0 ? opt_.init_max_homography_ratio : 0.95;
     for (int c = 0; c < int(candidates.size()); ++c) {
       const auto& g = candidates[c].second;
-      if (g.median_angle_deg < min_angle || g.homography_ratio > max_h) continue;
+      if (!conditioned(g, min_angle, max_h)) continue;
       if (score(g, min_angle) > best_score) {
         best_score = score(g, min_angle);
         best = c;

@@ -22,6 +22,9 @@ struct IncrementalOptions {
   // H inliers / E inliers above this mean the pair is explained by a homography
   // (pure rotation or a flat scene at small baseline): its depth is unreliable.
   double init_max_homography_ratio = 0.8;
+  // degrees: from this median triangulation angle on, a pair is well conditioned
+  // whatever its homography ratio (a flat surface seen with real parallax).
+  double init_planar_min_angle_deg = 8.0;
   int init_max_candidates = 40;            // pairs examined, by decreasing match count
 
   // --- robust estimation --------------------------------------------------------

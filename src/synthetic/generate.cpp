@@ -339,6 +339,13 @@ SyntheticExcavationOptions SyntheticExcavationOptions::preset(Size size) {
     o.photos.height = 1600;
     o.render.height_cell = 0.0025;
     o.render.texel = 0.00125;  // about the ground sampling distance at 1.5-2 m
+  } else {
+    // 12 photos at 800 px proved too sparse to align (neighbours 50-108 deg apart,
+    // nadir overlap under 50 %, markers 20-30 px): 20 photos at 1000 px is the
+    // smallest set that aligns every photo (docs/sfm.md).
+    o.photos.per_layer = 20;
+    o.photos.width = 1000;
+    o.photos.height = 667;
   }
   return o;
 }

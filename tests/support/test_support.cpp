@@ -35,7 +35,9 @@ std::string slurp_fd(int fd) {
 ScratchDir::ScratchDir(const std::string& name) {
   const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
   std::string test = info ? std::string(info->test_suite_name()) + "." + info->name() : "x";
-  path_ = env_path("STRATA_BINARY_DIR") / "scratch" / (test + "." + name);
+  // The process id keeps folders apart when ctest runs tests of one suite (and
+  // their suite-level fixtures) in parallel processes.
+  path_ = env_path("STRATA_BINARY_DIR") / "scratch" / (test + "." + name + "." + std::to_string(::getpid()));
   fs::remove_all(path_);
   fs::create_directories(path_);
 }

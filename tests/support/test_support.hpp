@@ -7,7 +7,8 @@
 
 namespace strata::test {
 
-// A fresh, empty folder under the build tree, removed when the object dies.
+// A fresh, empty folder under the build tree, unique to this process, removed when
+// the object dies (kept when STRATA_KEEP_SCRATCH is set).
 class ScratchDir {
  public:
   explicit ScratchDir(const std::string& name);

@@ -91,6 +91,9 @@ class SyntheticTruth : public ::testing::Test {
     dir_ = new test::ScratchDir("products_synthetic_truth");
     auto o = SyntheticExcavationOptions::preset(SyntheticExcavationOptions::Size::small);
     o.site.stages = 1;  // two layers keep the test short
+    o.photos.per_layer = 12;  // the photo size below is read back as the cameras' size
+    o.photos.width = 800;
+    o.photos.height = 533;
     generate_excavation(o, dir_->path() / "data");
   }
   static void TearDownTestSuite() { delete dir_; }

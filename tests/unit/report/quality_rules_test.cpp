@@ -252,9 +252,10 @@ TEST(Rules, MissingStagesAreSaidNotCrashed) {
   auto fs = evaluate_layer(f, {});
   ASSERT_EQ(fs.size(), 1u);
   EXPECT_EQ(fs[0].rule, "no_photos");
-  f.photos = 35;
+  f.photos = 5;
   fs = evaluate_layer(f, {});
   ASSERT_NE(find_rule(fs, "not_processed"), nullptr);
+  EXPECT_EQ(fs.front().rule, "not_processed");  // the problem before the few-photos warning
   EXPECT_NE(find_rule(fs, "not_processed")->advice.find("strata process DIR --layer L9"), std::string::npos);
 }
 
