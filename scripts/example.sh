@@ -38,6 +38,9 @@ if [[ ! -f "$site/project.gpkg" ]]; then
     "$strata" -q import photos "$site" --layer "$layer" "$data/$photos"/*.jpg
   done
   "$strata" -q import markers "$site" "$data/markers.csv"
+  # Hand-placed marker observations, as a surveyor clicks them where coded-target
+  # detection misses distant targets (OpenDroneMap gcp_list format).
+  "$strata" -q import markers "$site" "$data/gcp_list.txt"
 fi
 
 echo "== processing every layer (alignment -> dense surface -> DTM, orthophoto, site plan)"
