@@ -7,6 +7,8 @@
 #include <cpl_string.h>
 #include <gdal_priv.h>
 
+#include "products/gdal_util.hpp"
+
 #include <fmt/format.h>
 
 #include <cmath>
@@ -18,15 +20,8 @@ namespace fs = std::filesystem;
 namespace strata {
 namespace {
 
-void init_gdal() {
-  static std::once_flag once;
-  std::call_once(once, [] { GDALAllRegister(); });
-}
-
-struct DatasetCloser {
-  void operator()(GDALDataset* d) const { GDALClose(GDALDataset::ToHandle(d)); }
-};
-using DatasetPtr = std::unique_ptr<GDALDataset, DatasetCloser>;
+using products_detail::DatasetPtr;
+using products_detail::init_gdal;
 
 // Owned list of "KEY=VALUE" creation options.
 class Options {

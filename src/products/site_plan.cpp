@@ -1,6 +1,7 @@
 #include "products/site_plan.hpp"
 
 #include "core/error.hpp"
+#include "products/gdal_util.hpp"
 #include "project/gpkg.hpp"
 
 #include <gdal_alg.h>
@@ -17,15 +18,8 @@
 namespace strata {
 namespace {
 
-void init_gdal() {
-  static std::once_flag once;
-  std::call_once(once, [] { GDALAllRegister(); });
-}
-
-struct DatasetCloser {
-  void operator()(GDALDataset* d) const { GDALClose(GDALDataset::ToHandle(d)); }
-};
-using DatasetPtr = std::unique_ptr<GDALDataset, DatasetCloser>;
+using products_detail::DatasetPtr;
+using products_detail::init_gdal;
 
 DatasetPtr make_driver_dataset(const char* driver, int w, int h, int bands, GDALDataType type) {
   init_gdal();
@@ -180,18 +174,7 @@ std::vector<std::uint8_t> gpkg_multipolygon(int srs_id, const Footprint& footpri
     w.u8(1);
     w.u32(3);  // Polygon
     w.u32(std::uint32_t(poly.rings.size()));
-    for (const auto& ring : poly.rings) {
-      const bool closed = !ring.empty() && ring.front() == ring.back();
-      w.u32(std::uint32_t(ring.size() + (closed ? 0 : 1)));
-      for (const auto& p : ring) {
-        w.f64(p.x());
-        w.f64(p.y());
-      }
-      if (!closed && !ring.empty()) {
-        w.f64(ring.front().x());
-        w.f64(ring.front().y());
-      }
-    }
+    for (const auto& ring : poly.rings) w.ring(ring);
   }
   return w.take();
 }

@@ -46,6 +46,19 @@ void GpkgBlobWriter::f64(double d) {
   for (int i = 0; i < 8; ++i) out_.push_back(std::uint8_t(bits >> (8 * i)));
 }
 
+void GpkgBlobWriter::ring(const std::vector<Eigen::Vector2d>& points) {
+  const bool closed = !points.empty() && points.front() == points.back();
+  u32(std::uint32_t(points.size() + (closed ? 0 : 1)));
+  for (const auto& p : points) {
+    f64(p.x());
+    f64(p.y());
+  }
+  if (!closed && !points.empty()) {
+    f64(points.front().x());
+    f64(points.front().y());
+  }
+}
+
 int register_srs(Database& db, const CrsInfo& crs) {
   int srs_id = 0;
   if (crs.authority == "EPSG" && crs.code > 0) {
@@ -107,16 +120,7 @@ std::vector<std::uint8_t> gpkg_polygon(int srs_id, const std::vector<Eigen::Vect
   w.u8(1);
   w.u32(3);  // Polygon
   w.u32(1);  // one ring
-  const bool closed = !ring.empty() && ring.front() == ring.back();
-  w.u32(std::uint32_t(ring.size() + (closed ? 0 : 1)));
-  for (const auto& p : ring) {
-    w.f64(p.x());
-    w.f64(p.y());
-  }
-  if (!closed && !ring.empty()) {
-    w.f64(ring.front().x());
-    w.f64(ring.front().y());
-  }
+  w.ring(ring);
   return w.take();
 }
 

@@ -30,6 +30,8 @@ class GpkgBlobWriter {
   void u8(std::uint8_t v) { out_.push_back(v); }
   void u32(std::uint32_t v);
   void f64(double d);
+  // A linear ring of a polygon (x, y), closed if the caller did not repeat the first point.
+  void ring(const std::vector<Eigen::Vector2d>& points);
   std::vector<std::uint8_t> take() { return std::move(out_); }
 
  private:
