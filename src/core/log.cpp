@@ -1,5 +1,7 @@
 #include "core/log.hpp"
 
+#include "core/progress.hpp"
+
 #include <atomic>
 #include <cstdio>
 #include <mutex>
@@ -24,7 +26,8 @@ void write(Level l, std::string_view message) {
     case Level::quiet: break;
   }
   std::lock_guard lock(g_mutex);
-  fmt::print(stderr, "{}{}\n", prefix, message);
+  // Above a progress bar being drawn, if any, which is redrawn under the message.
+  write_above_progress(fmt::format("{}{}\n", prefix, message));
 }
 
 }  // namespace strata::log

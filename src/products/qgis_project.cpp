@@ -41,11 +41,19 @@ std::string relative_source(const fs::path& target, const fs::path& qgs_dir) {
   return s;
 }
 
+// QGIS keeps a layer id from the file only when it is longer than 10 characters
+// (QgsMapLayer::readLayerXml) and makes up a new one otherwise, which orphans the
+// layer-tree entry: every id gets the "strata_" prefix.
+std::string site_layer_id(const std::string& kind) { return "strata_" + kind; }
+
 std::string layer_id(const std::string& kind, const std::string& layer) {
-  std::string id = kind + "_";
+  std::string id = "strata_" + kind + "_";
   for (char c : layer) id += std::isalnum(static_cast<unsigned char>(c)) ? c : '_';
   return id;
 }
+
+// QGIS <blendMode> values are QgsPainting::BlendMode numbers (not QPainter's).
+constexpr int kBlendMultiply = 6;  // QgsPainting::BlendMultiply
 
 struct MapLayer {
   std::string id, name, xml;  // xml = the <maplayer> element
@@ -127,7 +135,7 @@ class QgsWriter {
   }
 
   std::string hillshade_pipe() const {
-    return "        <rasterrenderer type=\"hillshade\" band=\"1\" opacity=\"1\" alphaBand=\"-1\" azimuth=\"315\" "
+    return "        <rasterrenderer type=\"hillshade\" band=\"1\" opacity=\"0.6\" alphaBand=\"-1\" azimuth=\"315\" "
            "angle=\"45\" zfactor=\"1\" multidirection=\"1\"><rasterTransparency/></rasterrenderer>";
   }
   std::string ortho_pipe() const {
@@ -205,7 +213,7 @@ std::string qgis_project_xml(const QgisProjectInput& in, const fs::path& qgs_dir
 
   Group site{"Site", true, {}};
   if (in.markers) {
-    MapLayer m = w.vector("markers", "markers", "markers", "Point", "",
+    MapLayer m = w.vector(site_layer_id("markers"), "markers", "markers", "Point", "",
                           QgsWriter::single_symbol("marker", "SimpleMarker",
                                                    {{"name", "cross_fill"}, {"color", "230,30,30,255"},
                                                     {"outline_color", "0,0,0,255"}, {"size", "3"}}),
@@ -213,7 +221,7 @@ std::string qgis_project_xml(const QgisProjectInput& in, const fs::path& qgs_dir
     site.layers.push_back(m);
   }
   if (in.marker_residuals) {
-    MapLayer m = w.vector("marker_residuals", "marker residuals", "marker_residuals_view", "Point", "",
+    MapLayer m = w.vector(site_layer_id("marker_residuals"), "marker residuals", "marker_residuals_view", "Point", "",
                           QgsWriter::single_symbol("marker", "SimpleMarker",
                                                    {{"name", "circle"}, {"color", "255,200,0,255"}, {"size", "2"}}),
                           QgsWriter::labels("\"name\" || ' ' || \"layer\" || ': dz ' || "
@@ -223,7 +231,7 @@ std::string qgis_project_xml(const QgisProjectInput& in, const fs::path& qgs_dir
     site.layers.push_back(m);
   }
   if (in.camera_positions) {
-    MapLayer m = w.vector("camera_positions", "camera positions", "camera_positions", "Point", "",
+    MapLayer m = w.vector(site_layer_id("camera_positions"), "camera positions", "camera_positions", "Point", "",
                           QgsWriter::single_symbol("marker", "SimpleMarker",
                                                    {{"name", "triangle"}, {"color", "60,60,200,255"}, {"size", "1.6"}}),
                           "");
@@ -254,13 +262,16 @@ std::string qgis_project_xml(const QgisProjectInput& in, const fs::path& qgs_dir
                                                             {"outline_style", "dash"}, {"outline_width", "0.4"}}),
                                   ""));
     }
+    if (!l.dtm.empty()) {
+      // Over the orthophoto, multiplied: the relief shades the photo (the orthophoto
+      // covers the whole DTM, so a hillshade under it would never show), and where
+      // the photos did not reach or the orthophoto is switched off it is the plain
+      // hillshade on the white canvas.
+      g.layers.push_back(w.raster(layer_id("hillshade", l.layer), l.layer + " hillshade", l.dtm, w.hillshade_pipe(),
+                                  kBlendMultiply));
+    }
     if (!l.ortho.empty()) {
       g.layers.push_back(w.raster(layer_id("ortho", l.layer), l.layer + " orthophoto", l.ortho, w.ortho_pipe()));
-    }
-    if (!l.dtm.empty()) {
-      // Under the orthophoto: visible where the photos did not reach, and on its own
-      // when the orthophoto is switched off.
-      g.layers.push_back(w.raster(layer_id("hillshade", l.layer), l.layer + " hillshade", l.dtm, w.hillshade_pipe()));
     }
     groups.push_back(g);
   }
@@ -290,6 +301,8 @@ std::string qgis_project_xml(const QgisProjectInput& in, const fs::path& qgs_dir
       "    <rotation>0</rotation>\n    <destinationsrs>{1}</destinationsrs>\n  </mapcanvas>\n"
       "  <projectlayers>\n{7}  </projectlayers>\n"
       "  <properties>\n    <Paths><Absolute type=\"bool\">false</Absolute></Paths>\n"
+      // Without ProjectionsEnabled QGIS 3.22 ignores <projectCrs> and leaves the project without a CRS.
+      "    <SpatialRefSys><ProjectionsEnabled type=\"int\">1</ProjectionsEnabled></SpatialRefSys>\n"
       "    <Measurement><DistanceUnits type=\"QString\">meters</DistanceUnits>"
       "<AreaUnits type=\"QString\">m2</AreaUnits></Measurement>\n  </properties>\n"
       "</qgis>\n",

@@ -124,6 +124,21 @@ std::string markers_svg(const PlanFrame& f, const LayerData& d) {
   return s + "</g>\n";
 }
 
+// The key to the symbols of cameras_svg and markers_svg.
+std::string plan_symbols_legend(bool markers) {
+  std::string s =
+      "<div class=\"legend\"><span><svg width=\"26\" height=\"14\"><line x1=\"7\" y1=\"7\" x2=\"22\" y2=\"7\" "
+      "stroke=\"#08306b\" stroke-width=\"1.5\"/><circle cx=\"7\" cy=\"7\" r=\"4\" fill=\"#2171b5\" "
+      "stroke=\"#fff\"/></svg>camera, with its viewing direction</span>";
+  if (markers) {
+    for (const auto& [colour, label] : {std::pair{"#6a3d9a", "control marker"}, std::pair{"#e6550d", "check marker"}}) {
+      s += fmt::format("<span><svg width=\"16\" height=\"14\"><polygon points=\"8,1 2,13 14,13\" fill=\"{}\"/></svg>{}</span>",
+                       colour, label);
+    }
+  }
+  return s + "</div>\n";
+}
+
 Extent plan_extent(const LayerData& d) {
   Extent e;
   for (const auto& cam : d.cameras) e.add(cam.pose.centre().x(), cam.pose.centre().y());
@@ -228,6 +243,7 @@ std::string cameras_section(const LayerData& d, const ReportOptions& o) {
   s += cameras_svg(f, d);
   if (d.figures.georeferenced) s += markers_svg(f, d);
   s += f.decorations() + PlanFrame::close();
+  s += plan_symbols_legend(d.figures.georeferenced);
   if (!d.figures.georeferenced) caption += " The layer is not georeferenced: arbitrary frame and scale.";
   s += "<p class=\"caption\">" + escape(caption) + fmt::format(" {} cameras.", d.cameras.size()) + "</p>\n";
   return s + "</section>\n";
@@ -793,11 +809,13 @@ svg text.lbl{font-size:12px;fill:#222}svg text.small{font-size:10px;fill:#666}
 svg text.halo{paint-order:stroke;stroke:#fff;stroke-width:3px}svg text.gap{font-weight:bold;fill:#7f0000}
 .legend{display:flex;flex-wrap:wrap;gap:14px;align-items:center;font-size:13px;margin:4px 0}
 .legend i{display:inline-block;width:14px;height:14px;margin-right:5px;vertical-align:-2px;border:1px solid #999}
+.legend svg{vertical-align:-2px;margin-right:5px}
 .legend i.hatch{background:repeating-linear-gradient(45deg,#2828a0 0 2px,#fff 2px 6px)}
 .legend i.dash{border:none;border-top:2px dashed #b30000;height:0;width:22px}
 .ramp{display:flex}.ramp i{width:20px;height:14px;border:none;margin:0}
 .caption{color:#555;font-size:13px;margin:4px 0 10px}
-.svgbox{overflow-x:auto;border:1px solid #ccc;padding:4px;background:#fff}.svgbox svg{max-width:100%;height:auto}
+.svgbox{overflow-x:auto;border:1px solid #ccc;padding:4px;background:#fff;text-align:center}
+.maps{display:flex;flex-wrap:wrap;gap:8px 24px}.maps h3{margin-top:8px}.svgbox svg{max-width:100%;height:auto}
 .layer{border-top:1px solid #ccc;margin-top:18px}
 footer{color:#888;font-size:12px;margin-top:30px;border-top:1px solid #ddd;padding-top:6px}
 )";

@@ -148,9 +148,10 @@ std::string thickness_section(Project& project, const ReportOptions& o) {
   for (const auto& u : list_units(db)) unit_code[u.id] = u.code;
   const SiteInfo site = project.site();
   const int px = std::max(200, o.image_px / 2 - 10);
+  s += "<div class=\"maps\">\n";  // side by side, wrapping
   for (const auto& p : products) {
     const std::string name = p.unit_id ? "unit " + unit_code[*p.unit_id] : p.path;
-    s += "<h3>" + escape(name) + "</h3>\n";
+    s += "<div class=\"map\"><h3>" + escape(name) + "</h3>\n";
     try {
       const rd::Thumbnail t = rd::read_thumbnail(project.dir() / p.path, px, false);
       float hi = 0;
@@ -179,12 +180,14 @@ std::string thickness_section(Project& project, const ReportOptions& o) {
         rd::ramp_viridis(k / 10.0, rgb);
         ramp += fmt::format("<i style=\"background:#{:02x}{:02x}{:02x}\"></i>", rgb[0], rgb[1], rgb[2]);
       }
-      s += "<div class=\"legend\"><span>0 mm</span>" + ramp + fmt::format("<span>{:.0f} mm</span></div>\n", 1000 * hi);
+      s += "<div class=\"legend\"><span>0 mm</span>" + ramp + fmt::format("</div><span>{:.0f} mm</span></div>\n", 1000 * hi);
     } catch (const Error& e) {
       s += missing(fmt::format("{} could not be read: {}", p.path, e.what()));
     }
+    s += "</div>\n";
   }
-  return s + "</section>\n";
+  return s + "</div>\n<p class=\"caption\">Thickness of each unit: the height of the surface before it was dug "
+             "minus the surface after, in millimetres (each map has its own scale).</p>\n</section>\n";
 }
 
 std::string section_section(Project& project, const ReportOptions& o) {
