@@ -66,7 +66,7 @@ void register_synth_command(CLI::App& app) {
       "gcp_list.txt (OpenDroneMap), photos/L<k>/*.jpg and truth/ (cameras.csv,\n"
       "surface.tif per layer, markers.csv, units.csv). See docs/synthetic.md.\n\n"
       "Examples:\n"
-      "  strata synth /tmp/dig --size small            4 x 12 photos at 800 x 533, seconds\n"
+      "  strata synth /tmp/dig --size small            4 x 20 photos at 1000 x 667, a minute\n"
       "  strata synth examples/data/dig --size full    4 x 40 photos at 2400 x 1600, minutes\n"
       "  strata synth /tmp/dig2 --seed 7 --stages 2 --photos 20\n"
       "Then load it: strata init site --crs EPSG:32636; strata import markers site OUT/markers.csv ...");
@@ -77,7 +77,7 @@ void register_synth_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--stages", args->stages, "units removed (1..8); layers recorded = stages + 1 [3]");
   cmd->add_option("--photos", args->photos, "photos per layer (3..500) [small 12, full 40]");
-  cmd->add_option("--width", args->width, "image width in pixels [small 800, full 2400]");
+  cmd->add_option("--width", args->width, "image width in pixels [small 1000, full 2400]");
   cmd->add_option("--height", args->height, "image height in pixels [width x 2/3]");
   cmd->add_option("--threads", args->threads, "worker threads, 0 = all cores")->capture_default_str();
   cmd->callback([args] { run_synth(*args); });

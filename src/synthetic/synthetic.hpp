@@ -17,7 +17,7 @@
 namespace strata {
 
 struct SyntheticExcavationOptions {
-  // Preset sizes: `small` is the test scene (4 layers x 12 photos at 800 x 533),
+  // Preset sizes: `small` is the test scene (4 layers x 20 photos at 1000 x 667),
   // `full` the example dataset (4 layers x 40 photos at 2400 x 1600).
   enum class Size { small, full };
   static SyntheticExcavationOptions preset(Size size);

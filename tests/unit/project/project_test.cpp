@@ -28,6 +28,26 @@ TEST(Project, CreateAppliesAllMigrationsToAnEmptyFile) {
   for (const char* sub : {"media", "cache", "products"}) EXPECT_TRUE(std::filesystem::is_directory(dir / "site" / sub));
 }
 
+TEST(Project, OpensWhileAnotherProgramReadsTheDatabase) {
+  // QGIS keeps project.gpkg open with a read transaction; strata must still open
+  // it (switching to WAL needs exclusive access, so it is only done once).
+  // GDAL may also have put the file back into rollback-journal mode.
+  test::ScratchDir dir("r");
+  Project::create(dir / "site", {"EPSG:32636", "Trench 7", std::nullopt});
+  Database reader(dir / "site" / "project.gpkg", false);
+  reader.exec("PRAGMA journal_mode = DELETE");
+  reader.exec("BEGIN");
+  EXPECT_EQ(reader.query_int("SELECT count(*) FROM gpkg_contents WHERE table_name = 'markers'"), 1);
+  {
+    Project again = Project::open(dir / "site");
+    EXPECT_EQ(again.site().name, "Trench 7");
+  }
+  reader.exec("COMMIT");
+  // Once the other program is done, the next open restores WAL.
+  Project later = Project::open(dir / "site");
+  EXPECT_EQ(later.db().query_text("PRAGMA journal_mode"), "wal");
+}
+
 TEST(Project, MigrationsRunOnAnEmptyDatabaseAndAreIdempotent) {
   test::ScratchDir dir("m");
   Database db(dir / "empty.sqlite", true);
