@@ -77,6 +77,37 @@ void print_products(const nlohmann::json& q, bool skipped) {
   const auto& o = q["ortho"];
   fmt::print("    orthophoto          {}  coverage {:.1f} %, {} photos used\n", o["path"].get<std::string>(),
              100 * o["coverage"].get<double>(), o["views_used"].get<int>());
+  if (q.contains("ortho_markers")) {
+    // Coded targets found in the orthophoto against their survey (issue 6).
+    const auto& m = q["ortho_markers"];
+    const double tol = m["tolerance_px"].get<double>();
+    if (m["detected"].get<int>() == 0) {
+      fmt::print("    ortho vs markers    none of {} markers found in the orthophoto\n", m["surveyed"].get<int>());
+    } else {
+      fmt::print("    ortho vs markers    {} of {} found; offset max {:.2f} px ({:.1f} mm), RMSE {:.2f} px ({:.1f} mm){}\n",
+                 m["detected"].get<int>(), m["surveyed"].get<int>(), m["max_px"].get<double>(),
+                 m["max_mm"].get<double>(), m["rmse_px"].get<double>(), m["rmse_mm"].get<double>(),
+                 m["over_tolerance"].get<int>() > 0
+                     ? fmt::format("; {} OVER {:.0f} px", m["over_tolerance"].get<int>(), tol)
+                     : fmt::format(", all within {:.0f} px", tol));
+    }
+    fmt::print("      {:<10} {:<9} {:>8} {:>8} {:>8} {:>7}\n", "marker", "role", "dE mm", "dN mm", "off mm", "px");
+    for (const auto& k : m["markers"]) {
+      const std::string status = k["status"].get<std::string>();
+      if (status != "detected") {
+        const char* why = status == "outside"    ? "outside the orthophoto"
+                          : status == "not_seen" ? "not seen (no photo covers it)"
+                          : status == "partly_seen" ? "holes in the orthophoto around it"
+                                                    : "not detected (fully covered)";
+        fmt::print("      {:<10} {:<9} {:>34}\n", k["marker"].get<std::string>(), k["role"].get<std::string>(), why);
+        continue;
+      }
+      const double px = k["offset_px"].get<double>();
+      fmt::print("      {:<10} {:<9} {:>8.1f} {:>8.1f} {:>8.1f} {:>7.2f}{}\n", k["marker"].get<std::string>(),
+                 k["role"].get<std::string>(), k["dE_mm"].get<double>(), k["dN_mm"].get<double>(),
+                 k["offset_mm"].get<double>(), px, px > tol ? "  OVER" : "");
+    }
+  }
   fmt::print("    contours            {} lines every {:.0f} mm\n", q["contours"]["lines"].get<int>(),
              1000 * q["contours"]["interval_m"].get<double>());
   fmt::print("    footprint           {:.2f} m2\n", q["footprint"]["area_m2"].get<double>());
@@ -114,7 +145,8 @@ void register_process_commands(CLI::App& app) {
                                    "sampling distance, at least 0.005)");
   cmd->add_option("--contour-interval", products->contours.interval_m, "contour interval in metres (default 0.05)");
   cmd->add_option("--dense-scale", dense->patch_match.scale,
-                  "depth-map resolution relative to the photos: 1, 0.5 or 0.25 (default 0.25)");
+                  "depth-map resolution relative to the photos: 1, 0.5 or 0.25 (default: the coarsest "
+                  "whose ground sampling distance is at most 8 mm)");
   cmd->add_option("--voxel-size", dense->fusion.voxel_size_m,
                   "fusion voxel size in metres (default: from the ground sampling distance)");
   cmd->add_option("--target-faces", dense->mesh.target_faces,
@@ -156,6 +188,9 @@ void register_process_commands(CLI::App& app) {
         if (*until == "products") {
           log::info("== layer {}: DTM, orthophoto, site plan", name);
           ProductsOptions po = *products;
+          // Targets in the orthophoto are read as in the photos.
+          po.ortho_markers.targets = options->targets;
+          po.ortho_markers.naming = options->naming;
           if (cell_opt->count() == 0) {
             // Cells finer than the dense surface's sampling only interpolate; coarser
             // ones lose detail. Round to the millimetre so reruns agree.

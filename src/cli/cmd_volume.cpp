@@ -27,6 +27,9 @@ struct ModelArgs {
   double threshold = VolumeOptions{}.noise_threshold_m;
   double voxel = VoxelOptions{}.voxel_size_m;
   double noise = SiteVolumeOptions{}.default_noise_m;
+  std::string outline;                  // FILE: trench outline, the gap-fill domain
+  bool no_fill = false;
+  double fill_closing = GapFillOptions{}.closing_m;
 };
 
 void add_model_options(CLI::App* cmd, ModelArgs& a) {
@@ -41,6 +44,12 @@ void add_model_options(CLI::App* cmd, ModelArgs& a) {
   cmd->add_option("--threshold", a.threshold, "surfaces closer than this count as not dug, metres (default 0.005)");
   cmd->add_option("--voxel-size", a.voxel, "voxel edge of the voxel model, metres (default 0.01)");
   cmd->add_option("--noise", a.noise, "surface noise when no dense quality figure exists, metres (default 0.003)");
+  cmd->add_option("--outline", a.outline,
+                  "FILE: trench outline / limit of excavation (first polygon, site CRS): gaps in the layer "
+                  "surfaces are filled inside it (default: the closed union of the surfaces' data)");
+  cmd->add_option("--fill-closing", a.fill_closing,
+                  "radius of the closing that derives the trench outline from the data, metres (default 0.25)");
+  cmd->add_flag("--no-fill", a.no_fill, "do not fill gaps in the layer surfaces (volumes lose the gaps' area)");
 }
 
 std::map<std::string, fs::path> parse_pairs(const std::vector<std::string>& items, const std::string& option) {
@@ -62,6 +71,9 @@ SiteVolumeOptions site_options(const ModelArgs& a) {
   o.default_noise_m = a.noise;
   o.surface_files = parse_pairs(a.surfaces, "--surface");
   o.footprint_files = parse_pairs(a.footprints, "--footprint");
+  o.outline_file = a.outline;
+  o.volume.fill.enabled = !a.no_fill;
+  o.volume.fill.closing_m = a.fill_closing;
   o.validate();
   return o;
 }
@@ -84,6 +96,9 @@ nlohmann::ordered_json measures_json(const UnitSolid& s, const VoxelSummary& v) 
                       {"min_thickness_m", m.min_thickness_m},
                       {"max_thickness_m", m.max_thickness_m},
                       {"volume_sigma_m3", m.volume_sigma_m3},
+                      {"filled_area_m2", m.filled_area_m2},
+                      {"filled_fraction", m.filled_fraction},
+                      {"fill_sigma_m3", m.fill_sigma_m3},
                       {"top_layer", s.top_layer},
                       {"bottom_layers", s.bottom_layers}};
   for (const auto& u : v.units)
@@ -120,8 +135,8 @@ void register_volume(CLI::App& app) {
       fmt::print("{}\n", list.dump(2));
       return;
     }
-    fmt::print("{:<8} {:>10} {:>9} {:>9} {:>9} {:>9} {:>10}  {}\n", "unit", "volume m3", "+/- m3", "area m2",
-               "mean m", "max m", "voxels m3", "surfaces");
+    fmt::print("{:<8} {:>10} {:>9} {:>9} {:>8} {:>9} {:>9} {:>10}  {}\n", "unit", "volume m3", "+/- m3", "area m2",
+               "filled %", "mean m", "max m", "voxels m3", "surfaces");
     for (const auto& s : m.solids) {
       if (!unit->empty() && s.unit != *unit) continue;
       const auto& q = s.measures;
@@ -130,8 +145,10 @@ void register_volume(CLI::App& app) {
         if (u.unit == s.unit) vox = u.fog_volume_m3;
       std::string bottoms;
       for (const auto& b : s.bottom_layers) bottoms += (bottoms.empty() ? "" : ",") + b;
-      fmt::print("{:<8} {:>10.4f} {:>9.4f} {:>9.3f} {:>9.3f} {:>9.3f} {:>10.4f}  {} -> {}\n", s.unit, q.volume_m3,
-                 q.volume_sigma_m3, q.area_m2, q.mean_thickness_m, q.max_thickness_m, vox, s.top_layer, bottoms);
+      fmt::print("{:<8} {:>10.4f} {:>9.4f} {:>9.3f} {:>8.1f} {:>9.3f} {:>9.3f} {:>10.4f}  {} -> {}{}\n", s.unit,
+                 q.volume_m3, q.volume_sigma_m3, q.area_m2, 100 * q.filled_fraction, q.mean_thickness_m,
+                 q.max_thickness_m, vox, s.top_layer, bottoms,
+                 q.filled_fraction > o.volume.fill.warn_fraction ? "  (gaps filled: uncertain)" : "");
     }
     log::info("wrote {}", (p.products_dir() / "volume" / "units.vdb").string());
   });

@@ -83,6 +83,25 @@ bool inside_polygon(const std::vector<Eigen::Vector2d>& poly, const Eigen::Vecto
   return in;
 }
 
+// The coarsest depth-map scale (0.25, 0.5, 1) whose ground sampling distance at the
+// median sparse depth of the reference images is at most target_gsd (metres): the
+// depth maps cost time in proportion to their pixels, and a GSD finer than the
+// voxel/DTM cell buys nothing.
+double choose_scale(const Reconstruction& rec, const std::vector<dense::ViewNeighbours>& nb,
+                    const std::vector<int>& refs, double target_gsd) {
+  std::vector<double> gsd;  // metres per photo pixel
+  for (int i : refs) {
+    const auto& intr = rec.groups[rec.images[i].group].intrinsics;
+    if (nb[i].depth_median > 0 && intr.fx > 0) gsd.push_back(nb[i].depth_median / intr.fx);
+  }
+  const double g = percentile(gsd, 0.5);
+  if (!std::isfinite(g)) return 1.0;
+  for (double s : {0.25, 0.5}) {
+    if (g / s <= target_gsd) return s;
+  }
+  return 1.0;
+}
+
 }  // namespace
 
 DenseSummary run_dense(const DenseOptions& options, const Reconstruction& rec,
@@ -106,8 +125,7 @@ DenseSummary run_dense(const DenseOptions& options, const Reconstruction& rec,
   DenseSummary summary;
   const int n = static_cast<int>(rec.images.size());
   summary.images_total = n;
-  const auto& pm = options.patch_match;
-  summary.depth_scale = pm.scale;
+  PatchMatchOptions pm = options.patch_match;  // scale resolved below when 0
   const auto image_dir = cache_dir / "dense" / "images";
   const auto depth_dir = cache_dir / "dense" / "depth";
   std::error_code ec;
@@ -130,8 +148,10 @@ DenseSummary run_dense(const DenseOptions& options, const Reconstruction& rec,
   if (refs.empty()) {
     throw ProcessingError("dense: no registered image has overlapping neighbours with shared sparse points");
   }
+  if (pm.scale == 0) pm.scale = choose_scale(rec, neighbours, refs, pm.target_gsd_m);
+  summary.depth_scale = pm.scale;
   summary.view_selection = figures(sw);
-  log::info("dense: {} of {} images have source views", refs.size(), n);
+  log::info("dense: {} of {} images have source views; depth maps at scale {}", refs.size(), n, pm.scale);
 
   auto camera_of = [&](int i) {
     const auto& im = rec.images[i];

@@ -25,7 +25,9 @@ namespace strata {
 // Choice of source views for each reference image from the sparse covisibility
 // (shared tracks) and the triangulation angle of the shared points.
 struct ViewSelectionOptions {
-  int max_neighbours = 4;       // source views per reference image (4-6 is usual)
+  int max_neighbours = 8;       // source views per reference image, chosen greedily for coverage:
+                                // floor next to a trench side is seen only from above and from
+                                // the far side, so 4 views left 20-35 % of a trench unmatched
   int min_shared_points = 8;    // sparse points both views must see
   double min_angle_deg = 5.0;   // preferred triangulation angle range, degrees:
   double max_angle_deg = 40.0;  //   too small = poor depth, too large = poor matching
@@ -34,8 +36,10 @@ struct ViewSelectionOptions {
 // PatchMatch stereo with slanted support windows (Bleyer et al. 2011), red/black
 // propagation (Galliani et al. 2015) and best-K multi-view NCC (Schönberger et al. 2016).
 struct PatchMatchOptions {
-  double scale = 0.25;            // depth-map resolution relative to the photo: 1, 0.5 or 0.25
-                                  // (0.25 of a 2400 px photo at 1.5 m: about 3 mm GSD)
+  double scale = 0;               // depth-map resolution relative to the photo: 1, 0.5 or 0.25;
+                                  // 0 = the coarsest of them whose GSD is <= target_gsd_m
+  double target_gsd_m = 0.008;    // metres per depth-map pixel at the median sparse depth, for
+                                  // scale 0 (2400 px at 1.5-2 m -> 0.25; 1000 px -> 0.5)
   int window_radius = 4;          // NCC window half-size, pixels at depth-map scale
   int window_step = 2;            // use every n-th pixel of the window (speed)
   int iterations = 4;             // red/black propagation sweeps
@@ -48,7 +52,9 @@ struct PatchMatchOptions {
 
 // Forward-backward geometric consistency between depth maps (Schönberger et al. 2016, §4.4).
 struct ConsistencyOptions {
-  int min_consistent_views = 2;   // a depth survives when this many neighbours agree
+  int min_consistent_views = 1;   // a depth survives when this many neighbours agree; 2 lost
+                                  // 4-9 % of the trench (corners, next to the sides, seen by
+                                  // few views) for no gain in the median error
   double max_reprojection_px = 1.0;   // pixels at depth-map scale
   double max_relative_depth = 0.01;   // |d_back - d| / d
 };
@@ -60,7 +66,9 @@ struct FusionOptions {
   double min_voxel_size_m = 0.002;  // metres, clamp of the automatic choice
   double max_voxel_size_m = 0.05;   // metres
   double truncation_voxels = 4;   // half-width of the narrow band, voxels
-  double min_weight = 1.5;        // accumulated weight below which a voxel counts as unseen
+  double min_weight = 0.2;        // accumulated weight below which a voxel counts as unseen; every
+                                  // depth already passed the multi-view consistency test, so one
+                                  // grazing observation (weight ~0.3) is enough
 };
 
 struct MeshOptions {

@@ -71,6 +71,7 @@ struct ViewNeighbours {
   std::vector<int> sources;   // image indices, best first
   double depth_min = 0;       // metres
   double depth_max = 0;
+  double depth_median = 0;    // metres, median sparse depth (0 when none)
 };
 
 // For every image of the reconstruction: its source views (empty when the image is

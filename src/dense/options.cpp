@@ -25,7 +25,10 @@ void DenseOptions::validate() const {
           "views.min_angle_deg/max_angle_deg", "must satisfy 0 <= min < max <= 90 degrees");
 
   const double s = patch_match.scale;
-  require(s == 1.0 || s == 0.5 || s == 0.25, "patch_match.scale", "must be 1, 0.5 or 0.25");
+  require(s == 0 || s == 1.0 || s == 0.5 || s == 0.25, "patch_match.scale",
+          "must be 1, 0.5, 0.25 or 0 (from patch_match.target_gsd_m)");
+  require(patch_match.target_gsd_m > 0 && std::isfinite(patch_match.target_gsd_m),
+          "patch_match.target_gsd_m", "must be positive metres");
   require(patch_match.window_radius >= 1 && patch_match.window_radius <= 15,
           "patch_match.window_radius", "must be in [1, 15] pixels");
   require(patch_match.window_step >= 1 && patch_match.window_step <= patch_match.window_radius,

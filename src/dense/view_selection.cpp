@@ -42,47 +42,64 @@ std::vector<ViewNeighbours> select_views(const Reconstruction& rec, const ViewSe
   std::vector<Eigen::Vector3d> centres(static_cast<std::size_t>(n));
   for (int i = 0; i < n; ++i) centres[i] = rec.images[i].pose.centre();
 
-  // Pairwise score and shared-point counts (dense: a layer has tens of photos).
-  std::vector<double> score(static_cast<std::size_t>(n) * n, 0.0);
-  std::vector<int> shared(static_cast<std::size_t>(n) * n, 0);
+  // Per image, the sparse points it sees (each point once per image).
+  std::vector<std::vector<int>> seen_by(static_cast<std::size_t>(n));
   std::vector<std::vector<double>> depths(static_cast<std::size_t>(n));
-  std::vector<int> seen;
-  for (const auto& p : rec.points) {
-    seen.clear();
-    for (const auto& e : p.track) {
+  std::vector<std::vector<int>> tracks(rec.points.size());
+  for (std::size_t k = 0; k < rec.points.size(); ++k) {
+    auto& seen = tracks[k];
+    for (const auto& e : rec.points[k].track) {
       if (e.image < 0 || e.image >= n || !rec.images[e.image].registered) continue;
       if (std::find(seen.begin(), seen.end(), e.image) == seen.end()) seen.push_back(e.image);
     }
-    for (std::size_t a = 0; a < seen.size(); ++a) {
-      const int i = seen[a];
-      const double z = rec.images[i].pose.to_camera(p.X).z();
+    for (int i : seen) {
+      seen_by[i].push_back(static_cast<int>(k));
+      const double z = rec.images[i].pose.to_camera(rec.points[k].X).z();
       if (z > 0) depths[i].push_back(z);
-      const Eigen::Vector3d ri = (centres[i] - p.X).normalized();
-      for (std::size_t b = a + 1; b < seen.size(); ++b) {
-        const int j = seen[b];
-        const Eigen::Vector3d rj = (centres[j] - p.X).normalized();
-        const double angle =
-            std::acos(std::clamp(ri.dot(rj), -1.0, 1.0)) * 180.0 / std::numbers::pi;
-        const double w = angle_weight(angle, opt);
-        score[i * n + j] += w;
-        score[j * n + i] += w;
-        ++shared[i * n + j];
-        ++shared[j * n + i];
-      }
     }
   }
 
   for (int i = 0; i < n; ++i) {
     if (!rec.images[i].registered) continue;
-    std::vector<std::pair<double, int>> ranked;
-    for (int j = 0; j < n; ++j) {
-      if (j == i || !rec.images[j].registered) continue;
-      if (shared[i * n + j] < opt.min_shared_points || score[i * n + j] <= 0) continue;
-      ranked.emplace_back(score[i * n + j], j);
+    // Every (source, shared point, angle weight) of this reference image.
+    struct Shared {
+      int point;  // index into seen_by[i]
+      double weight;
+    };
+    std::vector<std::vector<Shared>> shared(static_cast<std::size_t>(n));
+    const auto& mine = seen_by[i];
+    for (std::size_t a = 0; a < mine.size(); ++a) {
+      const auto& p = rec.points[mine[a]];
+      const Eigen::Vector3d ri = (centres[i] - p.X).normalized();
+      for (int j : tracks[mine[a]]) {
+        if (j == i) continue;
+        const Eigen::Vector3d rj = (centres[j] - p.X).normalized();
+        const double angle = std::acos(std::clamp(ri.dot(rj), -1.0, 1.0)) * 180.0 / std::numbers::pi;
+        shared[j].push_back({static_cast<int>(a), angle_weight(angle, opt)});
+      }
     }
-    std::sort(ranked.begin(), ranked.end(), std::greater<>());
-    for (std::size_t k = 0; k < ranked.size() && static_cast<int>(k) < opt.max_neighbours; ++k) {
-      out[i].sources.push_back(ranked[k].second);
+    // Greedy choice with diminishing returns per point (the coverage term of
+    // Goesele et al. 2007's global view selection): a source that sees parts of the
+    // reference the chosen ones miss beats another view of the same part, so the
+    // whole reference image - trench floor, far side, walls - gets sources.
+    std::vector<int> cover(mine.size(), 0);
+    std::vector<char> taken(static_cast<std::size_t>(n), 0);
+    for (int k = 0; k < opt.max_neighbours; ++k) {
+      double best = 0;
+      int best_j = -1;
+      for (int j = 0; j < n; ++j) {
+        if (taken[j] || static_cast<int>(shared[j].size()) < opt.min_shared_points) continue;
+        double score = 0;
+        for (const auto& sp : shared[j]) score += sp.weight / (1.0 + cover[sp.point]);
+        if (score > best) {
+          best = score;
+          best_j = j;
+        }
+      }
+      if (best_j < 0) break;
+      taken[best_j] = 1;
+      out[i].sources.push_back(best_j);
+      for (const auto& sp : shared[best_j]) ++cover[sp.point];
     }
 
     // Depth range: robust percentiles of the sparse depths, widened because the
@@ -108,6 +125,7 @@ std::vector<ViewNeighbours> select_views(const Reconstruction& rec, const ViewSe
     const double widen = depth_margin * std::max(hi - lo, 0.2 * mid);
     out[i].depth_min = std::max(lo - widen, 0.05 * mid);
     out[i].depth_max = hi + widen;
+    out[i].depth_median = mid;
     d.clear();
     d.shrink_to_fit();
   }

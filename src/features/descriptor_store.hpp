@@ -16,4 +16,11 @@ namespace strata::features {
 cv::Mat load_descriptors(const std::filesystem::path& cache_dir, const ImageKeypoints& image,
                          int max_rows = -1);
 
+// The descriptors of the `count` keypoints of largest scale (all when fewer), as
+// CV_32F rows. Large-scale keypoints are the most repeatable across viewpoints
+// (Wu 2013), which is what a preview of a pair needs. Keypoints without scales:
+// the first (strongest) rows. Same errors as load_descriptors().
+cv::Mat load_largest_scale_descriptors(const std::filesystem::path& cache_dir,
+                                       const ImageKeypoints& image, int count);
+
 }  // namespace strata::features

@@ -358,9 +358,10 @@ std::vector<PairMatches> match_pairs(const MatchingOptions& options,
   s.seconds = clock.seconds();
   s.cpu_seconds = static_cast<double>(std::clock() - cpu_start) / CLOCKS_PER_SEC;
   log::info("matching: {} pairs ({} from cache), {} verified ({} E, {} F, {} H), {} inliers, "
-            "{:.1f} s",
+            "{:.1f} s ({:.1f} s CPU; summed over pairs: {:.1f} s kNN, {:.1f} s RANSAC)",
             s.pairs, s.from_cache, s.verified, s.essential, s.fundamental, s.homography,
-            s.inlier_matches, s.seconds);
+            s.inlier_matches, s.seconds, s.cpu_seconds, s.matching_seconds,
+            s.verification_seconds);
   if (summary) *summary = s;
   return out;
 }

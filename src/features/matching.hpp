@@ -40,6 +40,17 @@ struct PairSelectionOptions {
   // Nearest neighbours looked up per retrieval descriptor (each votes for the
   // photo it belongs to).
   int retrieval_knn = 8;
+  // Preview (pre-emptive matching, Wu 2013 "Towards linear-time incremental
+  // structure from motion"): in layers of at least `preview_min_images` photos
+  // every candidate pair is first matched on the `preview_features` largest-scale
+  // keypoints of each photo (ratio test + mutual check, exact), and goes on to
+  // full matching only with >= `preview_min_matches` such matches. Pairs that do
+  // not overlap (most of them in a large layer) cost a few milliseconds instead
+  // of a full match. Smaller layers match every candidate fully.
+  int preview_min_images = 20;
+  int preview_features = 300;   // per photo; 0 disables the preview
+  int preview_min_matches = 4;  // >= 1
+  double preview_ratio = 0.8;   // Lowe's ratio on distances, in (0, 1]
   int num_threads = 0;  // 0 = all hardware threads
 
   void validate() const;  // throws InputError naming the field
@@ -51,6 +62,9 @@ struct PairSelectionSummary {
   bool exhaustive = true;         // false: sequence + retrieval scheme
   std::size_t sequence_pairs = 0; // pairs contributed by capture order
   std::size_t retrieval_pairs = 0;// pairs contributed by retrieval (not already sequence)
+  bool previewed = false;         // the preview ran (see PairSelectionOptions)
+  std::size_t candidate_pairs = 0;// pairs before the preview
+  double preview_seconds = 0;     // wall time of the preview
   double seconds = 0;
 };
 

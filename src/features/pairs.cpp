@@ -16,6 +16,7 @@
 #include <opencv2/flann.hpp>
 
 #include <algorithm>
+#include <limits>
 #include <numeric>
 #include <set>
 
@@ -75,6 +76,85 @@ std::vector<float> retrieval_scores(const PairSelectionOptions& o,
   return sym;
 }
 
+// Descriptors of one photo for the preview, with their squared norms.
+struct PreviewSet {
+  cv::Mat descriptors;  // CV_32F rows
+  std::vector<float> norm2;
+};
+
+// Mutual nearest neighbours passing the ratio test between two small descriptor
+// sets, exactly: one matrix product gives every squared distance
+// |a|^2 + |b|^2 - 2 a.b.
+int preview_matches(const PreviewSet& a, const PreviewSet& b, float ratio2) {
+  const int na = a.descriptors.rows, nb = b.descriptors.rows;
+  if (na < 2 || nb < 2) return 0;
+  cv::Mat dot;
+  cv::gemm(a.descriptors, b.descriptors, 1.0, cv::noArray(), 0.0, dot, cv::GEMM_2_T);
+  constexpr float kInf = std::numeric_limits<float>::max();
+  std::vector<float> col_d1(nb, kInf), col_d2(nb, kInf);
+  std::vector<int> col_best(nb, -1);
+  std::vector<float> row_d1(na, kInf), row_d2(na, kInf);
+  std::vector<int> row_best(na, -1);
+  for (int i = 0; i < na; ++i) {
+    const float* g = dot.ptr<float>(i);
+    for (int j = 0; j < nb; ++j) {
+      const float d = a.norm2[i] + b.norm2[j] - 2.f * g[j];
+      if (d < row_d1[i]) {
+        row_d2[i] = row_d1[i];
+        row_d1[i] = d;
+        row_best[i] = j;
+      } else if (d < row_d2[i]) {
+        row_d2[i] = d;
+      }
+      if (d < col_d1[j]) {
+        col_d2[j] = col_d1[j];
+        col_d1[j] = d;
+        col_best[j] = i;
+      } else if (d < col_d2[j]) {
+        col_d2[j] = d;
+      }
+    }
+  }
+  int count = 0;
+  for (int i = 0; i < na; ++i) {
+    const int j = row_best[i];
+    if (j < 0 || col_best[j] != i) continue;
+    if (row_d1[i] < ratio2 * row_d2[i] && col_d1[j] < ratio2 * col_d2[j]) ++count;
+  }
+  return count;
+}
+
+// Keeps the candidate pairs whose preview finds enough matches.
+std::set<ImagePair> preview_pairs(const PairSelectionOptions& o,
+                                  const std::vector<ImageKeypoints>& images,
+                                  const std::filesystem::path& cache_dir,
+                                  const std::set<ImagePair>& candidates) {
+  const int n = static_cast<int>(images.size());
+  std::vector<PreviewSet> sets(n);
+  features::parallel_for_index(n, o.num_threads, [&](std::size_t i) {
+    check_cancelled();
+    auto& s = sets[i];
+    s.descriptors =
+        features::load_largest_scale_descriptors(cache_dir, images[i], o.preview_features);
+    s.norm2.resize(s.descriptors.rows);
+    for (int r = 0; r < s.descriptors.rows; ++r) {
+      const cv::Mat row = s.descriptors.row(r);
+      s.norm2[r] = static_cast<float>(row.dot(row));
+    }
+  });
+  const std::vector<ImagePair> list(candidates.begin(), candidates.end());
+  std::vector<int> counts(list.size(), 0);
+  const float ratio2 = static_cast<float>(o.preview_ratio * o.preview_ratio);
+  features::parallel_for_index(list.size(), o.num_threads, [&](std::size_t p) {
+    if (p % 64 == 0) check_cancelled();
+    counts[p] = preview_matches(sets[list[p].first], sets[list[p].second], ratio2);
+  });
+  std::set<ImagePair> kept;
+  for (std::size_t p = 0; p < list.size(); ++p)
+    if (counts[p] >= o.preview_min_matches) kept.insert(list[p]);
+  return kept;
+}
+
 }  // namespace
 
 void PairSelectionOptions::validate() const {
@@ -93,6 +173,14 @@ void PairSelectionOptions::validate() const {
   if (retrieval_features <= 0)
     fail("retrieval_features", fmt::format("must be > 0 (got {})", retrieval_features));
   if (retrieval_knn <= 0) fail("retrieval_knn", fmt::format("must be > 0 (got {})", retrieval_knn));
+  if (preview_min_images < 2)
+    fail("preview_min_images", fmt::format("must be >= 2 (got {})", preview_min_images));
+  if (preview_features < 0)
+    fail("preview_features", fmt::format("must be >= 0 (got {})", preview_features));
+  if (preview_min_matches < 1)
+    fail("preview_min_matches", fmt::format("must be >= 1 (got {})", preview_min_matches));
+  if (!(preview_ratio > 0 && preview_ratio <= 1))
+    fail("preview_ratio", fmt::format("must be in (0, 1] (got {})", preview_ratio));
   if (num_threads < 0) fail("num_threads", fmt::format("must be >= 0 (got {})", num_threads));
 }
 
@@ -147,6 +235,18 @@ std::vector<ImagePair> select_pairs(const PairSelectionOptions& options,
       }
       s.retrieval_pairs = pairs.size() - s.sequence_pairs;
     }
+  }
+  s.candidate_pairs = pairs.size();
+  if (options.preview_features > 0 && n >= options.preview_min_images) {
+    STRATA_CHECK(!cache_dir.empty(), "the pair preview needs the features cache folder");
+    Stopwatch preview_clock;
+    pairs = preview_pairs(options, images, cache_dir, pairs);
+    s.previewed = true;
+    s.preview_seconds = preview_clock.seconds();
+    log::info("pair preview: {} of {} candidate pairs share >= {} of their {} largest-scale "
+              "features, {:.1f} s",
+              pairs.size(), s.candidate_pairs, options.preview_min_matches,
+              options.preview_features, s.preview_seconds);
   }
   std::vector<ImagePair> out(pairs.begin(), pairs.end());
   s.pairs = out.size();

@@ -88,15 +88,10 @@ void TargetOptions::validate() const {
     fail("refine_epsilon_px", fmt::format("must be > 0 pixels (got {})", refine_epsilon_px));
 }
 
-std::vector<TargetDetection> detect_targets(const TargetOptions& options,
-                                            const std::filesystem::path& image,
-                                            TargetSummary* summary) {
-  options.validate();
-  Stopwatch clock;
-  const cv::Mat grey =
-      cv::imread(image.string(), cv::IMREAD_GRAYSCALE | cv::IMREAD_IGNORE_ORIENTATION);
-  if (grey.empty()) throw IoError(fmt::format("targets: cannot read image {}", image.string()));
+namespace {
 
+std::vector<TargetDetection> detect_in_grey(const TargetOptions& options, const cv::Mat& grey,
+                                            const Stopwatch& clock, TargetSummary* summary) {
   // Detection image: downscaled when the photo is large.
   cv::Mat work = grey;
   const int long_side = std::max(grey.cols, grey.rows);
@@ -161,6 +156,30 @@ std::vector<TargetDetection> detect_targets(const TargetOptions& options,
     summary->seconds = clock.seconds();
   }
   return out;
+}
+
+}  // namespace
+
+std::vector<TargetDetection> detect_targets(const TargetOptions& options,
+                                            const std::filesystem::path& image,
+                                            TargetSummary* summary) {
+  options.validate();
+  Stopwatch clock;
+  const cv::Mat grey =
+      cv::imread(image.string(), cv::IMREAD_GRAYSCALE | cv::IMREAD_IGNORE_ORIENTATION);
+  if (grey.empty()) throw IoError(fmt::format("targets: cannot read image {}", image.string()));
+  return detect_in_grey(options, grey, clock, summary);
+}
+
+std::vector<TargetDetection> detect_targets(const TargetOptions& options, const std::uint8_t* grey, int width,
+                                            int height, TargetSummary* summary) {
+  options.validate();
+  Stopwatch clock;
+  if (grey == nullptr || width <= 0 || height <= 0)
+    throw InputError(fmt::format("targets: empty image ({} x {} pixels)", width, height));
+  // cv::Mat over the caller's pixels (not modified: the detector only reads them).
+  const cv::Mat view(height, width, CV_8UC1, const_cast<std::uint8_t*>(grey));
+  return detect_in_grey(options, view, clock, summary);
 }
 
 // ---- naming -------------------------------------------------------------------

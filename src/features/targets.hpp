@@ -5,6 +5,7 @@
 #include "features/types.hpp"
 
 #include <cstddef>
+#include <cstdint>
 #include <filesystem>
 #include <map>
 #include <string>
@@ -53,6 +54,12 @@ struct TargetSummary {
 std::vector<TargetDetection> detect_targets(const TargetOptions& options,
                                             const std::filesystem::path& image,
                                             TargetSummary* summary = nullptr);
+
+// The same on an 8-bit grey image in memory (row-major, `width` x `height`, no
+// padding), e.g. an orthophoto; pixel coordinates as above. `max_detection_size`
+// applies as for a photo. Throws InputError for bad options or an empty image.
+std::vector<TargetDetection> detect_targets(const TargetOptions& options, const std::uint8_t* grey, int width,
+                                            int height, TargetSummary* summary = nullptr);
 
 // Marker names from target ids.
 struct TargetNaming {

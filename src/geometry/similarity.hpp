@@ -25,6 +25,18 @@ Similarity3 fit_similarity(const std::vector<Eigen::Vector3d>& src,
                            const std::vector<Eigen::Vector3d>& dst,
                            double min_spread_ratio = 0.02);
 
+// Weighted least-squares similarity with a standard deviation per point and axis:
+// minimises sum_i sum_a ((s R src_i + t - dst_i)_a / sigma_i,a)^2 by Gauss-Newton
+// (7 parameters: log-scale, a rotation increment, translation) from the Umeyama fit.
+// A large sigma on an axis lets that coordinate count for little: markers surveyed
+// in plan only (heights unknown) get a large height sigma and then fix the plan
+// position, scale and azimuth, while the level of the block rests on the weak
+// height prior. Same refusals as fit_similarity; every sigma must be > 0.
+Similarity3 fit_similarity_weighted(const std::vector<Eigen::Vector3d>& src,
+                                    const std::vector<Eigen::Vector3d>& dst,
+                                    const std::vector<Eigen::Vector3d>& sigma,
+                                    double min_spread_ratio = 0.02);
+
 // Ratio of the second to the first singular value of a centred point set:
 // 0 for collinear points, about 1 for well spread ones.
 double planar_spread_ratio(const std::vector<Eigen::Vector3d>& points);

@@ -10,8 +10,11 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <iterator>
 #include <map>
+#include <numeric>
 #include <set>
+#include <tuple>
 
 namespace strata {
 
@@ -26,6 +29,13 @@ void GeoreferenceOptions::validate() const {
   if (!(min_spread_ratio >= 0 && min_spread_ratio < 1)) fail("min_spread_ratio", min_spread_ratio, "in [0, 1)");
   if (!(outlier_threshold_m > 0)) fail("outlier_threshold_m", outlier_threshold_m, "> 0");
   if (!(outlier_sigma_factor > 0)) fail("outlier_sigma_factor", outlier_sigma_factor, "> 0");
+  if (!(observation_outlier_px > 0)) fail("observation_outlier_px", observation_outlier_px, "> 0");
+  if (!(duplicate_px >= 0)) fail("duplicate_px", duplicate_px, ">= 0");
+  if (!(horizontal_only_sigma_m > 0)) fail("horizontal_only_sigma_m", horizontal_only_sigma_m, "> 0");
+  if (!(unknown_height_sigma_m >= horizontal_only_sigma_m))
+    fail("unknown_height_sigma_m", unknown_height_sigma_m, ">= horizontal_only_sigma_m");
+  if (!(min_observation_sigma_px > 0)) fail("min_observation_sigma_px", min_observation_sigma_px, "> 0");
+  if (max_rejection_rounds < 0) fail("max_rejection_rounds", max_rejection_rounds, ">= 0");
   bundle.validate();
 }
 
@@ -56,45 +66,154 @@ void transform_reconstruction(const Similarity3& s, Reconstruction& rec) {
 
 namespace {
 
-struct MarkerRays {
-  std::vector<Camera> cameras;
-  std::vector<Eigen::Vector2d> pixels;
-};
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+constexpr double kInf = std::numeric_limits<double>::infinity();
 
-std::map<std::string, MarkerRays> collect_rays(const std::vector<MarkerObservation>& observations,
-                                               const Reconstruction& rec) {
-  std::map<std::string, MarkerRays> rays;
+// One observation of a marker in a registered image.
+struct Ray {
+  int image = -1;  // index into rec.images
+  Eigen::Vector2d pixel;
+  bool kept = true;
+};
+using RaysByMarker = std::map<std::string, std::vector<Ray>>;
+
+RaysByMarker collect_rays(const std::vector<MarkerObservation>& observations, const Reconstruction& rec) {
+  RaysByMarker rays;
   for (const auto& o : observations) {
     if (o.image < 0 || std::size_t(o.image) >= rec.images.size()) continue;
-    const auto& im = rec.images[o.image];
-    if (!im.registered) continue;
-    auto& r = rays[o.marker];
-    r.cameras.push_back({rec.groups[im.group].intrinsics, im.pose});
-    r.pixels.push_back(o.pixel);
+    if (!rec.images[o.image].registered) continue;
+    rays[o.marker].push_back({o.image, o.pixel, true});
   }
   return rays;
+}
+
+Camera camera_of(const Reconstruction& rec, int image) {
+  const auto& im = rec.images[image];
+  return {rec.groups[im.group].intrinsics, im.pose};
+}
+
+std::size_t kept_count(const std::vector<Ray>& rays) {
+  return std::size_t(std::count_if(rays.begin(), rays.end(), [](const Ray& r) { return r.kept; }));
+}
+
+// Triangulates from the kept rays except `skip`. `valid` below tells whether a point
+// came out at all (in front of every camera); the gates of `o` are left to the caller.
+TriangulationResult triangulate(const Reconstruction& rec, const std::vector<Ray>& rays,
+                                const TriangulationOptions& o, int skip = -1) {
+  std::vector<Camera> cams;
+  std::vector<Eigen::Vector2d> px;
+  for (std::size_t j = 0; j < rays.size(); ++j) {
+    if (!rays[j].kept || int(j) == skip) continue;
+    cams.push_back(camera_of(rec, rays[j].image));
+    px.push_back(rays[j].pixel);
+  }
+  return triangulate_views(cams, px, o);
+}
+
+bool valid(const TriangulationResult& t) {
+  return t.views >= 2 && t.max_angle_deg > 0 && std::isfinite(t.max_error_px) && t.X.allFinite();
+}
+
+double pixel_distance(const Reconstruction& rec, int image, const Eigen::Vector3d& X,
+                      const Eigen::Vector2d& pixel) {
+  if (!X.allFinite()) return kNaN;
+  const auto p = camera_of(rec, image).project(X);
+  return p ? (*p - pixel).norm() : kInf;
+}
+
+// Ground size of one pixel at the marker, mean over its kept rays (depth / focal), in
+// the units of the current frame.
+double pixel_footprint(const Reconstruction& rec, const std::vector<Ray>& rays, const Eigen::Vector3d& X) {
+  double sum = 0;
+  int n = 0;
+  for (const auto& r : rays) {
+    if (!r.kept) continue;
+    const Camera c = camera_of(rec, r.image);
+    const double depth = c.pose.to_camera(X).z();
+    if (depth > 0 && c.intrinsics.fx > 0) {
+      sum += depth / c.intrinsics.fx;
+      ++n;
+    }
+  }
+  return n ? sum / n : 0.0;
+}
+
+// Wrong clicks among the rays of one marker: while the kept rays miss their common
+// intersection by more than `limit_px` and at least 3 remain, drop the ray whose removal
+// lets the others meet best (a robust leave-one-out, as in data snooping; Baarda 1968).
+// With 2 rays a wrong click cannot be told from a right one. Returns each dropped ray
+// with its distance, pixels, from the intersection of the others.
+std::vector<std::pair<int, double>> screen_rays(const Reconstruction& rec, std::vector<Ray>& rays,
+                                                const TriangulationOptions& tri, double limit_px) {
+  std::vector<std::pair<int, double>> dropped;
+  while (kept_count(rays) >= 3) {
+    const auto all = triangulate(rec, rays, tri);
+    if (valid(all) && all.max_error_px <= limit_px) break;
+    int best = -1;
+    double best_score = kInf, best_px = 0;
+    for (std::size_t j = 0; j < rays.size(); ++j) {
+      if (!rays[j].kept) continue;
+      const auto t = triangulate(rec, rays, tri, int(j));
+      if (!valid(t) || t.max_angle_deg < tri.min_angle_deg) continue;
+      if (t.max_error_px < best_score) {
+        best_score = t.max_error_px;
+        best = int(j);
+        best_px = pixel_distance(rec, rays[j].image, t.X, rays[j].pixel);
+      }
+    }
+    if (best < 0 || best_score > limit_px) break;  // no single wrong click explains it
+    rays[best].kept = false;
+    dropped.emplace_back(best, best_px);
+  }
+  return dropped;
 }
 
 std::string names(const std::vector<std::string>& v) {
   return v.empty() ? std::string("none") : fmt::format("{}", fmt::join(v, ", "));
 }
 
-AxisRmse rmse_of(const std::vector<MarkerResidual>& rows, MarkerRole role) {
+bool plan_only(const MarkerConstraint& m, const GeoreferenceOptions& o) {
+  return m.sigma.z() >= o.horizontal_only_sigma_m;
+}
+
+// Survey sigma that bounds a residual: plan for horizontal control, 3D otherwise.
+double survey_sigma(const MarkerConstraint& m, bool plan) {
+  return plan ? std::hypot(m.sigma.x(), m.sigma.y()) : m.sigma.norm();
+}
+
+double residual_norm(const Eigen::Vector3d& d, bool plan) {
+  return plan ? std::hypot(d.x(), d.y()) : d.norm();
+}
+
+AxisRmse rmse_of(const std::vector<MarkerResidual>& rows, MarkerRole role, bool leave_one_out) {
   AxisRmse r;
   for (const auto& row : rows) {
-    if (row.role != role || !row.triangulated) continue;
-    r.e += row.dE * row.dE;
-    r.n += row.dN * row.dN;
-    r.z += row.dZ * row.dZ;
+    if (row.role != role || !row.triangulated || (leave_one_out && !row.loo)) continue;
+    const double de = leave_one_out ? row.loo_dE : row.dE;
+    const double dn = leave_one_out ? row.loo_dN : row.dN;
+    const double dz = leave_one_out ? row.loo_dZ : row.dZ;
+    r.e += de * de;
+    r.n += dn * dn;
     ++r.markers;
+    if (row.height_known) {
+      r.z += dz * dz;
+      ++r.markers_z;
+    }
   }
   if (r.markers == 0) return r;
-  const double n = double(r.markers);
-  r.xyz = std::sqrt((r.e + r.n + r.z) / n);
-  r.e = std::sqrt(r.e / n);
-  r.n = std::sqrt(r.n / n);
-  r.z = std::sqrt(r.z / n);
+  r.e = std::sqrt(r.e / double(r.markers));
+  r.n = std::sqrt(r.n / double(r.markers));
+  r.z = r.markers_z ? std::sqrt(r.z / double(r.markers_z)) : 0.0;
+  r.horizontal = std::hypot(r.e, r.n);
+  r.xyz = std::sqrt(r.e * r.e + r.n * r.n + r.z * r.z);
   return r;
+}
+
+double median(std::vector<double> v) {
+  if (v.empty()) return kNaN;
+  const std::size_t mid = v.size() / 2;
+  std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(mid), v.end());
+  return v[mid];
 }
 
 }  // namespace
@@ -116,17 +235,15 @@ GeoreferenceSummary georeference(const GeoreferenceOptions& options,
   Stopwatch clock;
   options.validate();
   GeoreferenceSummary summary;
-  {
-    std::set<std::string> seen;
-    for (const auto& m : markers) {
-      if (!seen.insert(m.name).second) {
-        throw InputError(fmt::format("georeference: marker {} is given twice", m.name));
-      }
-      if (m.control && !(m.sigma.minCoeff() > 0)) {
-        throw InputError(fmt::format(
-            "georeference: control marker {} has sigma ({}, {}, {}) m; every axis must be > 0",
-            m.name, m.sigma.x(), m.sigma.y(), m.sigma.z()));
-      }
+  std::map<std::string, const MarkerConstraint*> by_name;
+  for (const auto& m : markers) {
+    if (!by_name.emplace(m.name, &m).second) {
+      throw InputError(fmt::format("georeference: marker {} is given twice", m.name));
+    }
+    if (m.control && !(m.sigma.minCoeff() > 0)) {
+      throw InputError(fmt::format(
+          "georeference: control marker {} has sigma ({}, {}, {}) m; every axis must be > 0",
+          m.name, m.sigma.x(), m.sigma.y(), m.sigma.z()));
     }
   }
 
@@ -141,34 +258,117 @@ GeoreferenceSummary georeference(const GeoreferenceOptions& options,
     }
   }
 
-  // 1. Triangulate every marker in the reconstruction frame.
-  const auto rays = collect_rays(observations, rec);
-  std::vector<std::string> usable_names, control_names;
-  std::vector<Eigen::Vector3d> usable_local, usable_site;
-  std::vector<const MarkerConstraint*> usable;
-  std::vector<std::string> unusable_why;
+  // 1. Screen the observations in the reconstruction frame (pixels do not depend on it).
+  RaysByMarker rays = collect_rays(observations, rec);
+  for (auto it = rays.begin(); it != rays.end();) {  // observations of unknown markers
+    it = by_name.count(it->first) ? std::next(it) : rays.erase(it);
+  }
+  std::vector<Blunder> blunders;
+  auto image_name = [&](int image) { return rec.images[image].name; };
+  // Screens the rays of every marker (see screen_rays), then resolves two markers seen
+  // at one pixel of one photo: the one whose other photos agree keeps it. `final`: the
+  // cameras are adjusted, so an unconfirmed pair is dropped as a whole too (before the
+  // adjustment, the SfM cameras may not confirm anything yet).
+  auto screen = [&](bool final) {
+    for (auto& [name, list] : rays) {
+      for (const auto& [j, px] : screen_rays(rec, list, options.triangulation, options.observation_outlier_px)) {
+        blunders.push_back({name, image_name(list[j].image), px, "px",
+                            fmt::format("{:.1f} px from the intersection of its other {} rays: a wrong click",
+                                        px, kept_count(list))});
+      }
+    }
+    auto confirmed = [&](const std::string& name, std::size_t j) {
+      const auto& list = rays.at(name);
+      if (!list[j].kept || kept_count(list) < 3) return false;
+      const auto t = triangulate(rec, list, options.triangulation);
+      return valid(t) && t.max_error_px <= options.observation_outlier_px;
+    };
+    std::map<int, std::vector<std::pair<std::string, std::size_t>>> by_image;
+    for (const auto& [name, list] : rays) {
+      for (std::size_t j = 0; j < list.size(); ++j) {
+        if (list[j].kept) by_image[list[j].image].emplace_back(name, j);
+      }
+    }
+    std::vector<std::tuple<std::string, std::size_t, std::string>> to_drop;  // marker, ray, reason
+    for (const auto& [image, seen] : by_image) {
+      for (std::size_t a = 0; a < seen.size(); ++a) {
+        for (std::size_t b = a + 1; b < seen.size(); ++b) {
+          const auto& [na, ja] = seen[a];
+          const auto& [nb, jb] = seen[b];
+          if (na == nb) continue;
+          const double d = (rays.at(na)[ja].pixel - rays.at(nb)[jb].pixel).norm();
+          if (d > options.duplicate_px) continue;
+          const bool ca = confirmed(na, ja), cb = confirmed(nb, jb);
+          if (ca && cb) continue;  // both agree with their other photos: keep both
+          if (!ca && !cb && !final) continue;
+          auto why = [&](const std::string& other, bool other_confirmed) {
+            return other_confirmed
+                       ? fmt::format("at the same pixel as {} ({:.1f} px apart), whose other photos "
+                                     "confirm that target is {}",
+                                     other, d, other)
+                       : fmt::format("at the same pixel as {} ({:.1f} px apart); neither is confirmed "
+                                     "by two other photos",
+                                     other, d);
+          };
+          if (!ca) to_drop.emplace_back(na, ja, why(nb, cb));
+          if (!cb) to_drop.emplace_back(nb, jb, why(na, ca));
+        }
+      }
+    }
+    for (const auto& [name, j, reason] : to_drop) {
+      auto& ray = rays.at(name)[j];
+      if (!ray.kept) continue;
+      ray.kept = false;
+      blunders.push_back({name, image_name(ray.image), 0.0, "px", reason});
+    }
+  };
+  auto kept_observations = [&] {
+    std::vector<MarkerObservation> kept;
+    for (const auto& [name, list] : rays) {
+      for (const auto& r : list) {
+        if (r.kept) kept.push_back({name, r.image, r.pixel});
+      }
+    }
+    return kept;
+  };
+  screen(false);
+  BundleOptions bundle = options.bundle;
+
+  // 2. Triangulate every control marker in the reconstruction frame.
+  struct Control {
+    const MarkerConstraint* m;
+    Eigen::Vector3d local;
+    double footprint;  // ground size of a pixel at the marker, reconstruction units
+    bool plan;
+  };
+  std::vector<Control> usable;
+  std::vector<std::string> usable_names, control_names, unusable_why;
   for (const auto& m : markers) {
     if (!m.control) continue;
     control_names.push_back(m.name);
     const auto it = rays.find(m.name);
-    const int views = it == rays.end() ? 0 : int(it->second.cameras.size());
+    const std::size_t views = it == rays.end() ? 0 : kept_count(it->second);
     if (views < 2) {
       summary.unusable.push_back(m.name);
       unusable_why.push_back(fmt::format("{} (seen in {} registered image{})", m.name, views,
                                          views == 1 ? "" : "s"));
       continue;
     }
-    const auto tri = triangulate_views(it->second.cameras, it->second.pixels, options.triangulation);
+    const auto tri = triangulate(rec, it->second, options.triangulation);
     if (!tri.ok) {
       summary.unusable.push_back(m.name);
       unusable_why.push_back(fmt::format("{} (rays {:.1f} deg apart, reprojection up to {:.1f} px)",
                                          m.name, tri.max_angle_deg, tri.max_error_px));
+      if (valid(tri) && tri.max_error_px > options.triangulation.max_error_px) {
+        blunders.push_back({m.name, "", tri.max_error_px, "px",
+                            fmt::format("its {} rays miss each other by up to {:.1f} px and no single "
+                                        "click explains it: marker not used",
+                                        views, tri.max_error_px)});
+      }
       continue;
     }
-    usable.push_back(&m);
+    usable.push_back({&m, tri.X, pixel_footprint(rec, it->second, tri.X), plan_only(m, options)});
     usable_names.push_back(m.name);
-    usable_local.push_back(tri.X);
-    usable_site.push_back(m.position);
   }
   if (usable.size() < 3) {
     throw InputError(fmt::format(
@@ -177,6 +377,8 @@ GeoreferenceSummary georeference(const GeoreferenceOptions& options,
         control_names.size(), names(control_names), names(usable_names),
         unusable_why.empty() ? std::string("none") : fmt::format("{}", fmt::join(unusable_why, ", "))));
   }
+  std::vector<Eigen::Vector3d> usable_site;
+  for (const auto& c : usable) usable_site.push_back(c.m->position);
   const double spread = planar_spread_ratio(usable_site);
   if (spread < options.min_spread_ratio) {
     throw InputError(fmt::format(
@@ -184,41 +386,64 @@ GeoreferenceSummary georeference(const GeoreferenceOptions& options,
         "the rotation about their line is undetermined; survey a marker off that line",
         names(usable_names), spread, options.min_spread_ratio));
   }
+  const auto n_plan = std::count_if(usable.begin(), usable.end(), [](const Control& c) { return c.plan; });
+  if (n_plan > 0) {
+    log::info("georeference: {} of {} control markers are horizontal control (height sigma >= {} m): "
+              "their heights weigh only as a weak prior{}",
+              n_plan, usable.size(), options.horizontal_only_sigma_m,
+              std::size_t(n_plan) == usable.size() ? "; the level of the block rests on it" : "");
+  }
 
-  // 2. Robust similarity. With >= 4 markers, a consensus over every non-collinear
-  // triple (exhaustive, as there are few markers; RANSAC in spirit, Fischler & Bolles
-  // 1981): the triple whose similarity agrees with the most markers, within
-  // max(outlier_threshold_m, outlier_sigma_factor x |sigma|), ties broken by the
-  // smaller sum of squared residuals. Leave-one-out is not enough with 4 markers:
-  // one blunder among the 3 others distorts every fit that includes it.
+  // 3. Robust similarity. The limit of a marker: its survey sigma and its photo
+  // precision (marker_sigma_px pixels on the ground), times outlier_sigma_factor, at
+  // least outlier_threshold_m.
   const std::size_t n_usable = usable.size();
-  auto limit_of = [&](std::size_t i) {
-    return std::max(options.outlier_threshold_m, options.outlier_sigma_factor * usable[i]->sigma.norm());
+  auto limit_of = [&](const Control& c, double scale) {
+    const double photo = bundle.marker_sigma_px * c.footprint * scale;
+    return std::max(options.outlier_threshold_m,
+                    options.outlier_sigma_factor * std::hypot(survey_sigma(*c.m, c.plan), photo));
   };
   auto residual_of = [&](const Similarity3& s, std::size_t i) {
-    return (s.apply(usable_local[i]) - usable_site[i]).norm();
+    return residual_norm(s.apply(usable[i].local) - usable[i].m->position, usable[i].plan);
+  };
+  auto fit = [&](const std::vector<int>& idx) {
+    std::vector<Eigen::Vector3d> src, dst, sigma;
+    for (int i : idx) {
+      src.push_back(usable[i].local);
+      dst.push_back(usable[i].m->position);
+      sigma.push_back(usable[i].m->sigma);
+    }
+    return fit_similarity_weighted(src, dst, sigma, options.min_spread_ratio);
+  };
+  auto spread_of = [&](const std::vector<int>& idx) {
+    std::vector<Eigen::Vector3d> src, dst;
+    for (int i : idx) {
+      src.push_back(usable[i].local);
+      dst.push_back(usable[i].m->position);
+    }
+    return std::min(planar_spread_ratio(src), planar_spread_ratio(dst));
   };
   std::vector<int> inliers(n_usable);
-  for (std::size_t i = 0; i < n_usable; ++i) inliers[i] = int(i);
+  std::iota(inliers.begin(), inliers.end(), 0);
   if (n_usable >= 4) {
+    // Consensus over every non-collinear triple (exhaustive: there are few markers;
+    // RANSAC in spirit, Fischler & Bolles 1981): the triple whose similarity agrees
+    // with the most markers, ties broken by the smaller sum of squared residuals.
+    // Leave-one-out alone fails with 4 markers: one blunder distorts every fit with it.
     std::size_t best_count = 0;
-    double best_sum2 = std::numeric_limits<double>::infinity();
+    double best_sum2 = kInf;
     std::vector<int> best;
     for (std::size_t a = 0; a < n_usable; ++a) {
       for (std::size_t b = a + 1; b < n_usable; ++b) {
         for (std::size_t c = b + 1; c < n_usable; ++c) {
-          const std::vector<Eigen::Vector3d> src{usable_local[a], usable_local[b], usable_local[c]};
-          const std::vector<Eigen::Vector3d> dst{usable_site[a], usable_site[b], usable_site[c]};
-          if (planar_spread_ratio(dst) < options.min_spread_ratio ||
-              planar_spread_ratio(src) < options.min_spread_ratio) {
-            continue;
-          }
-          const Similarity3 s = fit_similarity(src, dst, options.min_spread_ratio);
+          const std::vector<int> triple{int(a), int(b), int(c)};
+          if (spread_of(triple) < options.min_spread_ratio) continue;
+          const Similarity3 s = fit(triple);
           std::vector<int> agree;
           double sum2 = 0;
           for (std::size_t i = 0; i < n_usable; ++i) {
             const double r = residual_of(s, i);
-            if (r <= limit_of(i)) {
+            if (r <= limit_of(usable[i], s.scale)) {
               agree.push_back(int(i));
               sum2 += r * r;
             }
@@ -231,107 +456,248 @@ GeoreferenceSummary georeference(const GeoreferenceOptions& options,
         }
       }
     }
-    // Confirm on the consensus set: refit and keep those within their limit.
-    std::vector<Eigen::Vector3d> src, dst;
-    for (int i : best) {
-      src.push_back(usable_local[i]);
-      dst.push_back(usable_site[i]);
-    }
-    if (best.size() >= 3 && planar_spread_ratio(dst) >= options.min_spread_ratio) {
-      const Similarity3 s = fit_similarity(src, dst, options.min_spread_ratio);
+    // A consensus must be a majority: when more than a third of the markers would be
+    // rejected, the survey and the photos disagree broadly (a survey of metre-level
+    // accuracy, a deformed block) and rejecting most of the markers would hide it
+    // behind a perfect fit on the few left.
+    const bool broad = 3 * (n_usable - best.size()) > n_usable;
+    if (broad) {
+      log::warn("georeference: only {} of the {} control markers agree with one similarity within "
+                "their limit: survey and photo geometry disagree broadly (not a few blunders); all are "
+                "kept, see the leave-one-out and distance misfits in the residual table",
+                best.size(), n_usable);
+    } else if (best.size() >= 3 && spread_of(best) >= options.min_spread_ratio) {
+      // Confirm on the consensus set: refit and keep those within their limit.
+      const Similarity3 s = fit(best);
       std::vector<int> confirmed;
       for (std::size_t i = 0; i < n_usable; ++i) {
-        if (residual_of(s, i) <= limit_of(i)) confirmed.push_back(int(i));
+        if (residual_of(s, i) <= limit_of(usable[i], s.scale)) confirmed.push_back(int(i));
       }
-      std::vector<Eigen::Vector3d> check;
-      for (int i : confirmed) check.push_back(usable_site[i]);
-      if (confirmed.size() >= 3 && planar_spread_ratio(check) >= options.min_spread_ratio) {
-        inliers = confirmed;
-      } else {
-        inliers = best;
-      }
+      inliers = confirmed.size() >= 3 && spread_of(confirmed) >= options.min_spread_ratio ? confirmed : best;
       for (std::size_t i = 0; i < n_usable; ++i) {
         if (std::find(inliers.begin(), inliers.end(), int(i)) != inliers.end()) continue;
-        summary.rejected.push_back(usable[i]->name);
-        log::warn("georeference: control marker {} rejected as a gross outlier ({:.3f} m from "
-                  "the similarity of the other markers, limit {:.3f} m)",
-                  usable[i]->name, residual_of(s, i), limit_of(i));
+        const double r = residual_of(s, i), limit = limit_of(usable[i], s.scale);
+        summary.rejected.push_back(usable[i].m->name);
+        blunders.push_back({usable[i].m->name, "", r, "m",
+                            fmt::format("{:.3f} m {}from the similarity of the {} agreeing control "
+                                        "markers (limit {:.3f} m): survey and photos disagree",
+                                        r, usable[i].plan ? "in plan " : "", inliers.size(), limit)});
       }
-    }
-    // No consistent triple at all: keep every marker; the residuals will show it.
-    if (best.size() < 3) {
+    } else if (best.size() < 3) {
+      // No consistent triple at all: keep every marker; the residuals will show it.
       log::warn("georeference: no 3 of the {} control markers agree with one similarity within "
                 "their limit ({:.3f} m or more): the survey and the photo geometry disagree (wrong "
                 "marker clicks or names, or a deformed reconstruction); all are kept, see the "
                 "residual table", n_usable, options.outlier_threshold_m);
     }
   }
-  std::vector<Eigen::Vector3d> src, dst;
-  for (int i : inliers) {
-    src.push_back(usable_local[i]);
-    dst.push_back(usable_site[i]);
-    summary.control_used.push_back(usable[i]->name);
-  }
-  summary.similarity = fit_similarity(src, dst, options.min_spread_ratio);
+  for (int i : inliers) summary.control_used.push_back(usable[i].m->name);
+  summary.similarity = fit(inliers);
   for (std::size_t i = 0; i < n_usable; ++i) {
-    const Eigen::Vector3d d = summary.similarity.apply(usable_local[i]) - usable_site[i];
-    log::debug("georeference: {} after the similarity: dE {:+.3f} dN {:+.3f} dZ {:+.3f} m", usable[i]->name,
-               d.x(), d.y(), d.z());
+    const Eigen::Vector3d d = summary.similarity.apply(usable[i].local) - usable[i].m->position;
+    log::debug("georeference: {} after the similarity: dE {:+.3f} dN {:+.3f} dZ {:+.3f} m",
+               usable[i].m->name, d.x(), d.y(), d.z());
   }
 
-  // 3. Into the site frame.
+  // 4. Into the site frame.
   transform_reconstruction(summary.similarity, rec);
   rec.georeferenced = true;
 
-  // 4. Combined adjustment of photos and survey: only the inlier control markers.
-  if (options.adjust) {
-    std::set<std::string> used(summary.control_used.begin(), summary.control_used.end());
+  // 5. Combined adjustment of photos and survey: the inlier control markers and the
+  // observations that passed the screening.
+  auto adjust = [&] {
+    if (!options.adjust) return;
+    const std::set<std::string> used(summary.control_used.begin(), summary.control_used.end());
     std::vector<MarkerConstraint> constraints;
     for (const auto& m : markers) {
       if (used.count(m.name)) constraints.push_back(m);
     }
-    summary.bundle = bundle_adjust(options.bundle, rec, keypoints, constraints, observations);
-    log::debug("georeference: adjustment {} ({} iterations, {:.1f} s, rmse {:.3f} px)", summary.bundle.message,
-               summary.bundle.iterations, summary.bundle.seconds, summary.bundle.rmse_px);
+    summary.bundle = bundle_adjust(bundle, rec, keypoints, constraints, kept_observations());
+    log::debug("georeference: adjustment {} ({} iterations, {:.1f} s, rmse {:.3f} px)",
+               summary.bundle.message, summary.bundle.iterations, summary.bundle.seconds,
+               summary.bundle.rmse_px);
+  };
+  adjust();
+  // Once adjusted: screen again, at the precision the cameras now have, weigh the
+  // observations by what they achieved (see estimate_observation_sigmas) and adjust again.
+  const std::size_t blunders_before = blunders.size();
+  screen(true);
+  if (options.adjust && options.estimate_observation_sigmas) {
+    // Keypoints: a posteriori sigma per axis, sum |e|^2 / (2 obs - 3 points - 6 cameras).
+    const auto& b = summary.bundle;
+    const double n_obs = double(b.observations);
+    const double registered = double(std::count_if(rec.images.begin(), rec.images.end(),
+                                                   [](const RegisteredImage& im) { return im.registered; }));
+    const double dof = 2 * n_obs - 3 * double(rec.points.size()) - 6 * registered;
+    if (n_obs > 0 && dof > 0 && std::isfinite(b.rmse_px) && b.rmse_px > 0) {
+      bundle.keypoint_sigma_px =
+          std::max(options.min_observation_sigma_px, std::sqrt(b.rmse_px * b.rmse_px * n_obs / dof));
+    }
+    // Markers: rays about their photo-only intersections, sum e^2 / sum (2 n - 3).
+    double sum2 = 0;
+    int redundancy = 0;
+    for (const auto& [name, list] : rays) {
+      const auto t = triangulate(rec, list, options.triangulation);
+      if (!valid(t)) continue;
+      sum2 += t.rmse_px * t.rmse_px * t.views;
+      redundancy += 2 * t.views - 3;
+    }
+    bundle.marker_sigma_px = bundle.keypoint_sigma_px;
+    if (redundancy > 0) bundle.marker_sigma_px = std::max(bundle.marker_sigma_px, std::sqrt(sum2 / redundancy));
+    log::info("georeference: observation sigmas a posteriori: keypoints {:.3f} px, markers {:.3f} px "
+              "(marker redundancy {})", bundle.keypoint_sigma_px, bundle.marker_sigma_px, redundancy);
+    adjust();
+  } else if (blunders.size() > blunders_before) {
+    adjust();
   }
+  summary.keypoint_sigma_px = bundle.keypoint_sigma_px;
+  summary.marker_sigma_px = bundle.marker_sigma_px;
 
-  // 5. Residuals from the final cameras, photos only.
-  const auto final_rays = collect_rays(observations, rec);
-  const std::set<std::string> rejected(summary.rejected.begin(), summary.rejected.end());
-  for (const auto& m : markers) {
-    MarkerResidual row;
-    row.name = m.name;
-    row.role = !m.control ? MarkerRole::check
-                          : (rejected.count(m.name) ? MarkerRole::rejected : MarkerRole::control);
-    const auto it = final_rays.find(m.name);
-    if (it != final_rays.end()) {
-      row.images = int(it->second.cameras.size());
-      const auto tri =
-          triangulate_views(it->second.cameras, it->second.pixels, options.triangulation);
-      // The reprojection gate is not applied here: a large error is what this row reports.
-      if (row.images >= 2 && tri.X.allFinite() &&
-          tri.max_angle_deg >= options.triangulation.min_angle_deg &&
-          std::isfinite(tri.rmse_px)) {
-        row.triangulated = true;
-        const Eigen::Vector3d d = tri.X - m.position;
-        row.dE = d.x();
-        row.dN = d.y();
-        row.dZ = d.z();
-        row.reprojection_px = tri.rmse_px;
+  // 6. Residuals from the final cameras, photos only.
+  std::map<std::string, Eigen::Vector3d> photo_position;  // site frame, triangulated markers
+  auto residual_rows = [&] {
+    photo_position.clear();
+    const std::set<std::string> rejected(summary.rejected.begin(), summary.rejected.end());
+    std::vector<MarkerResidual> rows;
+    for (const auto& m : markers) {
+      MarkerResidual row;
+      row.name = m.name;
+      row.role = !m.control ? MarkerRole::check
+                            : (rejected.count(m.name) ? MarkerRole::rejected : MarkerRole::control);
+      row.height_known = !plan_only(m, options);
+      row.distance_misfit_m = kNaN;
+      const auto it = rays.find(m.name);
+      if (it != rays.end()) {
+        row.images = int(kept_count(it->second));
+        const auto tri = triangulate(rec, it->second, options.triangulation);
+        // The reprojection gate is not applied here: a large error is what this row reports.
+        if (valid(tri) && tri.max_angle_deg >= options.triangulation.min_angle_deg) {
+          row.triangulated = true;
+          const Eigen::Vector3d d = tri.X - m.position;
+          row.dE = d.x();
+          row.dN = d.y();
+          row.dZ = d.z();
+          row.reprojection_px = tri.rmse_px;
+          photo_position[m.name] = tri.X;
+        }
+        // The survey seen from each photo; in plan only, at the photo height.
+        Eigen::Vector3d survey = m.position;
+        if (!row.height_known && row.triangulated) survey.z() = tri.X.z();
+        for (const auto& r : it->second) {
+          ObservationResidual o;
+          o.image = r.image;
+          o.image_name = image_name(r.image);
+          o.dropped = !r.kept;
+          o.to_rays_px = row.triangulated ? pixel_distance(rec, r.image, tri.X, r.pixel) : kNaN;
+          o.to_survey_px = pixel_distance(rec, r.image, survey, r.pixel);
+          row.observations.push_back(o);
+        }
+      }
+      rows.push_back(std::move(row));
+    }
+    return rows;
+  };
+  // Leave-one-out: each control marker against the similarity that maps the photo
+  // positions of the other control markers onto their survey (after the adjustment, so
+  // the left-out marker still took part in it: a mild optimism, see docs/sfm.md).
+  auto leave_one_out = [&](std::vector<MarkerResidual>& rows) {
+    const std::set<std::string> used(summary.control_used.begin(), summary.control_used.end());
+    for (auto& row : rows) {
+      if (row.role == MarkerRole::check || !row.triangulated) continue;
+      std::vector<Eigen::Vector3d> src, dst, sigma;
+      for (const auto& other : rows) {
+        if (&other == &row || !used.count(other.name) || !photo_position.count(other.name)) continue;
+        src.push_back(photo_position.at(other.name));
+        dst.push_back(by_name.at(other.name)->position);
+        sigma.push_back(by_name.at(other.name)->sigma);
+      }
+      if (src.size() < 3 || std::min(planar_spread_ratio(src), planar_spread_ratio(dst)) < options.min_spread_ratio)
+        continue;
+      const Similarity3 s = fit_similarity_weighted(src, dst, sigma, options.min_spread_ratio);
+      const Eigen::Vector3d d = s.apply(photo_position.at(row.name)) - by_name.at(row.name)->position;
+      row.loo = true;
+      row.loo_dE = d.x();
+      row.loo_dN = d.y();
+      row.loo_dZ = d.z();
+    }
+  };
+  std::vector<MarkerResidual> rows = residual_rows();
+  leave_one_out(rows);
+  // A control marker that the other control markers place beyond its limit is rejected,
+  // the worst (relative to its limit) first, and the adjustment redone.
+  // Only from 5 control markers on: with 4, each leave-one-out fit rests on 3 markers and
+  // one blunder among them shows on whichever marker is left out (the consensus above
+  // handles that case).
+  for (int round = 0; round < options.max_rejection_rounds && summary.control_used.size() >= 5; ++round) {
+    const MarkerResidual* worst = nullptr;
+    double worst_ratio = 1.0, worst_r = 0, worst_limit = 0;
+    for (const auto& row : rows) {
+      if (row.role != MarkerRole::control || !row.loo) continue;
+      const auto& m = *by_name.at(row.name);
+      const auto it = rays.find(row.name);
+      Control c{&m, photo_position.at(row.name), pixel_footprint(rec, it->second, photo_position.at(row.name)),
+                !row.height_known};
+      const double r = residual_norm({row.loo_dE, row.loo_dN, row.loo_dZ}, c.plan);
+      const double limit = limit_of(c, 1.0);
+      if (r / limit > worst_ratio) {
+        worst_ratio = r / limit;
+        worst = &row;
+        worst_r = r;
+        worst_limit = limit;
       }
     }
-    if (!m.control && !row.triangulated) summary.unusable.push_back(m.name);
-    summary.residuals.push_back(row);
+    if (!worst) break;
+    const std::string name = worst->name;
+    std::vector<std::string> rest;
+    for (const auto& n : summary.control_used) {
+      if (n != name) rest.push_back(n);
+    }
+    std::vector<Eigen::Vector3d> rest_site;
+    for (const auto& n : rest) rest_site.push_back(by_name.at(n)->position);
+    if (planar_spread_ratio(rest_site) < options.min_spread_ratio) break;
+    summary.control_used = rest;
+    summary.rejected.push_back(name);
+    blunders.push_back({name, "", worst_r, "m",
+                        fmt::format("{:.3f} m {}from the other control markers after the adjustment "
+                                    "(leave-one-out, limit {:.3f} m): survey and photos disagree",
+                                    worst_r, worst->height_known ? "" : "in plan ", worst_limit)});
+    adjust();
+    rows = residual_rows();
+    leave_one_out(rows);
   }
-  summary.control = rmse_of(summary.residuals, MarkerRole::control);
-  summary.check = rmse_of(summary.residuals, MarkerRole::check);
+  for (const auto& row : rows) {
+    if (row.role == MarkerRole::check && !row.triangulated) summary.unusable.push_back(row.name);
+  }
+  // Distances between markers, survey against photos: independent of any similarity.
+  for (auto& row : rows) {
+    if (!row.triangulated) continue;
+    std::vector<double> misfit;
+    for (const auto& other : rows) {
+      if (&other == &row || !other.triangulated) continue;
+      const bool plan = !row.height_known || !other.height_known;
+      const double photo = residual_norm(photo_position.at(row.name) - photo_position.at(other.name), plan);
+      const double survey = residual_norm(by_name.at(row.name)->position - by_name.at(other.name)->position, plan);
+      misfit.push_back(std::abs(photo - survey));
+    }
+    row.distance_misfit_m = median(misfit);
+  }
+  for (const auto& b : blunders) {
+    log::warn("georeference: dropped {}{}: {}", b.marker, b.image.empty() ? "" : " in " + b.image, b.reason);
+  }
+  summary.residuals = std::move(rows);
+  summary.blunders = std::move(blunders);
+  summary.control = rmse_of(summary.residuals, MarkerRole::control, false);
+  summary.check = rmse_of(summary.residuals, MarkerRole::check, false);
+  summary.leave_one_out = rmse_of(summary.residuals, MarkerRole::control, true);
   summary.georeferenced = true;
   summary.seconds = clock.seconds();
   summary.message = fmt::format(
-      "georeferenced on {} control markers ({} rejected); control RMSE {:.4f} m, check RMSE "
-      "{:.4f} m over {} check marker(s)",
-      summary.control_used.size(), summary.rejected.size(), summary.control.xyz,
-      summary.check.xyz, summary.check.markers);
+      "georeferenced on {} control markers ({} rejected, {} observations dropped); control RMSE "
+      "{:.4f} m (leave-one-out {:.4f} m), check RMSE {:.4f} m over {} check marker(s){}",
+      summary.control_used.size(), summary.rejected.size(),
+      std::count_if(summary.blunders.begin(), summary.blunders.end(), [](const Blunder& b) { return !b.image.empty(); }),
+      summary.control.xyz, summary.leave_one_out.xyz, summary.check.xyz, summary.check.markers,
+      summary.control.markers_z < summary.control.markers ? " (heights unknown for some: plan figures only for them)" : "");
   return summary;
 }
 

@@ -12,6 +12,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cmath>
 #include <ctime>
 #include <map>
 #include <set>
@@ -31,7 +32,14 @@ double to_epoch_seconds(const std::optional<std::string>& iso) {
 }
 
 nlohmann::json rmse_json(const AxisRmse& r) {
-  return {{"e_m", r.e}, {"n_m", r.n}, {"z_m", r.z}, {"xyz_m", r.xyz}, {"markers", r.markers}};
+  return {{"e_m", r.e},         {"n_m", r.n},          {"z_m", r.z},
+          {"horizontal_m", r.horizontal}, {"xyz_m", r.xyz}, {"markers", r.markers},
+          {"markers_with_height", r.markers_z}};
+}
+
+// NaN and infinity are not JSON: null.
+nlohmann::json number_or_null(double v) {
+  return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr);
 }
 
 }  // namespace
@@ -47,9 +55,12 @@ void AlignOptions::validate() const {
 }
 
 std::string AlignOptions::fingerprint() const {
-  return fmt::format("f[{}] m[{}] t[{},{},{}] s[{},{},{}]", features.fingerprint(), matching.fingerprint(),
-                     detect_targets, targets.dictionary, naming.rule, sfm.min_triangulation_angle_deg,
-                     sfm.max_reprojection_px, sfm.final_max_reprojection_px);
+  // g[...]: the georeference's screening and rejection rules (2: blunder screening).
+  return fmt::format("f[{}] m[{}] t[{},{},{}] s[{},{},{}] g[2,{},{},{},{},{}]", features.fingerprint(),
+                     matching.fingerprint(), detect_targets, targets.dictionary, naming.rule,
+                     sfm.min_triangulation_angle_deg, sfm.max_reprojection_px, sfm.final_max_reprojection_px,
+                     georef.outlier_threshold_m, georef.outlier_sigma_factor, georef.observation_outlier_px,
+                     georef.horizontal_only_sigma_m, georef.unknown_height_sigma_m);
 }
 
 AlignResult align_layer(Project& project, const std::string& layer_name, const AlignOptions& options) {
@@ -199,10 +210,23 @@ AlignResult align_layer(Project& project, const std::string& layer_name, const A
   for (const auto& o : detected) {
     if (!manual.count({o.marker_id, o.image_id})) add_observation(o);
   }
+  // A survey whose every height is exactly 0.0 carries no heights (ODM gcp files from a
+  // plan survey write 0): the heights are unknown, not sea level. Such markers become
+  // horizontal control with a weak height prior (see GeoreferenceOptions).
+  const bool heights_unknown =
+      !markers.empty() && std::all_of(markers.begin(), markers.end(),
+                                      [](const MarkerRecord& m) { return m.position.z() == 0.0; });
+  if (heights_unknown && !observed_markers.empty()) {
+    log::warn("layer {}: every surveyed marker height is 0.0, taken as unknown: horizontal control "
+              "only (height sigma {} m); heights and volumes of this layer are not tied to the survey",
+              layer.name, options.georef.unknown_height_sigma_m);
+  }
   std::vector<MarkerConstraint> constraints;
   for (std::int64_t id : observed_markers) {
     const MarkerRecord& m = *marker_by_id.at(id);
-    constraints.push_back({m.name, m.position - site.origin, m.sigma, m.kind == "control"});
+    Eigen::Vector3d sigma = m.sigma;
+    if (heights_unknown) sigma.z() = std::max(sigma.z(), options.georef.unknown_height_sigma_m);
+    constraints.push_back({m.name, m.position - site.origin, sigma, m.kind == "control"});
   }
   GeoreferenceSummary gs;
   if (constraints.empty()) {
@@ -229,8 +253,19 @@ AlignResult align_layer(Project& project, const std::string& layer_name, const A
   quality["georeferenced"] = gs.georeferenced;
   quality["control_rmse"] = rmse_json(gs.control);
   quality["check_rmse"] = rmse_json(gs.check);
+  quality["leave_one_out_rmse"] = rmse_json(gs.leave_one_out);
   quality["rejected_markers"] = gs.rejected;
   quality["unusable_markers"] = gs.unusable;
+  nlohmann::json blunders = nlohmann::json::array();
+  for (const auto& b : gs.blunders) {
+    blunders.push_back({{"marker", b.marker},
+                        {"image", b.image.empty() ? nlohmann::json(nullptr) : nlohmann::json(b.image)},
+                        {"amount", number_or_null(b.amount)},
+                        {"unit", b.unit},
+                        {"reason", b.reason}});
+  }
+  quality["blunders"] = blunders;
+  quality["observation_sigma_px"] = {{"keypoints", gs.keypoint_sigma_px}, {"markers", gs.marker_sigma_px}};
   quality["detected_observations"] = detected.size();
   quality["pairs"] = {{"selected", pairs.size()}, {"verified", ms.verified}, {"exhaustive", ps.exhaustive}};
   nlohmann::json rows = nlohmann::json::array();
@@ -239,8 +274,17 @@ AlignResult align_layer(Project& project, const std::string& layer_name, const A
   for (const auto& m : markers) marker_id_by_name[m.name] = m.id;
   for (const auto& r : gs.residuals) {
     nlohmann::json row = {{"marker", r.name}, {"role", to_string(r.role)}, {"triangulated", r.triangulated},
-                          {"dE", r.dE}, {"dN", r.dN}, {"dZ", r.dZ}, {"reprojection_px", r.reprojection_px},
-                          {"images", r.images}};
+                          {"height_known", r.height_known}, {"dE", r.dE}, {"dN", r.dN}, {"dZ", r.dZ},
+                          {"reprojection_px", r.reprojection_px}, {"images", r.images},
+                          {"distance_misfit_m", number_or_null(r.distance_misfit_m)}};
+    row["leave_one_out"] = r.loo ? nlohmann::json{{"dE", r.loo_dE}, {"dN", r.loo_dN}, {"dZ", r.loo_dZ}}
+                                 : nlohmann::json(nullptr);
+    nlohmann::json obs = nlohmann::json::array();
+    for (const auto& o : r.observations) {
+      obs.push_back({{"image", o.image_name}, {"to_rays_px", number_or_null(o.to_rays_px)},
+                     {"to_survey_px", number_or_null(o.to_survey_px)}, {"dropped", o.dropped}});
+    }
+    row["observations"] = obs;
     rows.push_back(row);
     residuals.emplace_back(marker_id_by_name.at(r.name), row);
   }

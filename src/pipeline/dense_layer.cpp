@@ -49,11 +49,21 @@ DenseLayerResult dense_layer(Project& project, const std::string& layer_name, co
                                       layer.name, layer.name));
   }
   const SiteInfo site = project.site();
+  DenseOptions o = options;
   DenseLayerResult result;
-  const std::string inputs_key =
-      sha256_hex(alignment->inputs_key + fmt::format("|{} {} {} {}", options.patch_match.scale,
-                                                     options.fusion.voxel_size_m, options.patch_match.iterations,
-                                                     options.views.max_neighbours));
+  // Every option that changes the surface is part of the key (a changed option
+  // recomputes; the depth-map cache below still reuses what did not change).
+  const auto& pm = o.patch_match;
+  const std::string inputs_key = sha256_hex(
+      alignment->inputs_key +
+      fmt::format("|views {} {} {} {}|pm {} {} {} {} {} {} {} {} {} {}|cons {} {} {}|fusion {} {} {} {} {} {}",
+                  o.views.max_neighbours, o.views.min_shared_points, o.views.min_angle_deg, o.views.max_angle_deg,
+                  pm.scale, pm.target_gsd_m, pm.window_radius, pm.window_step, pm.iterations, pm.best_k,
+                  pm.max_cost, pm.depth_margin, pm.max_normal_angle_deg, pm.seed,
+                  o.consistency.min_consistent_views, o.consistency.max_reprojection_px,
+                  o.consistency.max_relative_depth, o.fusion.voxel_size_m, o.fusion.voxel_gsd_factor,
+                  o.fusion.min_voxel_size_m, o.fusion.max_voxel_size_m, o.fusion.truncation_voxels,
+                  o.fusion.min_weight));
   if (!force) {
     auto st = db.prepare("SELECT inputs_key, quality_json FROM reconstructions WHERE layer_id = ? AND stage = 'dense'");
     st.bind(1, layer.id);
@@ -67,7 +77,6 @@ DenseLayerResult dense_layer(Project& project, const std::string& layer_name, co
 
   std::vector<fs::path> paths;
   for (const auto& im : alignment->images) paths.push_back(project.dir() / im.media_path);
-  DenseOptions o = options;
   if (o.quality.area.empty()) o.quality.area = sparse_area(alignment->rec);
 
   // Write into a fresh temporary folder, then swap it into place: a failed or
@@ -78,7 +87,7 @@ DenseLayerResult dense_layer(Project& project, const std::string& layer_name, co
   fs::create_directories(tmp_dir);
   DenseSummary s;
   try {
-    s = run_dense(o, alignment->rec, paths, site.origin, project.cache_dir() / "dense", tmp_dir);
+    s = run_dense(o, alignment->rec, paths, site.origin, project.cache_dir() / "layers" / layer.name, tmp_dir);
   } catch (...) {
     std::error_code ec;
     fs::remove_all(tmp_dir, ec);

@@ -14,6 +14,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 namespace fs = std::filesystem;
 
@@ -23,6 +24,7 @@ void ProductsOptions::validate() const {
   dtm.validate();
   ortho.validate();
   contours.validate();
+  if (check_ortho_markers) ortho_markers.validate();
   if (!(ortho_cell_m >= 0)) {
     throw InputError(fmt::format("products: ortho_cell_m must be >= 0 metres (0 = DTM cell), got {}", ortho_cell_m));
   }
@@ -80,6 +82,47 @@ std::pair<double, std::size_t> median_sparse_distance(const Dtm& dtm, const Reco
   return {d[d.size() / 2], d.size()};
 }
 
+// The surveyed markers in the site frame, and a digest of them for the inputs key
+// (a corrected survey re-runs the orthophoto check).
+std::pair<std::vector<SurveyedMarker>, std::string> surveyed_markers(Database& db, const Eigen::Vector3d& origin) {
+  std::vector<SurveyedMarker> out;
+  std::string digest;
+  for (const MarkerRecord& m : list_markers(db)) {
+    out.push_back({m.name, m.position - origin, m.kind});
+    digest += fmt::format("{}|{:.4f}|{:.4f}|{:.4f}|{};", m.name, m.position.x(), m.position.y(), m.position.z(), m.kind);
+  }
+  return {out, sha256_hex(digest)};
+}
+
+nlohmann::json marker_check_json(const OrthoMarkerCheck& c, const Eigen::Vector3d& origin) {
+  nlohmann::json markers = nlohmann::json::array();
+  for (const OrthoMarkerOffset& m : c.markers) {
+    nlohmann::json j = {{"marker", m.name}, {"role", m.kind}, {"status", to_string(m.status)}};
+    if (m.status == OrthoMarkerStatus::detected) {
+      j["E"] = m.detected.x() + origin.x();  // metres, site CRS: where the orthophoto shows it
+      j["N"] = m.detected.y() + origin.y();
+      j["dE_mm"] = 1000 * m.de_m;
+      j["dN_mm"] = 1000 * m.dn_m;
+      j["offset_mm"] = 1000 * m.offset_m;
+      j["offset_px"] = m.offset_px;
+      j["within_tolerance"] = m.offset_px <= c.tolerance_px;
+      j["detections"] = m.detections;
+    }
+    markers.push_back(std::move(j));
+  }
+  return {{"cell_m", c.cell_m},
+          {"tolerance_px", c.tolerance_px},
+          {"surveyed", c.markers.size()},
+          {"detected", c.detected},
+          {"over_tolerance", c.over_tolerance},
+          {"max_px", c.max_px},
+          {"rmse_px", c.rmse_px},
+          {"max_mm", 1000 * c.max_m},
+          {"rmse_mm", 1000 * c.rmse_m},
+          {"unknown_target_ids", c.unknown_ids},
+          {"markers", markers}};
+}
+
 nlohmann::json step_json(const Stopwatch& w) {
   return {{"seconds", w.seconds()}, {"peak_memory_mb", double(peak_memory_bytes()) / 1048576.0}};
 }
@@ -96,11 +139,14 @@ ProductsLayerResult products_layer(Project& project, const std::string& layer_na
   if (!alignment) throw ProcessingError(fmt::format("layer {} is not aligned", layer.name));
   const SiteInfo site = project.site();
   const auto surface = find_product(db, layer.id, "surface");
+  const auto [surveyed, markers_digest] = surveyed_markers(db, site.origin);
 
   const std::string inputs_key = sha256_hex(fmt::format(
-      "{}|{}|{}|{}|{}|{}|{}|{}|{}", surface->sha256, alignment->inputs_key, options.dtm.cell_m, options.ortho_cell_m,
-      options.contours.interval_m, options.ortho.radiometric_balance, options.ortho.smoothness,
-      options.ortho.feather_m, options.geotiff.cog));
+      "{}|{}|{}|{}|{}|{}|{}|{}|{}|markers-v2|{}|{}|{}|{}|{}", surface->sha256, alignment->inputs_key,
+      options.dtm.cell_m, options.ortho_cell_m, options.contours.interval_m, options.ortho.radiometric_balance,
+      options.ortho.smoothness, options.ortho.feather_m, options.geotiff.cog, options.check_ortho_markers,
+      markers_digest, options.ortho_markers.targets.dictionary, options.ortho_markers.naming.rule,
+      options.ortho_markers.tolerance_px));
   ProductsLayerResult result;
   if (!force) {
     auto st = db.prepare("SELECT inputs_key, quality_json FROM reconstructions WHERE layer_id = ? AND stage = 'products'");
@@ -144,6 +190,27 @@ ProductsLayerResult products_layer(Project& project, const std::string& layer_na
   steps["ortho"] = step_json(w);
   check_cancelled();
 
+  // The orthophoto against the surveyed markers
+  std::optional<OrthoMarkerCheck> marker_check;
+  if (options.check_ortho_markers) {
+    w = Stopwatch();
+    marker_check = check_ortho_markers(ortho, surveyed, options.ortho_markers);
+    steps["ortho_markers"] = step_json(w);
+    for (const OrthoMarkerOffset& m : marker_check->markers) {
+      if (m.status == OrthoMarkerStatus::detected && m.offset_px > options.ortho_markers.tolerance_px) {
+        log::warn("layer {}: marker {} is {:.1f} px ({:.0f} mm) from its surveyed position in the orthophoto "
+                  "(dE {:+.0f} mm, dN {:+.0f} mm; tolerance {} px)",
+                  layer.name, m.name, m.offset_px, 1000 * m.offset_m, 1000 * m.de_m, 1000 * m.dn_m,
+                  options.ortho_markers.tolerance_px);
+      }
+    }
+    if (!surveyed.empty() && marker_check->detected == 0) {
+      log::warn("layer {}: no surveyed marker was found in the orthophoto; its position is not checked",
+                layer.name);
+    }
+    check_cancelled();
+  }
+
   // Site-plan vectors
   w = Stopwatch();
   const std::vector<ContourLine> contours = dtm_contours(dtm, site.origin, options.contours);
@@ -168,6 +235,7 @@ ProductsLayerResult products_layer(Project& project, const std::string& layer_na
                 {"views_used", os.views_used},     {"coverage", os.coverage},       {"seam_fraction", os.seam_fraction},
                 {"balance_rms_before", os.balance_rms_before}, {"balance_rms_after", os.balance_rms_after},
                 {"gain_min", gain_min},            {"gain_max", gain_max}};
+  if (marker_check) q["ortho_markers"] = marker_check_json(*marker_check, site.origin);
   q["contours"] = {{"interval_m", options.contours.interval_m}, {"lines", contours.size()}};
   q["footprint"] = {{"area_m2", footprint.area_m2}, {"perimeter_m", footprint.perimeter_m},
                     {"polygons", footprint.polygons.size()}};

@@ -5,6 +5,7 @@
 // in one transaction, then the raster tables dtm_<layer> / ortho_<layer> written
 // into project.gpkg through GDAL. No maths here: that is in src/products/.
 #include "products/dtm.hpp"
+#include "products/ortho_markers.hpp"
 #include "products/orthophoto.hpp"
 #include "products/raster_io.hpp"
 #include "products/site_plan.hpp"
@@ -20,6 +21,10 @@ struct ProductsOptions {
   DtmOptions dtm;                  // cell 5 mm by default
   double ortho_cell_m = 0;         // metres; 0 = the DTM cell
   OrthoOptions ortho;
+  // Coded targets found in the orthophoto against the surveyed markers (issue 6).
+  // The target dictionary and naming should be those the photos were processed with.
+  bool check_ortho_markers = true;
+  OrthoMarkerCheckOptions ortho_markers;
   ContourOptions contours;         // interval 5 cm by default
   double min_footprint_area_m2 = 0.01;  // islands of the footprint smaller than this are dropped
   GeoTiffOptions geotiff;          // COG + DEFLATE by default

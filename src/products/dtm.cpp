@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 
 namespace strata {
@@ -12,6 +13,9 @@ namespace strata {
 void DtmOptions::validate() const {
   if (!(cell_m > 0) || cell_m > 10) {
     throw InputError(fmt::format("products.dtm: cell_m must be in (0, 10] metres, got {}", cell_m));
+  }
+  if (!(fill_gap_m >= 0) || fill_gap_m > 1) {
+    throw InputError(fmt::format("products.dtm: fill_gap_m must be in [0, 1] metres, got {}", fill_gap_m));
   }
   if (!(margin_m >= 0)) {
     throw InputError(fmt::format("products.dtm: margin_m must be >= 0 metres, got {}", margin_m));
@@ -37,6 +41,45 @@ Dtm dtm_from_height_field(const HeightField& hf) {
   return d;
 }
 
+std::size_t fill_small_gaps(Dtm& dtm, double fill_gap_m) {
+  const RasterGrid& g = dtm.grid;
+  const int r = int(std::floor(fill_gap_m / g.cell));
+  if (r < 1) return 0;
+  // One pass over the original values (filled cells do not feed others, so a hole
+  // can never grow from its own interpolation).
+  const std::vector<float> src = dtm.z;
+  std::size_t filled = 0;
+  for (int row = 0; row < g.height; ++row) {
+    for (int col = 0; col < g.width; ++col) {
+      if (std::isfinite(src[g.index(col, row)])) continue;
+      double sum = 0, wsum = 0;
+      int quadrants = 0;  // bit q set when quadrant q has a measured cell
+      for (int dr = -r; dr <= r; ++dr) {
+        const int rr = row + dr;
+        if (rr < 0 || rr >= g.height) continue;
+        for (int dc = -r; dc <= r; ++dc) {
+          const int cc = col + dc;
+          if (cc < 0 || cc >= g.width || dr * dr + dc * dc > r * r) continue;
+          const float z = src[g.index(cc, rr)];
+          if (!std::isfinite(z)) continue;
+          const double w = 1.0 / double(dr * dr + dc * dc);  // inverse squared distance
+          sum += w * z;
+          wsum += w;
+          // Quadrants around the cell (the axes count for both sides they touch).
+          if (dc >= 0 && dr < 0) quadrants |= 1;
+          if (dc > 0 && dr >= 0) quadrants |= 2;
+          if (dc <= 0 && dr > 0) quadrants |= 4;
+          if (dc < 0 && dr <= 0) quadrants |= 8;
+        }
+      }
+      if (std::popcount(unsigned(quadrants)) < 3) continue;  // an edge, not a hole
+      dtm.z[g.index(col, row)] = float(sum / wsum);
+      ++filled;
+    }
+  }
+  return filled;
+}
+
 Dtm build_dtm(const std::filesystem::path& vdb, const DtmOptions& options) {
   options.validate();
   const LevelSetInfo info = read_level_set_info(vdb);
@@ -57,7 +100,9 @@ Dtm build_dtm(const std::filesystem::path& vdb, const DtmOptions& options) {
                                  ny, c));
   }
   const HeightField hf = sample_top_surface(vdb, x0 + 0.5 * c, y0 + 0.5 * c, c, nx, ny);
-  return dtm_from_height_field(hf);
+  Dtm dtm = dtm_from_height_field(hf);
+  fill_small_gaps(dtm, options.fill_gap_m);
+  return dtm;
 }
 
 DtmStatistics dtm_statistics(const Dtm& dtm, double z_offset) {

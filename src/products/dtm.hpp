@@ -47,6 +47,11 @@ struct Dtm {
 struct DtmOptions {
   double cell_m = 0.005;  // metres; 5 mm is about the dense GSD of a 24 Mpx photo at 1.5 m
   double margin_m = 0;    // metres added around the level set's active box
+  // Holes no wider than about twice this (metres) are filled by inverse-distance
+  // interpolation when measured cells surround them (3 of 4 quadrants within this
+  // distance): the speckle a few voxels wide between fused observations, not the
+  // unseen areas, which stay nodata. 0 = no filling.
+  double fill_gap_m = 0.015;
   // Throws InputError naming the first invalid field.
   void validate() const;
 };
@@ -55,6 +60,10 @@ struct DtmOptions {
 // a grid whose edges are whole multiples of the cell in the site frame (and so in
 // the CRS, because the site origin is rounded to 100 m / 1 m).
 Dtm build_dtm(const std::filesystem::path& vdb, const DtmOptions& options);
+
+// Fills small enclosed holes of a DTM in place (see DtmOptions::fill_gap_m); returns
+// the number of cells filled.
+std::size_t fill_small_gaps(Dtm& dtm, double fill_gap_m);
 
 // The same grid as a dense HeightField (cell centres, y up) turned north-up.
 Dtm dtm_from_height_field(const HeightField& hf);

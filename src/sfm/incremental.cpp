@@ -15,6 +15,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <ctime>
 #include <map>
 #include <numeric>
 #include <set>
@@ -39,6 +40,7 @@ void IncrementalOptions::validate() const {
   if (!(max_reprojection_px > 0)) fail("max_reprojection_px", max_reprojection_px, "> 0");
   if (!(final_max_reprojection_px > 0)) fail("final_max_reprojection_px", final_max_reprojection_px, "> 0");
   if (local_ba_images < 1) fail("local_ba_images", local_ba_images, ">= 1");
+  if (local_ba_max_observations < 0) fail("local_ba_max_observations", local_ba_max_observations, ">= 0");
   if (!(global_ba_growth > 1)) fail("global_ba_growth", global_ba_growth, "> 1");
   if (calibration_min_images < 2) fail("calibration_min_images", calibration_min_images, ">= 2");
   if (principal_point_min_images < 2) fail("principal_point_min_images", principal_point_min_images, ">= 2");
@@ -103,6 +105,10 @@ class IncrementalMapper {
   std::size_t filter_points(const std::vector<int>& tracks, double max_error_px);
   std::vector<int> all_point_tracks() const;
   void adjust(const std::vector<int>& variable_images, bool global);
+  // The points of a local adjustment within local_ba_max_observations.
+  std::vector<int> bound_local_points(const std::vector<int>& ids,
+                                      const std::vector<int>& variable_images,
+                                      const std::vector<char>& variable) const;
   bool final_stage_ = false;  // final adjustments run to the full tolerances
   void local_adjust(int image);
   void global_adjust(double max_error_px);
@@ -512,6 +518,9 @@ void IncrementalMapper::adjust(const std::vector<int>& variable_images, bool glo
       if (tracks_[id].has_point && chosen.insert(id).second) point_tracks.push_back(id);
     }
   }
+  if (!global && opt_.local_ba_max_observations > 0) {
+    point_tracks = bound_local_points(point_tracks, variable_images, variable);
+  }
   for (int id : point_tracks) {
     const auto& t = tracks_[id];
     const int p = int(problem.points.size());
@@ -552,6 +561,46 @@ void IncrementalMapper::adjust(const std::vector<int>& variable_images, bool glo
              global ? "global" : "local", variable_images.size(), s.observations, s.rmse_px,
              s.iterations, s.seconds);
   filter_points(point_tracks, opt_.max_reprojection_px);
+}
+
+std::vector<int> IncrementalMapper::bound_local_points(const std::vector<int>& ids,
+                                                      const std::vector<int>& variable_images,
+                                                      const std::vector<char>& variable) const {
+  struct Candidate {
+    int id;
+    bool seen_by_new;  // by variable_images[0], the image just registered
+    int variable_rays; // inlier observations in variable images
+    int rays;          // inlier observations in registered images
+  };
+  std::vector<Candidate> candidates;
+  std::size_t total = 0;
+  for (int id : ids) {
+    const auto& t = tracks_[id];
+    Candidate c{id, false, 0, 0};
+    for (std::size_t k = 0; k < t.elements.size(); ++k) {
+      const int image = t.elements[k].image;
+      if (!t.inlier[k] || !registered_[image]) continue;
+      ++c.rays;
+      if (variable[image]) ++c.variable_rays;
+      if (image == variable_images.front()) c.seen_by_new = true;
+    }
+    total += std::size_t(c.rays);
+    candidates.push_back(c);
+  }
+  const auto budget = std::size_t(opt_.local_ba_max_observations);
+  if (total <= budget) return ids;
+  std::stable_sort(candidates.begin(), candidates.end(), [](const Candidate& a, const Candidate& b) {
+    if (a.seen_by_new != b.seen_by_new) return a.seen_by_new;
+    return a.variable_rays > b.variable_rays;
+  });
+  std::vector<int> kept;
+  std::size_t used = 0;
+  for (const auto& c : candidates) {
+    if (used + std::size_t(c.rays) > budget) continue;
+    used += std::size_t(c.rays);
+    kept.push_back(c.id);
+  }
+  return kept;
 }
 
 void IncrementalMapper::local_adjust(int image) {
@@ -625,14 +674,16 @@ Reconstruction IncrementalMapper::run(IncrementalSummary& summary) {
       local_adjust(image);
     }
   }
-  // Final refinement with a gate that tightens to the calibrated model's level.
-  final_stage_ = true;
+  // Final refinement with a gate that tightens to the calibrated model's level. These
+  // rounds only decide which observations and points stay: they stop at the
+  // intermediate tolerances, and only the last adjustment runs to `bundle`'s.
   for (int pass = 0; pass < opt_.final_refinement_passes; ++pass) {
     check_cancelled();
     const double gate = pass == 0 ? opt_.max_reprojection_px : opt_.final_max_reprojection_px;
     global_adjust(gate);
   }
   // Last adjustment after the final filtering, so the points removed do not bias it.
+  final_stage_ = true;
   {
     std::vector<int> all;
     for (int i = 0; i < int(images_.size()); ++i) {
@@ -717,8 +768,15 @@ Reconstruction reconstruct_incremental(const IncrementalOptions& options,
     throw ProcessingError(fmt::format("sfm: {} image(s); at least 2 are needed", images.size()));
   }
   IncrementalSummary local;
+  const std::clock_t cpu_start = std::clock();
   IncrementalMapper mapper(options, groups, images, keypoints, matches);
   Reconstruction rec = mapper.run(local);
+  log::info("sfm: {} of {} images, {} points, {} observations, rmse {:.3f} px; {} local and {} "
+            "global adjustments ({:.1f} s); {:.1f} s ({:.1f} s CPU)",
+            local.registered, local.images, local.points, local.observations,
+            local.reprojection_rmse_px, local.local_adjustments, local.global_adjustments,
+            local.adjustment_seconds, local.seconds,
+            double(std::clock() - cpu_start) / CLOCKS_PER_SEC);
   if (local.registered < images.size()) {
     log::warn("sfm: {} of {} images registered", local.registered, images.size());
   }

@@ -48,6 +48,12 @@ struct IncrementalOptions {
   // --- bundle adjustment --------------------------------------------------------
   BundleOptions bundle;  // robust loss, tolerances, which intrinsics to refine
   int local_ba_images = 6;        // the new image and its best connected neighbours
+  // Observations in a local adjustment, at most (0 = no bound). In a compact layer
+  // every photo sees a large part of the scene, so the points of six images are
+  // most of the model; the bound keeps the points seen by the new image and by the
+  // most variable images (those that tie the poses together) and leaves the rest
+  // to the next global adjustment.
+  int local_ba_max_observations = 15000;
   // A global adjustment runs when the registered count has grown by this factor
   // since the last one (and for every image while fewer than `early_global_images`).
   double global_ba_growth = 1.25;

@@ -45,6 +45,20 @@ std::string label_of(const std::string& unit, const SectionDrawingOptions& o) {
   return "(" + unit + ")";
 }
 
+// A label's box on paper (mm) for the overlap test. DejaVu Sans averages about
+// 0.6 em per character; the box is the text's advance by its font size.
+struct LabelBox {
+  double x0, y0, x1, y1;
+  bool overlaps(const LabelBox& o, double gap) const {
+    return x0 < o.x1 + gap && o.x0 < x1 + gap && y0 < o.y1 + gap && o.y0 < y1 + gap;
+  }
+};
+LabelBox text_box(double x, double baseline, double font, std::size_t chars, const char* anchor) {
+  const double w = 0.6 * font * double(chars);
+  const double x0 = std::string(anchor) == "middle" ? x - 0.5 * w : std::string(anchor) == "end" ? x - w : x;
+  return {x0, baseline - 0.8 * font, x0 + w, baseline + 0.2 * font};
+}
+
 std::string xml_escape(const std::string& s) {
   std::string out;
   for (char c : s) {
@@ -150,50 +164,98 @@ void write_section_svg(const fs::path& path, const SectionProfile& p, const Eige
                     Y(z) + 0.9, z + origin.z()));
   }
 
-  // The unit not yet excavated: a hatched band under the last surface.
-  if (!p.surfaces.empty()) {
-    const auto& last = p.surfaces.back();
-    const bool dug = std::any_of(p.bodies.begin(), p.bodies.end(), [&](const auto& b) { return b.unit == last.unit; });
-    if (!dug) {
-      for (const auto& [i0, i1] : runs(n, [&](std::size_t i) { return std::isfinite(last.z[i]); })) {
-        std::string d;
-        for (std::size_t i = i0; i <= i1; ++i) d += fmt::format("{}{:.2f},{:.2f} ", i == i0 ? "M" : "L", X(p.s[i]), Y(last.z[i]));
-        for (std::size_t i = i1 + 1; i-- > i0;) d += fmt::format("L{:.2f},{:.2f} ", X(p.s[i]), Y(last.z[i] - kNaturalBand));
-        add(fmt::format(R"~(<path d="{}Z" fill="url(#natural)" stroke="none"/>)~", d));
-        if (i1 - i0 >= 2) {
-          const std::size_t mid = (i0 + i1) / 2;
-          add(fmt::format(R"~(<text x="{:.2f}" y="{:.2f}" font-size="3" text-anchor="middle" font-style="italic">{} not excavated</text>)~",
-                          X(p.s[mid]), Y(last.z[mid] - 0.5 * kNaturalBand) + 1, label_of(last.unit, o)));
-        }
-      }
-    }
-  }
+  // Labels are placed after the drawing, in order of importance (unit numbers,
+  // the unit not excavated, layer names), each where it overlaps no label already
+  // placed; they are written last, above fills and lines.
+  std::vector<LabelBox> placed;
+  std::string labels;
+  constexpr double kLabelGap = 0.6;  // mm of paper between labels
+  auto clear_of_labels = [&](const LabelBox& b) {
+    return std::none_of(placed.begin(), placed.end(), [&](const LabelBox& q) { return q.overlaps(b, kLabelGap); });
+  };
 
   // Excavated units, filled, with their number where they are thick enough.
+  constexpr double kUnitFont = 3.2;  // mm
   for (std::size_t u = 0; u < p.bodies.size(); ++u) {
     const auto& body = p.bodies[u];
     const char* fill = kFills[u % std::size(kFills)];
+    const std::string text = label_of(body.unit, o);
     for (const auto& [i0, i1] : runs(n, [&](std::size_t i) { return std::isfinite(body.top[i]); })) {
       std::string d;
       for (std::size_t i = i0; i <= i1; ++i) d += fmt::format("{}{:.2f},{:.2f} ", i == i0 ? "M" : "L", X(p.s[i]), Y(body.top[i]));
       for (std::size_t i = i1 + 1; i-- > i0;) d += fmt::format("L{:.2f},{:.2f} ", X(p.s[i]), Y(body.bottom[i]));
       add(fmt::format(R"~(<path d="{}Z" fill="{}" stroke="{}" stroke-width="0.15"/>)~", d, fill, fill));
-      // Label at the thickest point, when 3.5 mm of paper or more.
-      std::size_t best = i0;
-      for (std::size_t i = i0; i <= i1; ++i)
-        if (body.top[i] - body.bottom[i] > body.top[best] - body.bottom[best]) best = i;
-      const double paper = (body.top[best] - body.bottom[best]) * mm_per_m;
+      // Label inside the body where it is 3.5 mm of paper thick or more: the
+      // thickest place first, then the next thickest, clear of other labels.
       const double run_mm = (p.s[i1] - p.s[i0]) * mm_per_m;
-      if (paper >= 3.5 && run_mm >= 8) {
-        const double xs = std::clamp(X(p.s[best]), X(p.s[i0]) + 5, X(p.s[i1]) - 5);
-        add(fmt::format(R"~(<text x="{:.2f}" y="{:.2f}" font-size="3.2" font-weight="bold" text-anchor="middle">{}</text>)~",
-                        xs, Y(0.5 * (body.top[best] + body.bottom[best])) + 1.1, label_of(body.unit, o)));
+      if (run_mm < 8) continue;
+      std::vector<std::size_t> order;
+      for (std::size_t i = i0; i <= i1; ++i) order.push_back(i);
+      std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+        return body.top[a] - body.bottom[a] > body.top[b] - body.bottom[b];
+      });
+      for (std::size_t i : order) {
+        const double paper = (body.top[i] - body.bottom[i]) * mm_per_m;
+        if (paper < 3.5) break;
+        const double xs = std::clamp(X(p.s[i]), X(p.s[i0]) + 5, X(p.s[i1]) - 5);
+        const double ys = Y(0.5 * (body.top[i] + body.bottom[i])) + 1.1;
+        const LabelBox b = text_box(xs, ys, kUnitFont, text.size(), "middle");
+        if (!clear_of_labels(b)) continue;
+        placed.push_back(b);
+        labels += fmt::format(R"~(<text x="{:.2f}" y="{:.2f}" font-size="{}" font-weight="bold" text-anchor="middle">{}</text>)~",
+                              xs, ys, kUnitFont, xml_escape(text)) + "\n";
+        break;
+      }
+    }
+  }
+
+  // The unit not yet excavated: a hatched band under the last surface, labelled
+  // once per stretch long enough to hold the label; when none is, once, under the
+  // longest stretch with a leader line to it.
+  if (!p.surfaces.empty()) {
+    const auto& last = p.surfaces.back();
+    const bool dug = std::any_of(p.bodies.begin(), p.bodies.end(), [&](const auto& b) { return b.unit == last.unit; });
+    if (!dug) {
+      constexpr double kNaturalFont = 3.0;  // mm
+      const std::string text = label_of(last.unit, o) + " not excavated";
+      auto stretches = runs(n, [&](std::size_t i) { return std::isfinite(last.z[i]); });
+      for (const auto& [i0, i1] : stretches) {
+        std::string d;
+        for (std::size_t i = i0; i <= i1; ++i) d += fmt::format("{}{:.2f},{:.2f} ", i == i0 ? "M" : "L", X(p.s[i]), Y(last.z[i]));
+        for (std::size_t i = i1 + 1; i-- > i0;) d += fmt::format("L{:.2f},{:.2f} ", X(p.s[i]), Y(last.z[i] - kNaturalBand));
+        add(fmt::format(R"~(<path d="{}Z" fill="url(#natural)" stroke="none"/>)~", d));
+      }
+      std::stable_sort(stretches.begin(), stretches.end(),
+                       [](const auto& a, const auto& b) { return a.second - a.first > b.second - b.first; });
+      bool any = false;
+      for (const auto& [i0, i1] : stretches) {
+        const std::size_t mid = (i0 + i1) / 2;
+        const double xs = X(p.s[mid]), ys = Y(last.z[mid] - 0.5 * kNaturalBand) + 1;
+        const LabelBox b = text_box(xs, ys, kNaturalFont, text.size(), "middle");
+        if (b.x0 < X(p.s[i0]) || b.x1 > X(p.s[i1]) || !clear_of_labels(b)) continue;  // does not fit in this stretch
+        placed.push_back(b);
+        any = true;
+        labels += fmt::format(R"~(<text x="{:.2f}" y="{:.2f}" font-size="{}" text-anchor="middle" font-style="italic">{}</text>)~",
+                              xs, ys, kNaturalFont, xml_escape(text)) + "\n";
+      }
+      if (!any && !stretches.empty()) {
+        const auto [i0, i1] = stretches.front();
+        const std::size_t mid = (i0 + i1) / 2;
+        double low = 0;  // paper y of the band's lowest point
+        for (std::size_t i = i0; i <= i1; ++i) low = std::max(low, Y(last.z[i] - kNaturalBand));
+        const double xs = std::clamp(X(p.s[mid]), left + 0.3 * kNaturalFont * double(text.size()),
+                                     X(p.length()) - 0.3 * kNaturalFont * double(text.size()));
+        const double ys = low + 4.5;
+        placed.push_back(text_box(xs, ys, kNaturalFont, text.size(), "middle"));
+        labels += fmt::format(R"~(<line x1="{:.2f}" y1="{:.2f}" x2="{:.2f}" y2="{:.2f}" stroke="black" stroke-width="0.15"/>)~",
+                              xs, ys - 0.8 * kNaturalFont - 0.3, X(p.s[mid]), Y(last.z[mid] - 0.5 * kNaturalBand)) + "\n";
+        labels += fmt::format(R"~(<text x="{:.2f}" y="{:.2f}" font-size="{}" text-anchor="middle" font-style="italic">{}</text>)~",
+                              xs, ys, kNaturalFont, xml_escape(text)) + "\n";
       }
     }
   }
 
   // Layer surfaces: thin lines; the last (limit of excavation) heavier.
-  std::vector<double> name_y;  // paper y of the layer names written so far
   for (std::size_t k = 0; k < p.surfaces.size(); ++k) {
     const auto& s = p.surfaces[k];
     const bool last = k + 1 == p.surfaces.size();
@@ -203,18 +265,20 @@ void write_section_svg(const fs::path& path, const SectionProfile& p, const Eige
       add(fmt::format(R"~(<polyline points="{}" fill="none" stroke="black" stroke-width="{}" stroke-linejoin="round"/>)~",
                       pts, last ? 0.5 : 0.25));
     }
-    // Layer name at the right end of its line, unless another name is already there
-    // (outside the cutting all surfaces coincide).
+    // Layer name at the right end of its line, where it overlaps no other label
+    // (outside the cutting all surfaces coincide: one name there is enough).
     for (std::size_t i = n; i-- > 0;)
       if (std::isfinite(s.z[i])) {
-        const double y = Y(s.z[i]);
-        if (std::any_of(name_y.begin(), name_y.end(), [&](double q) { return std::abs(q - y) < 2.5; })) break;
-        name_y.push_back(y);
-        add(fmt::format(R"~(<text x="{:.2f}" y="{:.2f}" font-size="2.2" fill="#444444">{}</text>)~", X(p.s[i]) + 1,
-                        Y(s.z[i]) + 0.8, xml_escape(s.layer)));
+        const double x = X(p.s[i]) + 1, y = Y(s.z[i]) + 0.8;
+        const LabelBox b = text_box(x, y, 2.2, s.layer.size(), "start");
+        if (!clear_of_labels(b)) break;
+        placed.push_back(b);
+        labels += fmt::format(R"~(<text x="{:.2f}" y="{:.2f}" font-size="2.2" fill="#444444">{}</text>)~", x, y,
+                              xml_escape(s.layer)) + "\n";
         break;
       }
   }
+  svg += labels;
 
   // Datum line: dashed, at the round height just above the highest surface.
   {

@@ -81,6 +81,8 @@ void SiteVolumeOptions::validate() const {
     if (!fs::exists(path)) throw InputError(fmt::format("volume: surface of layer {}: {} does not exist", layer, path.string()));
   for (const auto& [unit, path] : footprint_files)
     if (!fs::exists(path)) throw InputError(fmt::format("volume: footprint of unit {}: {} does not exist", unit, path.string()));
+  if (!outline_file.empty() && !fs::exists(outline_file))
+    throw InputError(fmt::format("volume: trench outline {} does not exist", outline_file.string()));
 }
 
 std::vector<Eigen::Vector2d> read_footprint(const fs::path& path, const Eigen::Vector3d& origin) {
@@ -212,6 +214,8 @@ SiteModel load_site_model(Project& project, const SiteVolumeOptions& options) {
 
   VolumeOptions vo = options.volume;
   for (const auto& [unit, path] : options.footprint_files) vo.footprints[unit] = read_footprint(path, origin);
+  if (!options.outline_file.empty()) vo.fill.outline = read_footprint(options.outline_file, origin);
+  model.fill = fill_surface_gaps(model.layers, vo);
   model.solids = build_unit_solids(model.layers, vo);
   return model;
 }
@@ -262,6 +266,11 @@ VoxelSummary store_site_volumes(Project& project, const SiteModel& model, const 
                               {"cells", m.cells},
                               {"noise_threshold_m", options.volume.noise_threshold_m},
                               {"footprint", options.footprint_files.count(s.unit) > 0},
+                              {"gap_fill", options.volume.fill.enabled},
+                              {"trench_outline", options.outline_file.string()},
+                              {"filled_area_m2", m.filled_area_m2},
+                              {"filled_fraction", m.filled_fraction},
+                              {"fill_sigma_m3", m.fill_sigma_m3},
                               {"voxel_size_m", voxels.voxel_size_m},
                               {"voxel_fog_volume_m3", vu ? vu->fog_volume_m3 : 0.0},
                               {"voxel_label_volume_m3", vu ? vu->label_volume_m3 : 0.0},

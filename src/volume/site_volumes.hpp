@@ -27,6 +27,10 @@ struct SiteVolumeOptions {
   // Unit code -> vector file (GeoJSON, GeoPackage, shapefile) whose first polygon,
   // in site CRS coordinates, limits the unit's solid.
   std::map<std::string, std::filesystem::path> footprint_files;
+  // Vector file (first polygon, site CRS) of the trench outline / limit of
+  // excavation: the domain where layer surface gaps are filled. Empty: derived
+  // from the data (GapFillOptions).
+  std::filesystem::path outline_file;
   double default_noise_m = 0.003;  // surface noise when no dense quality figure exists, metres
 
   void validate() const;  // InputError naming the field
@@ -36,12 +40,14 @@ struct SiteModel {
   SiteInfo site;
   std::vector<LayerSurface> layers;   // capture order, on one grid
   std::vector<UnitSolid> solids;      // excavated units
+  GapFillSummary fill;                // what the gap filling did (layers are filled in place)
   std::vector<UnitRecord> units;
   std::vector<RelationRecord> relations;
 };
 
 // Loads every layer's surface (surface_files, else its "surface" product .vdb,
-// else its "dtm" product GeoTIFF) onto one grid and builds the unit solids.
+// else its "dtm" product GeoTIFF) onto one grid, fills their gaps inside the
+// trench outline (fill_surface_gaps) and builds the unit solids.
 // Layers without a surface are left out with a warning. Throws InputError when
 // fewer than two layers have one.
 SiteModel load_site_model(Project& project, const SiteVolumeOptions& options);

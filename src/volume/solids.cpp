@@ -34,6 +34,65 @@ bool inside_polygon(const std::vector<Eigen::Vector2d>& poly, double x, double y
   return in;
 }
 
+// Where a unit without a footprint was dug, from its thickness per cell (NaN where
+// a surface is missing): cells thicker than the threshold, less 8-connected specks
+// smaller than min_dug_area_m2, grown by up to edge_growth_m into 4-adjacent cells
+// of positive thickness (the thin edges the threshold would chop off).
+std::vector<std::uint8_t> dug_cells(const std::vector<double>& t, const SiteGrid& g, const VolumeOptions& o) {
+  const std::size_t n = g.size();
+  const int nx = g.nx, ny = g.ny;
+  std::vector<std::uint8_t> dug(n, 0);
+  for (std::size_t c = 0; c < n; ++c) dug[c] = t[c] > o.noise_threshold_m;  // false for NaN
+  const std::size_t min_cells = std::size_t(std::ceil(o.min_dug_area_m2 / (g.cell * g.cell)));
+  if (min_cells > 1) {
+    std::vector<std::uint8_t> seen(n, 0);
+    std::vector<std::size_t> comp, stack;
+    for (std::size_t c0 = 0; c0 < n; ++c0) {
+      if (!dug[c0] || seen[c0]) continue;
+      comp.clear();
+      seen[c0] = 1;
+      stack.push_back(c0);
+      while (!stack.empty()) {
+        const std::size_t c = stack.back();
+        stack.pop_back();
+        comp.push_back(c);
+        const int i = int(c % nx), j = int(c / nx);
+        for (int dj = -1; dj <= 1; ++dj)
+          for (int di = -1; di <= 1; ++di) {
+            const int a = i + di, b = j + dj;
+            if (a < 0 || b < 0 || a >= nx || b >= ny) continue;
+            const std::size_t q = std::size_t(b) * nx + a;
+            if (dug[q] && !seen[q]) {
+              seen[q] = 1;
+              stack.push_back(q);
+            }
+          }
+      }
+      if (comp.size() < min_cells)
+        for (std::size_t c : comp) dug[c] = 0;
+    }
+  }
+  const int steps = int(std::floor(o.edge_growth_m / g.cell + 1e-9));
+  std::vector<std::size_t> front, next;
+  for (std::size_t c = 0; c < n; ++c)
+    if (dug[c]) front.push_back(c);
+  for (int step = 0; step < steps && !front.empty(); ++step) {
+    next.clear();
+    for (std::size_t c : front) {
+      const int i = int(c % nx), j = int(c / nx);
+      const std::size_t nb[4] = {c - 1, c + 1, c - nx, c + nx};
+      const bool ok[4] = {i > 0, i + 1 < nx, j > 0, j + 1 < ny};
+      for (int k = 0; k < 4; ++k)
+        if (ok[k] && !dug[nb[k]] && t[nb[k]] > 0) {
+          dug[nb[k]] = 1;
+          next.push_back(nb[k]);
+        }
+    }
+    front.swap(next);
+  }
+  return dug;
+}
+
 }  // namespace
 
 HeightField SiteGrid::empty_field() const {
@@ -77,6 +136,19 @@ void VolumeOptions::validate() const {
     throw InputError(fmt::format("volume options: noise_threshold_m = {} is not in 0..0.5 m", noise_threshold_m));
   if (!(noise_correlation_m > 0 && noise_correlation_m <= 10))
     throw InputError(fmt::format("volume options: noise_correlation_m = {} is not in (0, 10] m", noise_correlation_m));
+  if (!(min_dug_area_m2 >= 0 && min_dug_area_m2 <= 1))
+    throw InputError(fmt::format("volume options: min_dug_area_m2 = {} is not in 0..1 m2", min_dug_area_m2));
+  if (!(edge_growth_m >= 0 && edge_growth_m <= 0.5))
+    throw InputError(fmt::format("volume options: edge_growth_m = {} is not in 0..0.5 m", edge_growth_m));
+  if (!(fill.closing_m >= 0 && fill.closing_m <= 10))
+    throw InputError(fmt::format("volume options: fill.closing_m = {} is not in 0..10 m", fill.closing_m));
+  if (!(fill.slope_error >= 0 && fill.slope_error <= 10))
+    throw InputError(fmt::format("volume options: fill.slope_error = {} is not in 0..10", fill.slope_error));
+  if (!(fill.warn_fraction >= 0 && fill.warn_fraction <= 1))
+    throw InputError(fmt::format("volume options: fill.warn_fraction = {} is not in 0..1", fill.warn_fraction));
+  if (!fill.outline.empty() && fill.outline.size() < 3)
+    throw InputError(fmt::format("volume options: the trench outline has {} vertices, a polygon needs 3",
+                                 fill.outline.size()));
   for (const auto& [unit, poly] : footprints)
     if (poly.size() < 3)
       throw InputError(fmt::format("volume options: footprint of unit {} has {} vertices, a polygon needs 3",
@@ -120,48 +192,67 @@ std::vector<UnitSolid> build_unit_solids(const std::vector<LayerSurface>& layers
     s.top_layer = layers[own.front()].layer;
     s.top = grid.empty_field();
     s.bottom = grid.empty_field();
+    // 1. Per cell, the top (first own layer with a height) and the bottom (first
+    // later layer of another unit with a height).
+    const std::size_t n = grid.size();
+    std::vector<int> top_of(n, -1), bottom_of(n, -1);  // index into layers; into `later` for the bottom
+    std::vector<double> t(n, kNaN);                    // thickness, metres
+    for (std::size_t c = 0; c < n; ++c) {
+      for (std::size_t k : own)
+        if (finite(layers[k].z.z[c])) {
+          top_of[c] = int(k);
+          break;
+        }
+      if (top_of[c] < 0) continue;
+      for (std::size_t q = 0; q < later.size(); ++q)
+        if (finite(layers[later[q]].z.z[c])) {
+          bottom_of[c] = int(q);
+          break;
+        }
+      if (bottom_of[c] >= 0) t[c] = layers[top_of[c]].z.z[c] - layers[later[bottom_of[c]]].z.z[c];
+    }
+    // 2. Where the unit was dug.
+    std::vector<std::uint8_t> dug(n, 0);
+    if (footprint != options.footprints.end()) {
+      for (int j = 0; j < grid.ny; ++j)
+        for (int i = 0; i < grid.nx; ++i) {
+          const std::size_t c = std::size_t(j) * grid.nx + i;
+          dug[c] = finite(t[c]) && inside_polygon(footprint->second, grid.x(i), grid.y(j));
+        }
+    } else {
+      dug = dug_cells(t, grid, options);
+    }
+    // 3. Measures.
     std::vector<std::size_t> bottom_count(later.size(), 0);
     // Uncertainty inputs, area-weighted over the cells each surface supplies.
     double n_top2 = 0, g_top2 = 0, n_bot2 = 0, g_bot2 = 0;
+    double fill_error = 0;  // m3: sum over filled cells of slope_error x distance x cell area
+    std::size_t filled_cells = 0;
     UnitMeasures& m = s.measures;
     m.min_thickness_m = std::numeric_limits<double>::infinity();
     m.max_thickness_m = -std::numeric_limits<double>::infinity();
-    for (int j = 0; j < grid.ny; ++j)
-      for (int i = 0; i < grid.nx; ++i) {
-        const std::size_t c = std::size_t(j) * grid.nx + i;
-        const LayerSurface* top = nullptr;
-        for (std::size_t k : own)
-          if (finite(layers[k].z.z[c])) {
-            top = &layers[k];
-            break;
-          }
-        if (!top) continue;
-        const LayerSurface* bottom = nullptr;
-        std::size_t which = 0;
-        for (std::size_t q = 0; q < later.size(); ++q)
-          if (finite(layers[later[q]].z.z[c])) {
-            bottom = &layers[later[q]];
-            which = q;
-            break;
-          }
-        if (!bottom) continue;
-        const double t = top->z.z[c] - bottom->z.z[c];  // metres
-        const bool dug = footprint != options.footprints.end()
-                             ? inside_polygon(footprint->second, grid.x(i), grid.y(j))
-                             : t > options.noise_threshold_m;
-        if (!dug) continue;
-        s.top.z[c] = top->z.z[c];
-        s.bottom.z[c] = bottom->z.z[c];
-        ++bottom_count[which];
-        ++m.cells;
-        m.volume_m3 += t * cell_area;
-        m.min_thickness_m = std::min(m.min_thickness_m, t);
-        m.max_thickness_m = std::max(m.max_thickness_m, t);
-        n_top2 += top->noise_m * top->noise_m;
-        g_top2 += top->vertical_rmse_m * top->vertical_rmse_m;
-        n_bot2 += bottom->noise_m * bottom->noise_m;
-        g_bot2 += bottom->vertical_rmse_m * bottom->vertical_rmse_m;
+    for (std::size_t c = 0; c < n; ++c) {
+      if (!dug[c]) continue;
+      const LayerSurface& top = layers[std::size_t(top_of[c])];
+      const LayerSurface& bottom = layers[later[std::size_t(bottom_of[c])]];
+      s.top.z[c] = top.z.z[c];
+      s.bottom.z[c] = bottom.z.z[c];
+      ++bottom_count[std::size_t(bottom_of[c])];
+      ++m.cells;
+      m.volume_m3 += t[c] * cell_area;
+      m.min_thickness_m = std::min(m.min_thickness_m, t[c]);
+      m.max_thickness_m = std::max(m.max_thickness_m, t[c]);
+      n_top2 += top.noise_m * top.noise_m;
+      g_top2 += top.vertical_rmse_m * top.vertical_rmse_m;
+      n_bot2 += bottom.noise_m * bottom.noise_m;
+      g_bot2 += bottom.vertical_rmse_m * bottom.vertical_rmse_m;
+      if (top.filled(c) || bottom.filled(c)) {
+        ++filled_cells;
+        const double dt = top.filled(c) ? top.filled_distance_m[c] : 0.0;
+        const double db = bottom.filled(c) ? bottom.filled_distance_m[c] : 0.0;
+        fill_error += options.fill.slope_error * std::hypot(dt, db) * cell_area;
       }
+    }
     for (std::size_t q = 0; q < later.size(); ++q)
       if (bottom_count[q] > 0) s.bottom_layers.push_back(layers[later[q]].layer);
     if (m.cells == 0) {
@@ -169,12 +260,19 @@ std::vector<UnitSolid> build_unit_solids(const std::vector<LayerSurface>& layers
       log::warn("volume: unit {}: no cell differs by more than {:.1f} mm between {} and the later surfaces",
                 unit, 1000 * options.noise_threshold_m, s.top_layer);
     } else {
-      const double n = double(m.cells);
-      m.area_m2 = n * cell_area;
+      const double nc = double(m.cells);
+      m.area_m2 = nc * cell_area;
       m.mean_thickness_m = m.volume_m3 / m.area_m2;
+      m.filled_area_m2 = double(filled_cells) * cell_area;
+      m.filled_fraction = m.filled_area_m2 / m.area_m2;
+      m.fill_sigma_m3 = fill_error;
       const double patch = std::max(options.noise_correlation_m * options.noise_correlation_m, cell_area);
-      m.volume_sigma_m3 = std::sqrt(m.area_m2 * m.area_m2 * (g_top2 + g_bot2) / n +
-                                    m.area_m2 * patch * (n_top2 + n_bot2) / n);
+      m.volume_sigma_m3 = std::sqrt(m.area_m2 * m.area_m2 * (g_top2 + g_bot2) / nc +
+                                    m.area_m2 * patch * (n_top2 + n_bot2) / nc + fill_error * fill_error);
+      if (m.filled_fraction > options.fill.warn_fraction)
+        log::warn("volume: unit {}: {:.0f} % of its area ({:.3f} of {:.3f} m2) has an interpolated top or bottom "
+                  "(gaps in the dense surfaces); its volume is uncertain by +/- {:.4f} m3",
+                  unit, 100 * m.filled_fraction, m.filled_area_m2, m.area_m2, m.volume_sigma_m3);
     }
     solids.push_back(std::move(s));
   }

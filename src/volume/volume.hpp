@@ -59,6 +59,45 @@ struct LayerSurface {
   // Uncertainty of the surface, metres, one sigma:
   double noise_m = 0.003;   // per-cell random noise (dense surface vs sparse points)
   double vertical_rmse_m = 0;  // vertical georeference error (check or control RMSE z); 0 = unknown
+  // Gap filling (fill_surface_gaps): per cell, 0 where the height was measured,
+  // else the distance in metres to the nearest measured cell of this layer (the
+  // height was interpolated). Empty: nothing was filled.
+  std::vector<float> filled_distance_m;
+  bool filled(std::size_t cell) const { return !filled_distance_m.empty() && filled_distance_m[cell] > 0; }
+};
+
+// Filling the gaps of a dense surface (trench sides, shadows, pit walls) before
+// differencing, so that a unit's volume does not silently lose the area where one
+// of its surfaces was not reconstructed.
+//
+// Where: the fill domain is the trench outline. Given (`outline`, or the unit
+// footprints), it is those polygons; otherwise it is derived from the data: the
+// union of every layer's measured cells, closed morphologically with a disc of
+// radius `closing_m` (bridges ragged edges and bays narrower than 2 x closing_m;
+// never grows beyond the convex hull of the data) and with its enclosed holes
+// filled. Cells outside the domain are never filled: no extrapolation outward.
+// How: a membrane (Laplace) fill: inside the domain the missing heights solve
+// Laplace's equation with the measured heights around them as boundary values
+// (zero slope across the domain's border), the smoothest surface through the
+// surrounding known heights, as GDAL's FillNodata or a surveyor's interpolation
+// would; a gap with no measured neighbour at all stays empty.
+// Uncertainty: a filled height is off by up to `slope_error` x (distance to the
+// nearest measured cell); summed linearly over a unit's filled cells (the error
+// of one gap is one correlated error) and added in quadrature to sigma_V.
+struct GapFillOptions {
+  bool enabled = true;
+  double closing_m = 0.25;      // metres: radius of the morphological closing of the data union
+  double slope_error = 0.05;    // metres of height error per metre from measured data (5 %)
+  double warn_fraction = 0.10;  // warn when more than this fraction of a unit's area was filled
+  // Trench outline (limit of excavation) in site-frame XY, metres; empty: derived.
+  std::vector<Eigen::Vector2d> outline;
+};
+
+// What fill_surface_gaps did.
+struct GapFillSummary {
+  double domain_area_m2 = 0;               // area of the fill domain
+  std::map<std::string, double> filled_area_m2;     // per layer name
+  std::map<std::string, double> measured_area_m2;   // per layer name, inside the domain
 };
 
 struct VolumeOptions {
@@ -72,6 +111,13 @@ struct VolumeOptions {
   // every cell with both surfaces counts (signed thickness: noise does not bias
   // the volume); outside, nothing. Without one, the noise threshold decides.
   std::map<std::string, std::vector<Eigen::Vector2d>> footprints;
+  // Without a footprint, a unit's solid is the cells thicker than the threshold,
+  // less isolated specks smaller than `min_dug_area_m2` (noise), grown by up to
+  // `edge_growth_m` into adjacent cells of positive thickness, so the thin edges
+  // of a unit (a feather edge, the foot of the trench side) are not chopped off.
+  double min_dug_area_m2 = 0.0025;  // 5 x 5 cm
+  double edge_growth_m = 0.02;      // metres
+  GapFillOptions fill;
 
   // Throws InputError naming the first invalid field.
   void validate() const;
@@ -89,6 +135,11 @@ struct UnitMeasures {
   // n: per-cell noise averaging over A / L^2 independent patches of side L.
   double volume_sigma_m3 = 0;
   std::size_t cells = 0;
+  // Gap filling: area of the dug cells where the top or the bottom height was
+  // interpolated, its fraction of the area, and its share of volume_sigma_m3 (m3).
+  double filled_area_m2 = 0;
+  double filled_fraction = 0;
+  double fill_sigma_m3 = 0;
 };
 
 // The solid of one unit on the common grid: heights where the unit was dug, NaN
@@ -103,6 +154,11 @@ struct UnitSolid {
   bool dug(std::size_t cell) const { return top.z[cell] == top.z[cell]; }  // not NaN
   double thickness(std::size_t cell) const { return top.z[cell] - bottom.z[cell]; }
 };
+
+// Fills the gaps of every layer surface inside the fill domain (see
+// GapFillOptions; the unit footprints belong to the domain too) and records the
+// filled cells in LayerSurface::filled_distance_m. All layers on one grid.
+GapFillSummary fill_surface_gaps(std::vector<LayerSurface>& layers, const VolumeOptions& options);
 
 // Builds the solid of every unit that has a layer and a later surface below it,
 // in the order of the units' first layers. `layers` is in capture order, all on

@@ -36,6 +36,17 @@ double ground(double x, double y) { return 0.02 * std::sin(1.5 * x) * std::cos(1
 bool in_block(double x, double y) { return x >= kBlockX0 && x <= kBlockX1 && y >= kBlockY0 && y <= kBlockY1; }
 double height(double x, double y) { return in_block(x, y) ? kBlockTop : ground(x, y); }
 
+// A second scene: a rectangular pit with vertical sides cut into the ground, the
+// hardest case of an excavation for dense matching (floor next to a side is seen
+// only from above and from across the pit).
+constexpr double kPitDepth = 0.05;                   // metres below the ground
+constexpr double kPitX0 = -0.12, kPitX1 = 0.10;      // metres
+constexpr double kPitY0 = -0.09, kPitY1 = 0.08;
+bool in_pit(double x, double y) { return x >= kPitX0 && x <= kPitX1 && y >= kPitY0 && y <= kPitY1; }
+double pit_height(double x, double y) { return in_pit(x, y) ? ground(x, y) - kPitDepth : ground(x, y); }
+
+using Surface = double (*)(double, double);
+
 // Smooth value noise on a 3D lattice (cell in metres), in [0, 1].
 double value_noise(const Eigen::Vector3d& p, double cell, std::uint32_t seed) {
   auto lattice = [seed](long i, long j, long k) {
@@ -67,8 +78,8 @@ Eigen::Vector3d albedo(const Eigen::Vector3d& X) {
 }
 
 // First intersection of a ray with the height field (march + bisection).
-std::optional<Eigen::Vector3d> cast(const Eigen::Vector3d& C, const Eigen::Vector3d& dir) {
-  auto above = [](const Eigen::Vector3d& X) { return X.z() > height(X.x(), X.y()); };
+std::optional<Eigen::Vector3d> cast(const Eigen::Vector3d& C, const Eigen::Vector3d& dir, Surface h) {
+  auto above = [h](const Eigen::Vector3d& X) { return X.z() > h(X.x(), X.y()); };
   if (dir.z() >= 0) return std::nullopt;
   double t = (C.z() - 0.1) / -dir.z();  // start above the highest point
   const double t_end = (C.z() + 0.1) / -dir.z();
@@ -94,7 +105,7 @@ struct Scene {
   std::vector<std::filesystem::path> photos;
 };
 
-Scene make_scene(const std::filesystem::path& dir) {
+Scene make_scene(const std::filesystem::path& dir, Surface h = height) {
   Scene s;
   Intrinsics in;
   in.width = 384;
@@ -117,7 +128,7 @@ Scene make_scene(const std::filesystem::path& dir) {
     cv::Mat img(in.height, in.width, CV_8UC3);
     for (int y = 0; y < in.height; ++y) {
       for (int x = 0; x < in.width; ++x) {
-        const auto hit = cast(pose.centre(), cam.ray({x, y}));
+        const auto hit = cast(pose.centre(), cam.ray({x, y}), h);
         Eigen::Vector3d c = hit ? albedo(*hit) : Eigen::Vector3d(0.5, 0.5, 0.5);
         img.at<cv::Vec3b>(y, x) = cv::Vec3b(cv::saturate_cast<uchar>(255 * c.z()),
                                             cv::saturate_cast<uchar>(255 * c.y()),
@@ -139,12 +150,12 @@ Scene make_scene(const std::filesystem::path& dir) {
   for (double x = -0.5; x <= 0.5; x += 0.02) {
     for (double y = -0.4; y <= 0.4; y += 0.02) {
       SparsePoint p;
-      p.X = {x, y, height(x, y)};
+      p.X = {x, y, h(x, y)};
       for (int v = 0; v < kViews; ++v) {
         const Camera cam{in, s.rec.images[v].pose};
         const auto px = cam.project(p.X);
         if (!px || px->x() < 0 || px->y() < 0 || px->x() > in.width - 1 || px->y() > in.height - 1) continue;
-        const auto hit = cast(cam.pose.centre(), (p.X - cam.pose.centre()).normalized());
+        const auto hit = cast(cam.pose.centre(), (p.X - cam.pose.centre()).normalized(), h);
         if (!hit || (*hit - p.X).norm() > 0.002) continue;
         p.track.push_back({v, -1});
       }
@@ -285,6 +296,59 @@ TEST(Dense, RecoversAnalyticSurface) {
   // A second run reuses every cached depth map.
   const DenseSummary again = run_dense(opt, scene.rec, scene.photos, origin, dir / "cache", dir / "out");
   EXPECT_EQ(again.depth_maps_from_cache, 8);
+}
+
+// Issue 5: the surface must be complete INCLUDING a pit and its steep sides. The
+// DTM-style top surface is sampled over an area that contains the whole pit; cells
+// next to the vertical sides have no single true height and are excluded from the
+// accuracy figures, but not from completeness.
+TEST(Dense, PitWithSteepSidesIsComplete) {
+  test::ScratchDir dir("dense_pit");
+  const Scene scene = make_scene(dir.path(), pit_height);
+  DenseOptions opt;
+  opt.patch_match.scale = 1.0;  // the photos are already small
+  const DenseSummary sum = run_dense(opt, scene.rec, scene.photos, Eigen::Vector3d(500000.0, 4200000.0, 100.0),
+                                     dir / "cache", dir / "out");
+  EXPECT_EQ(sum.images_with_depth, 8);
+
+  const double ax = 0.25, ay = 0.2, cell = 0.005;  // metres: area around the pit, grid cell
+  const int nx = static_cast<int>(2 * ax / cell) + 1, ny = static_cast<int>(2 * ay / cell) + 1;
+  const HeightField hf = sample_top_surface(dir / "out" / "surface.vdb", -ax, -ay, cell, nx, ny);
+  int cells = 0, covered = 0, pit_cells = 0, pit_covered = 0;
+  std::vector<double> err, pit_err;
+  for (int j = 0; j < ny; ++j) {
+    for (int i = 0; i < nx; ++i) {
+      const double x = -ax + i * cell, y = -ay + j * cell, z = hf.at(i, j);
+      const bool pit = in_pit(x, y);
+      ++cells;
+      pit_cells += pit;
+      if (!std::isfinite(z)) continue;
+      ++covered;
+      pit_covered += pit;
+      const double side = std::min({std::abs(x - kPitX0), std::abs(x - kPitX1), std::abs(y - kPitY0),
+                                    std::abs(y - kPitY1)});
+      const bool near_side = side < kWallExclusion && x > kPitX0 - kWallExclusion &&
+                             x < kPitX1 + kWallExclusion && y > kPitY0 - kWallExclusion &&
+                             y < kPitY1 + kWallExclusion;
+      if (near_side) continue;
+      const double e = std::abs(z - pit_height(x, y));
+      err.push_back(e);
+      if (pit) pit_err.push_back(e);
+    }
+  }
+  ASSERT_GT(pit_err.size(), 500u);
+  const double completeness = static_cast<double>(covered) / cells;
+  const double pit_completeness = static_cast<double>(pit_covered) / pit_cells;
+  std::cout << fmt::format(
+      "pit scene: completeness {:.3f} (pit {:.3f}), median |dz| {:.2f} mm, p95 {:.2f} mm, pit floor median "
+      "{:.2f} mm, depth maps {:.1f} s\n",
+      completeness, pit_completeness, percentile(err, 0.5) * 1e3, percentile(err, 0.95) * 1e3,
+      percentile(pit_err, 0.5) * 1e3, sum.depth_maps.seconds);
+  EXPECT_GE(completeness, kMinCompleteness);
+  EXPECT_GE(pit_completeness, kMinCompleteness);
+  EXPECT_LT(percentile(err, 0.5), kMedianHeightTolerance);
+  EXPECT_LT(percentile(err, 0.95), kP95HeightTolerance);
+  EXPECT_LT(percentile(pit_err, 0.5), kMedianHeightTolerance);
 }
 
 }  // namespace

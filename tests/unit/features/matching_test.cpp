@@ -206,6 +206,40 @@ TEST(PairSelection, LargeLayersUseSequenceAndRetrievalWithLinearPairCount) {
   EXPECT_TRUE(std::find(by_time.begin(), by_time.end(), ImagePair{1, 10}) != by_time.end());
 }
 
+TEST(PairSelection, PreviewKeepsOverlappingPairsAndDropsUnrelatedOnes) {
+  // 12 crops of two unrelated textures: every same-texture pair overlaps (shifts of
+  // at most 200 px on 600 px crops), no cross-texture pair shares anything.
+  test::ScratchDir dir("preview");
+  const cv::Mat texture_a = test::noise_texture(900, 600, 41);
+  const cv::Mat texture_b = test::noise_texture(900, 600, 42);
+  std::vector<FeatureImage> images;
+  for (int i = 0; i < 12; ++i) {
+    const cv::Mat& t = i % 2 == 0 ? texture_a : texture_b;
+    const int x = 40 * (i / 2);
+    const std::string name = "q" + std::to_string(i);
+    test::write_png(dir / (name + ".png"), t(cv::Rect(x, 50, 600, 450)).clone());
+    images.push_back({name, dir / (name + ".png"), ""});
+  }
+  FeatureExtractionOptions fo;
+  fo.max_features = 1000;
+  const auto kp = extract_features(fo, images, dir / "cache");
+
+  PairSelectionOptions po;  // exhaustive: 66 candidates
+  po.preview_min_images = 2;
+  PairSelectionSummary s;
+  const auto pairs = select_pairs(po, kp, dir / "cache", {}, &s);
+  EXPECT_TRUE(s.previewed);
+  EXPECT_EQ(s.candidate_pairs, 66u);
+  constexpr std::size_t kSameTexturePairs = 2 * 15;  // 2 x C(6, 2)
+  EXPECT_EQ(pairs.size(), kSameTexturePairs);
+  for (const auto& [a, b] : pairs) EXPECT_EQ(a % 2, b % 2) << a << "-" << b;
+
+  // Below preview_min_images every candidate is kept.
+  po.preview_min_images = 13;
+  EXPECT_EQ(select_pairs(po, kp, dir / "cache", {}, &s).size(), 66u);
+  EXPECT_FALSE(s.previewed);
+}
+
 TEST(Matching, RejectsBadPairsAndOptions) {
   std::vector<ImageKeypoints> kp(2);
   EXPECT_THROW(match_pairs({}, kp, {{0, 2}}, {}, "/tmp/none"), InputError);

@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 #include <Eigen/Geometry>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 
@@ -32,6 +33,15 @@ constexpr double kCentreTolM = 0.005;
 constexpr double kIdenticalTol = 1e-12;
 // The perturbation applied to one surveyed height in the sigma test, metres.
 constexpr double kSurveyBlunderM = 0.03;
+// A wrong click moved this far from the true target, pixels (well beyond the 5 px
+// screening limit, as a click on the neighbouring target would be).
+constexpr double kWrongClickPx = 40.0;
+// The distance of the wrong click from the other rays' intersection is the click error
+// up to the 0.2 px marker noise and the geometry of the others, pixels.
+constexpr double kWrongClickTolPx = 3.0;
+// A similarity recovered from exact correspondences: numerical noise only (metres,
+// radians, relative scale).
+constexpr double kExactFitTol = 1e-9;
 
 // The truth moved into an arbitrary frame, as SfM would deliver it, with a 1 % focal
 // error so the adjustment has work to do.
@@ -231,6 +241,179 @@ TEST(Georeference, EndToEndFromIncrementalReconstruction) {
   EXPECT_LT(s.check.xyz, kCheckTolM);
   EXPECT_LT(max_centre_error(rec, sc), kCentreTolM);
   EXPECT_LT(s.bundle.rmse_px, 0.5);
+}
+
+const Blunder* blunder_of(const GeoreferenceSummary& s, const std::string& marker) {
+  for (const auto& b : s.blunders) {
+    if (b.marker == marker) return &b;
+  }
+  return nullptr;
+}
+
+TEST(Similarity, WeightedFitRecoversATransformAndIgnoresLooseAxes) {
+  Similarity3 truth;
+  truth.scale = 2.5;
+  truth.R = Eigen::AngleAxisd(0.4, Eigen::Vector3d(0.3, 0.1, 1.0).normalized()).toRotationMatrix();
+  truth.t = Eigen::Vector3d(10.0, -4.0, 2.0);
+  std::vector<Eigen::Vector3d> src{{0, 0, 0}, {1, 0, 0.1}, {0, 1, -0.1}, {1, 1, 0.3}, {0.5, 0.2, 0.0}};
+  std::vector<Eigen::Vector3d> dst, sigma;
+  for (std::size_t i = 0; i < src.size(); ++i) {
+    dst.push_back(truth.apply(src[i]));
+    sigma.push_back(Eigen::Vector3d(0.01, 0.02, 0.01 * double(i + 1)));
+  }
+  Similarity3 s = fit_similarity_weighted(src, dst, sigma);
+  EXPECT_NEAR(s.scale, truth.scale, kExactFitTol * truth.scale);
+  EXPECT_LT((s.R - truth.R).norm(), kExactFitTol);
+  EXPECT_LT((s.t - truth.t).norm(), kExactFitTol);
+  // Plan-only markers: wrong heights with a 100 m sigma barely move the fit, whereas
+  // the unweighted fit follows them.
+  auto wrong = dst;
+  for (std::size_t i = 0; i < wrong.size(); ++i) {
+    wrong[i].z() = 0.0;
+    sigma[i].z() = 100.0;
+  }
+  sigma[0].z() = 0.01;  // one marker with a known height keeps the level
+  wrong[0].z() = dst[0].z();
+  s = fit_similarity_weighted(src, wrong, sigma);
+  const Similarity3 plain = fit_similarity(src, wrong);
+  double worst_weighted = 0, worst_plain = 0;
+  for (std::size_t i = 0; i < src.size(); ++i) {
+    worst_weighted = std::max(worst_weighted, (s.apply(src[i]) - dst[i]).head<2>().norm());
+    worst_plain = std::max(worst_plain, (plain.apply(src[i]) - dst[i]).head<2>().norm());
+  }
+  std::printf("[ figures  ] plan-only fit: worst plan error weighted %.2e m, unweighted %.3f m\n",
+              worst_weighted, worst_plain);
+  EXPECT_LT(worst_weighted, 1e-3);
+  EXPECT_GT(worst_plain, 0.05);
+}
+
+TEST(Georeference, OneWrongClickIsDroppedAndNamed) {
+  Reconstruction rec = arbitrary_frame(scene());
+  auto observations = scene().marker_observations;
+  // The control marker seen in most photos (with 2 a wrong ray cannot be told from a
+  // right one: that case is a marker-level rejection).
+  std::string name;
+  long most = 0;
+  for (const char* c : {"C1", "C2", "C3", "C4"}) {
+    const long n = std::count_if(observations.begin(), observations.end(),
+                                 [&](const MarkerObservation& o) { return o.marker == c; });
+    if (n > most) {
+      most = n;
+      name = c;
+    }
+  }
+  ASSERT_GE(most, 4);
+  int seen = 0, wrong_image = -1;
+  for (auto& o : observations) {
+    if (o.marker != name || ++seen != 2) continue;
+    o.pixel += Eigen::Vector2d(0.6, -0.8) * kWrongClickPx;  // 40 px off, as if on the next target
+    wrong_image = o.image;
+  }
+  ASSERT_GE(wrong_image, 0);
+  const auto markers = only(scene(), {"C1", "C2", "C3", "C4", "K1", "K2"});
+  const auto s = georeference({}, markers, observations, scene().keypoints, rec);
+  const Blunder* b = blunder_of(s, name);
+  ASSERT_NE(b, nullptr) << "the wrong click is reported";
+  std::printf("[ figures  ] wrong click: %s in %s, %.2f px: %s; check rmse %.2f mm, loo %.2f mm\n",
+              b->marker.c_str(), b->image.c_str(), b->amount, b->reason.c_str(), s.check.xyz * 1e3,
+              s.leave_one_out.xyz * 1e3);
+  EXPECT_EQ(b->image, rec.images[wrong_image].name);
+  EXPECT_EQ(b->unit, "px");
+  EXPECT_NEAR(b->amount, kWrongClickPx, kWrongClickTolPx);
+  EXPECT_EQ(s.blunders.size(), 1u) << "nothing else is dropped";
+  EXPECT_TRUE(s.rejected.empty()) << "the marker itself stays";
+  std::size_t dropped = 0;
+  for (const auto& o : row(s, name).observations) {
+    if (o.dropped) {
+      ++dropped;
+      EXPECT_EQ(o.image, wrong_image);
+      EXPECT_NEAR(o.to_rays_px, kWrongClickPx, kWrongClickTolPx) << "its residual is still shown";
+    } else {
+      EXPECT_LT(o.to_rays_px, 1.0);
+    }
+  }
+  EXPECT_EQ(dropped, 1u);
+  EXPECT_LT(s.check.xyz, kCheckTolM);
+  EXPECT_LT(s.control.xyz, kCheckTolM);
+  // Leave-one-out over the four clean control markers.
+  EXPECT_EQ(s.leave_one_out.markers, 4u);
+  EXPECT_LT(s.leave_one_out.xyz, kCheckTolM);
+  EXPECT_TRUE(row(s, "C1").loo);
+  EXPECT_FALSE(row(s, "K1").loo) << "check markers are checks already";
+}
+
+// As in the Coal Oil Point gcp_list.txt: a marker with a single observation, clicked
+// at the very pixel of another marker whose other photos confirm its target.
+TEST(Georeference, TwoMarkersAtOnePixelKeepTheConfirmedOne) {
+  Reconstruction rec = arbitrary_frame(scene());
+  auto observations = scene().marker_observations;
+  auto markers = only(scene(), {"C1", "C2", "C3", "C4", "K1"});
+  MarkerConstraint ghost = markers[0];
+  ghost.name = "G9";
+  ghost.position += Eigen::Vector3d(3.0, 2.0, 0.0);
+  markers.push_back(ghost);
+  int image = -1;
+  for (const auto& o : scene().marker_observations) {
+    if (o.marker == "C3") {
+      observations.push_back({"G9", o.image, o.pixel + Eigen::Vector2d(0.3, -0.2)});
+      image = o.image;
+      break;
+    }
+  }
+  ASSERT_GE(image, 0);
+  const auto s = georeference({}, markers, observations, scene().keypoints, rec);
+  const Blunder* b = blunder_of(s, "G9");
+  ASSERT_NE(b, nullptr);
+  EXPECT_EQ(b->image, rec.images[image].name);
+  EXPECT_NE(b->reason.find("C3"), std::string::npos) << b->reason;
+  EXPECT_EQ(blunder_of(s, "C3"), nullptr) << "the confirmed marker keeps its click";
+  const auto c3_seen = std::count_if(scene().marker_observations.begin(), scene().marker_observations.end(),
+                                     [](const MarkerObservation& o) { return o.marker == "C3"; });
+  EXPECT_EQ(row(s, "C3").images, int(c3_seen));
+  for (const auto& o : row(s, "C3").observations) EXPECT_FALSE(o.dropped);
+  EXPECT_NE(std::find(s.unusable.begin(), s.unusable.end(), "G9"), s.unusable.end());
+  EXPECT_LT(s.check.xyz, kCheckTolM);
+}
+
+TEST(Georeference, LeaveOneOutShowsASurveyErrorBelowTheRejectionLimit) {
+  Reconstruction rec = arbitrary_frame(scene());
+  auto markers = only(scene(), {"C1", "C2", "C3", "C4", "K1", "K2"});
+  markers[3].position.x() += kSurveyBlunderM;  // C4: 3 cm, under the 5 cm rejection limit
+  const auto s = georeference({}, markers, scene().marker_observations, scene().keypoints, rec);
+  const auto& c4 = row(s, "C4");
+  std::printf("[ figures  ] 3 cm survey error on C4: residual dE %.2f mm, leave-one-out dE %.2f mm; "
+              "distance misfit %.2f mm\n", c4.dE * 1e3, c4.loo_dE * 1e3, c4.distance_misfit_m * 1e3);
+  EXPECT_TRUE(s.rejected.empty());
+  ASSERT_TRUE(c4.loo);
+  // The adjustment shares the error among the markers; left out, C4 shows most of it.
+  EXPECT_LT(c4.loo_dE, -0.7 * kSurveyBlunderM);
+  EXPECT_GT(std::abs(c4.loo_dE), std::abs(c4.dE));
+  for (const char* other : {"C1", "C2", "C3"}) {
+    EXPECT_LT(std::abs(row(s, other).loo_dE), std::abs(c4.loo_dE)) << other;
+  }
+  // Distances to C4 disagree with the survey by about the error, the others' less.
+  EXPECT_GT(c4.distance_misfit_m, 0.3 * kSurveyBlunderM);
+  EXPECT_LT(row(s, "K1").distance_misfit_m, c4.distance_misfit_m);
+}
+
+// Markers surveyed in plan only (heights unknown): wrong heights with a large sigma
+// neither tilt nor shift the block in plan.
+TEST(Georeference, HorizontalControlIgnoresUnknownHeights) {
+  Reconstruction rec = arbitrary_frame(scene());
+  auto markers = only(scene(), {"C1", "C2", "C3", "C4", "K1", "K2"});
+  for (auto& m : markers) {
+    if (!m.control) continue;
+    m.position.z() = 0.2 * m.position.x();  // a made-up slope: the heights are unknown
+    m.sigma.z() = 10.0;
+  }
+  const auto s = georeference({}, markers, scene().marker_observations, scene().keypoints, rec);
+  std::printf("[ figures  ] plan-only control: control plan %.2f mm, check plan %.2f mm, check dZ %.1f mm\n",
+              s.control.horizontal * 1e3, s.check.horizontal * 1e3, s.check.z * 1e3);
+  EXPECT_TRUE(s.rejected.empty());
+  EXPECT_EQ(s.control.markers_z, 0u);
+  EXPECT_FALSE(row(s, "C1").height_known);
+  EXPECT_LT(s.control.horizontal, kCheckTolM);
+  EXPECT_LT(s.check.horizontal, kCheckTolM);
 }
 
 }  // namespace

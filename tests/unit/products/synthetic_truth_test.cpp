@@ -4,6 +4,7 @@
 // Set STRATA_PRODUCTS_KEEP=DIR to keep the orthophotos and DTMs for inspection.
 #include "core/error.hpp"
 #include "crs/crs.hpp"
+#include "products/ortho_markers.hpp"
 #include "products/orthophoto.hpp"
 #include "products/raster_io.hpp"
 #include "support/test_support.hpp"
@@ -11,8 +12,6 @@
 
 #include <Eigen/Dense>
 #include <gtest/gtest.h>
-#include <opencv2/aruco.hpp>
-#include <opencv2/imgproc.hpp>
 
 #include <cmath>
 #include <fstream>
@@ -155,24 +154,24 @@ TEST_F(SyntheticTruth, MarkersLandWithinTwoPixels) {
       write_rgba_geotiff(fs::path(keep) / (layer + "_ortho.tif"), ortho, geo);
       write_dtm_geotiff(fs::path(keep) / (layer + "_dtm.tif"), truth_dtm, geo);
     }
-    cv::Mat rgba(ortho.grid.height, ortho.grid.width, CV_8UC4, const_cast<std::uint8_t*>(ortho.rgba.data()));
-    cv::Mat gray;
-    cv::cvtColor(rgba, gray, cv::COLOR_RGBA2GRAY);
-    std::vector<int> ids;
-    std::vector<std::vector<cv::Point2f>> corners;
-    cv::aruco::detectMarkers(gray, cv::aruco::getPredefinedDictionary(cv::aruco::DICT_4X4_50), corners, ids);
-    for (std::size_t k = 0; k < ids.size(); ++k) {
-      if (!truth.count(ids[k])) continue;
-      cv::Point2f c(0, 0);
-      for (const auto& p : corners[k]) c += p * 0.25f;
-      // Pixel centre convention of OpenCV: (0, 0) is the centre of the first pixel.
-      const double e = kOrigin.x() + ortho.grid.x_min + (c.x + 0.5) * ortho.grid.cell;
-      const double n = kOrigin.y() + ortho.grid.y_max - (c.y + 0.5) * ortho.grid.cell;
-      const double err_px = (Eigen::Vector2d(e, n) - truth[ids[k]]).norm() / ortho.grid.cell;
-      EXPECT_LT(err_px, kMarkerTolerancePx) << layer << " GCP" << ids[k];
-      std::printf("%s GCP%d: %.2f px (%.1f mm)\n", layer.c_str(), ids[k], err_px, err_px * kOrthoCell * 1000);
+    // The product's own check: targets detected in the orthophoto against the
+    // true marker positions (site frame).
+    std::vector<SurveyedMarker> survey;
+    for (const auto& [id, en] : truth) {
+      survey.push_back({"GCP" + std::to_string(id), Eigen::Vector3d(en.x() - kOrigin.x(), en.y() - kOrigin.y(), 0),
+                        "control"});
+    }
+    const OrthoMarkerCheck check = check_ortho_markers(ortho, survey, OrthoMarkerCheckOptions{});
+    for (const OrthoMarkerOffset& m : check.markers) {
+      if (m.status != OrthoMarkerStatus::detected) {
+        std::printf("%s %s: %s\n", layer.c_str(), m.name.c_str(), to_string(m.status));
+        continue;
+      }
+      EXPECT_LT(m.offset_px, kMarkerTolerancePx) << layer << " " << m.name;
+      std::printf("%s %s: %.2f px (%.1f mm)\n", layer.c_str(), m.name.c_str(), m.offset_px, m.offset_m * 1000);
       ++checked;
     }
+    EXPECT_EQ(check.over_tolerance, 0) << layer;
     std::printf("%s: coverage %.3f, views used %d/%d, seams %.3f, balance rms %.3f -> %.3f, %.2f s\n",
                 layer.c_str(), s.coverage, s.views_used, s.views, s.seam_fraction, s.balance_rms_before,
                 s.balance_rms_after, s.seconds);

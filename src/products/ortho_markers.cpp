@@ -1,0 +1,156 @@
+#include "products/ortho_markers.hpp"
+
+#include "core/error.hpp"
+#include "core/resources.hpp"
+
+#include <fmt/format.h>
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <cmath>
+#include <limits>
+#include <map>
+
+namespace strata {
+namespace {
+// A missed marker counts as fully covered from this share of coloured cells around it.
+constexpr double kMinCoveredShare = 0.9;
+}  // namespace
+
+void OrthoMarkerCheckOptions::validate() const {
+  targets.validate();
+  naming.validate();
+  if (!(tolerance_px > 0)) {
+    throw InputError(fmt::format("products.ortho_markers: tolerance_px must be > 0 pixels, got {}", tolerance_px));
+  }
+  if (!(coverage_radius_m >= 0)) {
+    throw InputError(
+        fmt::format("products.ortho_markers: coverage_radius_m must be >= 0 metres, got {}", coverage_radius_m));
+  }
+  if (upsample < 1 || upsample > 8) {
+    throw InputError(fmt::format("products.ortho_markers: upsample must be in [1, 8], got {}", upsample));
+  }
+}
+
+const char* to_string(OrthoMarkerStatus s) {
+  switch (s) {
+    case OrthoMarkerStatus::detected:
+      return "detected";
+    case OrthoMarkerStatus::outside:
+      return "outside";
+    case OrthoMarkerStatus::not_seen:
+      return "not_seen";
+    case OrthoMarkerStatus::partly_seen:
+      return "partly_seen";
+    case OrthoMarkerStatus::not_detected:
+      return "not_detected";
+  }
+  return "?";
+}
+
+OrthoMarkerCheck check_ortho_markers(const RgbaRaster& ortho, const std::vector<SurveyedMarker>& markers,
+                                     const OrthoMarkerCheckOptions& options) {
+  options.validate();
+  const RasterGrid& g = ortho.grid;
+  STRATA_CHECK(g.width > 0 && g.height > 0 && ortho.rgba.size() == 4 * g.cells());
+  Stopwatch clock;
+
+  // Grey detection image. Cells no photo coloured become mid-grey rather than
+  // black, so the edge of the coverage does not look like a target's black border.
+  cv::Mat rgba(g.height, g.width, CV_8UC4, const_cast<std::uint8_t*>(ortho.rgba.data()));
+  cv::Mat grey;
+  cv::cvtColor(rgba, grey, cv::COLOR_RGBA2GRAY);
+  for (int r = 0; r < g.height; ++r) {
+    for (int c = 0; c < g.width; ++c) {
+      if (ortho.rgba[4 * g.index(c, r) + 3] == 0) grey.at<std::uint8_t>(r, c) = 128;
+    }
+  }
+  const int s = options.upsample;
+  if (s > 1) {
+    cv::Mat big;
+    cv::resize(grey, big, cv::Size(g.width * s, g.height * s), 0, 0, cv::INTER_CUBIC);
+    grey = big;
+  }
+  const std::vector<TargetDetection> found =
+      detect_targets(options.targets, grey.ptr<std::uint8_t>(), grey.cols, grey.rows);
+
+  // Detections by marker name, centres in the site frame. With the pixel-centre
+  // convention, detection pixel u is orthophoto column (u + 0.5) / s - 0.5, whose
+  // centre lies at x_min + (column + 0.5) * cell.
+  std::map<std::string, std::vector<Eigen::Vector2d>> by_name;
+  OrthoMarkerCheck out;
+  out.cell_m = g.cell;
+  out.tolerance_px = options.tolerance_px;
+  std::map<std::string, bool> surveyed;
+  for (const SurveyedMarker& m : markers) surveyed[m.name] = true;
+  for (const TargetDetection& d : found) {
+    const std::string name = target_name(options.naming, d.id);
+    if (name.empty() || !surveyed.count(name)) {
+      if (out.unknown_ids.empty() || out.unknown_ids.back() != d.id) out.unknown_ids.push_back(d.id);
+      continue;
+    }
+    by_name[name].emplace_back(g.x_min + (d.centre.x() + 0.5) / s * g.cell,
+                               g.y_max - (d.centre.y() + 0.5) / s * g.cell);
+  }
+
+  double sum_sq_m = 0;
+  for (const SurveyedMarker& m : markers) {
+    OrthoMarkerOffset o;
+    o.name = m.name;
+    o.kind = m.kind;
+    o.surveyed = m.position.head<2>();
+    if (const auto it = by_name.find(m.name); it != by_name.end()) {
+      o.status = OrthoMarkerStatus::detected;
+      o.detections = int(it->second.size());
+      double best = std::numeric_limits<double>::infinity();
+      for (const Eigen::Vector2d& p : it->second) {
+        const double dist = (p - o.surveyed).norm();
+        if (dist < best) {
+          best = dist;
+          o.detected = p;
+        }
+      }
+      o.de_m = o.detected.x() - o.surveyed.x();
+      o.dn_m = o.detected.y() - o.surveyed.y();
+      o.offset_m = best;
+      o.offset_px = best / g.cell;
+      ++out.detected;
+      if (o.offset_px > options.tolerance_px) ++out.over_tolerance;
+      out.max_m = std::max(out.max_m, o.offset_m);
+      sum_sq_m += o.offset_m * o.offset_m;
+    } else {
+      const double col = std::floor((o.surveyed.x() - g.x_min) / g.cell);
+      const double row = std::floor((g.y_max - o.surveyed.y()) / g.cell);
+      if (col < 0 || row < 0 || col >= g.width || row >= g.height) {
+        o.status = OrthoMarkerStatus::outside;
+      } else if (ortho.rgba[4 * g.index(int(col), int(row)) + 3] == 0) {
+        o.status = OrthoMarkerStatus::not_seen;
+      } else {
+        // Share of coloured cells within coverage_radius_m (cells off the grid count as not coloured).
+        const int k = int(std::ceil(options.coverage_radius_m / g.cell));
+        std::size_t inside = 0, coloured = 0;
+        for (int dr = -k; dr <= k; ++dr) {
+          for (int dc = -k; dc <= k; ++dc) {
+            if (dr * dr + dc * dc > k * k) continue;
+            ++inside;
+            const int cc = int(col) + dc, rr = int(row) + dr;
+            if (cc >= 0 && rr >= 0 && cc < g.width && rr < g.height && ortho.rgba[4 * g.index(cc, rr) + 3] != 0)
+              ++coloured;
+          }
+        }
+        o.status = double(coloured) >= kMinCoveredShare * double(inside) ? OrthoMarkerStatus::not_detected
+                                                                         : OrthoMarkerStatus::partly_seen;
+      }
+    }
+    out.markers.push_back(std::move(o));
+  }
+  if (out.detected > 0) {
+    out.rmse_m = std::sqrt(sum_sq_m / out.detected);
+    out.rmse_px = out.rmse_m / g.cell;
+    out.max_px = out.max_m / g.cell;
+  }
+  out.seconds = clock.seconds();
+  return out;
+}
+
+}  // namespace strata

@@ -1,0 +1,283 @@
+// Gap filling of layer surfaces before differencing: the fill domain (trench
+// outline), a membrane (Laplace) interpolation of the missing heights inside it,
+// and the distance of every filled cell to measured data (its uncertainty).
+#include "core/error.hpp"
+#include "core/log.hpp"
+#include "volume/distance_transform.hpp"
+#include "volume/volume.hpp"
+
+#include <Eigen/IterativeLinearSolvers>
+#include <Eigen/SparseCore>
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace strata {
+namespace {
+using volume_detail::distance_transform;
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// Exact squared Euclidean distance transform of one line (Felzenszwalb and
+// Huttenlocher, "Distance transforms of sampled functions", 2012): d[q] =
+// min_p (q - p)^2 + f[p], and site[q] = the minimising p; f = inf means "no site".
+void distance_1d(const std::vector<double>& f, std::vector<double>& d, std::vector<int>& site) {
+  const int n = int(f.size());
+  std::vector<int> v(std::size_t(n) + 1);       // sites of the parabolas in the lower envelope
+  std::vector<double> z(std::size_t(n) + 2);    // boundaries between them
+  int k = -1;                                   // index of the last parabola
+  for (int q = 0; q < n; ++q) {
+    if (f[q] == kInf) continue;
+    double s = -kInf;
+    while (k >= 0) {
+      const int p = v[k];
+      s = ((f[q] + double(q) * q) - (f[p] + double(p) * p)) / (2.0 * (q - p));
+      if (s > z[k]) break;
+      --k;
+    }
+    if (k < 0) s = -kInf;
+    ++k;
+    v[k] = q;
+    z[k] = s;
+    z[k + 1] = kInf;
+  }
+  d.assign(n, kInf);
+  site.assign(n, -1);
+  if (k < 0) return;
+  int e = 0;
+  for (int q = 0; q < n; ++q) {
+    while (z[e + 1] < q) ++e;
+    d[q] = double(q - v[e]) * (q - v[e]) + f[v[e]];
+    site[q] = v[e];
+  }
+}
+
+// Even-odd rule (ray casting along +x).
+bool inside(const std::vector<Eigen::Vector2d>& poly, double x, double y) {
+  bool in = false;
+  for (std::size_t i = 0, j = poly.size() - 1; i < poly.size(); j = i++) {
+    const auto& a = poly[i];
+    const auto& b = poly[j];
+    if ((a.y() > y) != (b.y() > y)) {
+      const double xc = a.x() + (y - a.y()) * (b.x() - a.x()) / (b.y() - a.y());
+      if (x < xc) in = !in;
+    }
+  }
+  return in;
+}
+
+// Cells of `mask` not 4-connected to the grid border through unset cells are set:
+// the holes the mask encloses.
+void fill_enclosed_holes(std::vector<std::uint8_t>& mask, int nx, int ny) {
+  std::vector<std::uint8_t> outside(mask.size(), 0);
+  std::vector<std::size_t> stack;
+  auto seed = [&](int i, int j) {
+    const std::size_t c = std::size_t(j) * nx + i;
+    if (!mask[c] && !outside[c]) {
+      outside[c] = 1;
+      stack.push_back(c);
+    }
+  };
+  for (int i = 0; i < nx; ++i) seed(i, 0), seed(i, ny - 1);
+  for (int j = 0; j < ny; ++j) seed(0, j), seed(nx - 1, j);
+  while (!stack.empty()) {
+    const std::size_t c = stack.back();
+    stack.pop_back();
+    const int i = int(c % nx), j = int(c / nx);
+    if (i > 0) seed(i - 1, j);
+    if (i + 1 < nx) seed(i + 1, j);
+    if (j > 0) seed(i, j - 1);
+    if (j + 1 < ny) seed(i, j + 1);
+  }
+  for (std::size_t c = 0; c < mask.size(); ++c)
+    if (!outside[c]) mask[c] = 1;
+}
+
+// The fill domain on the grid (see GapFillOptions).
+std::vector<std::uint8_t> fill_domain(const std::vector<LayerSurface>& layers, const SiteGrid& g,
+                                      const VolumeOptions& o) {
+  std::vector<std::uint8_t> domain(g.size(), 0);
+  if (!o.fill.outline.empty()) {
+    for (int j = 0; j < g.ny; ++j)
+      for (int i = 0; i < g.nx; ++i) domain[std::size_t(j) * g.nx + i] = inside(o.fill.outline, g.x(i), g.y(j));
+  } else {
+    // Union of the measured cells, closed with a disc: dilation = within r of the
+    // union, erosion = farther than r from what is outside the dilation.
+    std::vector<std::uint8_t> data(g.size(), 0);
+    for (const auto& l : layers)
+      for (std::size_t c = 0; c < g.size(); ++c)
+        if (std::isfinite(l.z.z[c]) && !l.filled(c)) data[c] = 1;
+    const double r = o.fill.closing_m / g.cell;  // cells
+    std::vector<double> d;
+    distance_transform(data, g.nx, g.ny, d, nullptr);
+    std::vector<std::uint8_t> beyond(g.size(), 0);  // outside the dilation
+    for (std::size_t c = 0; c < g.size(); ++c) beyond[c] = d[c] > r;
+    distance_transform(beyond, g.nx, g.ny, d, nullptr);  // inf when the dilation covers the grid
+    for (std::size_t c = 0; c < g.size(); ++c) domain[c] = data[c] || d[c] > r;
+    fill_enclosed_holes(domain, g.nx, g.ny);
+  }
+  for (const auto& [unit, poly] : o.footprints)
+    for (int j = 0; j < g.ny; ++j)
+      for (int i = 0; i < g.nx; ++i)
+        if (inside(poly, g.x(i), g.y(j))) domain[std::size_t(j) * g.nx + i] = 1;
+  return domain;
+}
+
+// Membrane fill of one layer inside the domain; returns the number of filled cells.
+std::size_t fill_layer(LayerSurface& l, const std::vector<std::uint8_t>& domain, const SiteGrid& g) {
+  const int nx = g.nx, ny = g.ny;
+  const std::size_t n = g.size();
+  std::vector<std::uint8_t> known(n, 0);
+  for (std::size_t c = 0; c < n; ++c) known[c] = std::isfinite(l.z.z[c]);
+  // Unknowns: domain cells without a height, in components that touch a known cell.
+  std::vector<std::int64_t> index(n, -1);
+  std::vector<std::size_t> unknowns;
+  {
+    std::vector<std::uint8_t> seen(n, 0);
+    std::vector<std::size_t> comp, stack;
+    for (std::size_t c0 = 0; c0 < n; ++c0) {
+      if (!domain[c0] || known[c0] || seen[c0]) continue;
+      comp.clear();
+      bool anchored = false;
+      seen[c0] = 1;
+      stack.push_back(c0);
+      while (!stack.empty()) {
+        const std::size_t c = stack.back();
+        stack.pop_back();
+        comp.push_back(c);
+        const int i = int(c % nx), j = int(c / nx);
+        const std::size_t nb[4] = {c - 1, c + 1, c - nx, c + nx};
+        const bool ok[4] = {i > 0, i + 1 < nx, j > 0, j + 1 < ny};
+        for (int k = 0; k < 4; ++k) {
+          if (!ok[k]) continue;
+          const std::size_t q = nb[k];
+          if (known[q]) anchored = true;
+          else if (domain[q] && !seen[q]) {
+            seen[q] = 1;
+            stack.push_back(q);
+          }
+        }
+      }
+      if (!anchored) continue;  // no measured height around it: nothing to interpolate from
+      for (std::size_t c : comp) {
+        index[c] = std::int64_t(unknowns.size());
+        unknowns.push_back(c);
+      }
+    }
+  }
+  if (unknowns.empty()) return 0;
+
+  // Initial guess and uncertainty: the nearest measured height and its distance.
+  std::vector<double> dist;
+  std::vector<std::int64_t> nearest;
+  distance_transform(known, nx, ny, dist, &nearest);
+
+  // Discrete Laplace equation on the 4-neighbourhood: for an unknown cell,
+  // sum over its neighbours in the domain or measured of (z_c - z_q) = 0; measured
+  // neighbours go to the right-hand side, neighbours outside both are left out
+  // (zero slope across the domain's border).
+  const Eigen::Index m = Eigen::Index(unknowns.size());
+  std::vector<Eigen::Triplet<double>> triplets;
+  triplets.reserve(unknowns.size() * 5);
+  Eigen::VectorXd rhs = Eigen::VectorXd::Zero(m), x0(m);
+  for (Eigen::Index r = 0; r < m; ++r) {
+    const std::size_t c = unknowns[std::size_t(r)];
+    const int i = int(c % nx), j = int(c / nx);
+    const std::size_t nb[4] = {c - 1, c + 1, c - nx, c + nx};
+    const bool ok[4] = {i > 0, i + 1 < nx, j > 0, j + 1 < ny};
+    double diag = 0;
+    for (int k = 0; k < 4; ++k) {
+      if (!ok[k]) continue;
+      const std::size_t q = nb[k];
+      if (known[q]) {
+        diag += 1;
+        rhs[r] += l.z.z[q];
+      } else if (index[q] >= 0) {
+        diag += 1;
+        triplets.emplace_back(r, Eigen::Index(index[q]), -1.0);
+      }
+    }
+    triplets.emplace_back(r, r, diag);
+    x0[r] = nearest[c] >= 0 ? l.z.z[std::size_t(nearest[c])] : 0.0;
+  }
+  Eigen::SparseMatrix<double> A(m, m);
+  A.setFromTriplets(triplets.begin(), triplets.end());
+  Eigen::ConjugateGradient<Eigen::SparseMatrix<double>, Eigen::Lower | Eigen::Upper> cg;
+  cg.setTolerance(1e-9);
+  cg.setMaxIterations(20000);
+  cg.compute(A);
+  const Eigen::VectorXd z = cg.solveWithGuess(rhs, x0);
+  if (cg.info() != Eigen::Success)
+    log::warn("volume: gap fill of layer {}: the membrane solver stopped after {} iterations (error {:.2e})", l.layer,
+              cg.iterations(), cg.error());
+  l.filled_distance_m.assign(n, 0.0f);
+  for (Eigen::Index r = 0; r < m; ++r) {
+    const std::size_t c = unknowns[std::size_t(r)];
+    l.z.z[c] = z[r];
+    l.filled_distance_m[c] = float(std::max(dist[c], 1.0) * g.cell);
+  }
+  log::debug("volume: layer {}: {} cells filled ({} CG iterations)", l.layer, unknowns.size(), cg.iterations());
+  return unknowns.size();
+}
+
+}  // namespace
+
+namespace volume_detail {
+void distance_transform(const std::vector<std::uint8_t>& feature, int nx, int ny, std::vector<double>& dist,
+                        std::vector<std::int64_t>* nearest) {
+  const std::size_t n = std::size_t(nx) * ny;
+  std::vector<double> col_d(n);
+  std::vector<int> col_site(n);
+  std::vector<double> f, d;
+  std::vector<int> site;
+  for (int i = 0; i < nx; ++i) {  // columns: nearest feature row in the same column
+    f.assign(ny, kInf);
+    for (int j = 0; j < ny; ++j)
+      if (feature[std::size_t(j) * nx + i]) f[j] = 0;
+    distance_1d(f, d, site);
+    for (int j = 0; j < ny; ++j) {
+      col_d[std::size_t(j) * nx + i] = d[j];
+      col_site[std::size_t(j) * nx + i] = site[j];
+    }
+  }
+  dist.assign(n, kInf);
+  if (nearest) nearest->assign(n, -1);
+  for (int j = 0; j < ny; ++j) {  // rows over the column distances
+    f.assign(col_d.begin() + std::ptrdiff_t(j) * nx, col_d.begin() + std::ptrdiff_t(j + 1) * nx);
+    distance_1d(f, d, site);
+    for (int i = 0; i < nx; ++i) {
+      const std::size_t c = std::size_t(j) * nx + i;
+      if (site[i] < 0) continue;
+      dist[c] = std::sqrt(d[i]);
+      if (nearest) (*nearest)[c] = std::int64_t(col_site[std::size_t(j) * nx + site[i]]) * nx + site[i];
+    }
+  }
+}
+
+}  // namespace volume_detail
+
+GapFillSummary fill_surface_gaps(std::vector<LayerSurface>& layers, const VolumeOptions& options) {
+  options.validate();
+  GapFillSummary out;
+  if (layers.empty() || !options.fill.enabled) return out;
+  const SiteGrid g = SiteGrid::of(layers.front().z);
+  for (const auto& l : layers)
+    STRATA_CHECK(l.z.nx == g.nx && l.z.ny == g.ny && l.z.cell == g.cell && l.z.x0 == g.x0 && l.z.y0 == g.y0,
+                 "layer {} is not on the common grid", l.layer);
+  const std::vector<std::uint8_t> domain = fill_domain(layers, g, options);
+  const double cell_area = g.cell * g.cell;
+  out.domain_area_m2 = double(std::count(domain.begin(), domain.end(), 1)) * cell_area;
+  for (auto& l : layers) {
+    std::size_t measured = 0;
+    for (std::size_t c = 0; c < g.size(); ++c) measured += domain[c] && std::isfinite(l.z.z[c]) && !l.filled(c);
+    out.measured_area_m2[l.layer] = double(measured) * cell_area;
+    out.filled_area_m2[l.layer] = double(fill_layer(l, domain, g)) * cell_area;
+    log::info("volume: layer {}: {:.3f} m2 measured, {:.3f} m2 filled in a fill domain of {:.3f} m2", l.layer,
+              out.measured_area_m2[l.layer], out.filled_area_m2[l.layer], out.domain_area_m2);
+  }
+  return out;
+}
+
+}  // namespace strata

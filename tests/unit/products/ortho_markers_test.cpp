@@ -1,0 +1,180 @@
+// The orthophoto marker check (issue 6): ArUco targets rendered into a small
+// synthetic orthophoto at known places are found, their centres turned into map
+// coordinates, and compared with the surveyed positions; a target whose survey is
+// off by a few pixels is reported as off, markers off the grid, under unseen cells
+// or simply absent are listed as such.
+#include "core/error.hpp"
+#include "products/ortho_markers.hpp"
+
+#include <gtest/gtest.h>
+#include <opencv2/aruco.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <cmath>
+#include <cstdio>
+#include <random>
+
+namespace strata {
+namespace {
+
+constexpr double kCell = 0.005;        // metres: orthophoto cell
+constexpr int kWidth = 240, kHeight = 180;  // cells
+constexpr double kXMin = 10.0, kYMax = 20.0;  // metres, site frame
+constexpr int kCodeCellPx = 5;         // 6 code cells (4x4 + border) = 30 px = 15 cm, as in the field
+// A target rendered exactly (bilinear placement, 8-bit) is found to within a
+// quarter pixel by corner refinement on the upsampled orthophoto.
+constexpr double kCentreTolerancePx = 0.25;
+// Detected minus surveyed position of the 'shifted' marker (its survey is wrong).
+constexpr double kOffsetEastPx = 3.0, kOffsetNorthPx = -2.0;
+
+// Site-frame E, N of orthophoto pixel (u, v), pixel-centre convention.
+Eigen::Vector2d map_of(double u, double v) { return {kXMin + (u + 0.5) * kCell, kYMax - (v + 0.5) * kCell}; }
+
+class OrthoMarkers : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    ortho_.grid.x_min = kXMin;
+    ortho_.grid.y_max = kYMax;
+    ortho_.grid.cell = kCell;
+    ortho_.grid.width = kWidth;
+    ortho_.grid.height = kHeight;
+    // Soil-like noise, and a block of cells no photo saw (alpha 0) at the right.
+    grey_ = cv::Mat(kHeight, kWidth, CV_8UC1);
+    std::mt19937 rng(7);
+    std::normal_distribution<double> noise(0, 12);
+    for (int r = 0; r < kHeight; ++r)
+      for (int c = 0; c < kWidth; ++c)
+        grey_.at<std::uint8_t>(r, c) = cv::saturate_cast<std::uint8_t>(110 + 20 * std::sin(0.15 * c + 0.1 * r) + noise(rng));
+  }
+
+  // Renders target `id` (white margin of one code cell) with its centre at pixel (u, v).
+  void render(int id, double u, double v) {
+    const int side = 6 * kCodeCellPx, patch = side + 2 * kCodeCellPx;
+    cv::Mat code;
+    cv::aruco::drawMarker(cv::aruco::getPredefinedDictionary(cv::aruco::DICT_4X4_50), id, side, code, 1);
+    cv::Mat white(patch, patch, CV_8UC1, cv::Scalar(255));
+    code.copyTo(white(cv::Rect(kCodeCellPx, kCodeCellPx, side, side)));
+    const double centre = 0.5 * (patch - 1);  // of the patch, pixel-centre convention
+    const cv::Mat shift = (cv::Mat_<double>(2, 3) << 1, 0, u - centre, 0, 1, v - centre);
+    cv::Mat warped, mask;
+    cv::warpAffine(white, warped, shift, grey_.size(), cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar(0));
+    cv::warpAffine(cv::Mat(patch, patch, CV_8UC1, cv::Scalar(255)), mask, shift, grey_.size(), cv::INTER_LINEAR,
+                   cv::BORDER_CONSTANT, cv::Scalar(0));
+    for (int r = 0; r < kHeight; ++r)
+      for (int c = 0; c < kWidth; ++c) {
+        const double a = mask.at<std::uint8_t>(r, c) / 255.0;
+        // `warped` is already weighted by the coverage (black outside the patch).
+        grey_.at<std::uint8_t>(r, c) =
+            cv::saturate_cast<std::uint8_t>((1 - a) * grey_.at<std::uint8_t>(r, c) + warped.at<std::uint8_t>(r, c));
+      }
+  }
+
+  // The RGBA orthophoto: brownish colour from the grey, alpha 0 for columns >= unseen_from.
+  RgbaRaster finish(int unseen_from) {
+    ortho_.rgba.assign(4 * ortho_.grid.cells(), 0);
+    for (int r = 0; r < kHeight; ++r)
+      for (int c = 0; c < kWidth; ++c) {
+        const int g = grey_.at<std::uint8_t>(r, c);
+        std::uint8_t* p = &ortho_.rgba[4 * ortho_.grid.index(c, r)];
+        if (c >= unseen_from) continue;
+        p[0] = cv::saturate_cast<std::uint8_t>(g * 1.05);
+        p[1] = std::uint8_t(g);
+        p[2] = cv::saturate_cast<std::uint8_t>(g * 0.85);
+        p[3] = 255;
+      }
+    return ortho_;
+  }
+
+  RgbaRaster ortho_;
+  cv::Mat grey_;
+};
+
+const OrthoMarkerOffset& find(const OrthoMarkerCheck& c, const std::string& name) {
+  for (const auto& m : c.markers)
+    if (m.name == name) return m;
+  throw std::runtime_error("no marker " + name);
+}
+
+TEST_F(OrthoMarkers, FindsTargetsAndFlagsTheShiftedOne) {
+  // GCP1 exactly where surveyed (sub-pixel place); GCP2 rendered 3 px east and
+  // 2 px south of its survey; target 9 names no surveyed marker.
+  const double u1 = 50.3, v1 = 60.7, u2 = 140.6, v2 = 110.2;
+  render(1, u1, v1);
+  render(2, u2, v2);
+  render(9, 95.0, 40.0);
+  const RgbaRaster ortho = finish(200);
+
+  std::vector<SurveyedMarker> survey;
+  auto add = [&](const std::string& name, const Eigen::Vector2d& en, const std::string& kind) {
+    survey.push_back({name, Eigen::Vector3d(en.x(), en.y(), 0.3), kind});
+  };
+  add("GCP1", map_of(u1, v1), "control");
+  add("GCP2", map_of(u2 - kOffsetEastPx, v2 + kOffsetNorthPx), "check");  // rows grow southwards
+  add("GCP3", map_of(-40, 20), "control");    // west of the grid
+  add("GCP4", map_of(220, 90), "control");    // in the unseen block
+  add("GCP5", map_of(60, 150), "control");    // coloured, but no target there
+  add("GCP6", map_of(196, 60), "control");    // coloured centre, unseen block 4 cells east
+
+  const OrthoMarkerCheck check = check_ortho_markers(ortho, survey, OrthoMarkerCheckOptions{});
+  ASSERT_EQ(check.markers.size(), 6u);
+  for (const auto& m : check.markers) {
+    std::printf("%s %s: dE %.2f px, dN %.2f px, offset %.2f px\n", m.name.c_str(), to_string(m.status),
+                m.de_m / kCell, m.dn_m / kCell, m.offset_px);
+  }
+  const auto& m1 = find(check, "GCP1");
+  ASSERT_EQ(m1.status, OrthoMarkerStatus::detected);
+  EXPECT_EQ(m1.detections, 1);
+  EXPECT_LT(m1.offset_px, kCentreTolerancePx);
+  EXPECT_NEAR(m1.detected.x(), map_of(u1, v1).x(), kCentreTolerancePx * kCell);
+
+  const auto& m2 = find(check, "GCP2");
+  ASSERT_EQ(m2.status, OrthoMarkerStatus::detected);
+  EXPECT_NEAR(m2.de_m / kCell, kOffsetEastPx, kCentreTolerancePx);
+  EXPECT_NEAR(m2.dn_m / kCell, kOffsetNorthPx, kCentreTolerancePx);
+  EXPECT_NEAR(m2.offset_px, std::hypot(kOffsetEastPx, kOffsetNorthPx), kCentreTolerancePx);
+  EXPECT_NEAR(m2.offset_m, m2.offset_px * kCell, 1e-12);
+
+  EXPECT_EQ(find(check, "GCP3").status, OrthoMarkerStatus::outside);
+  EXPECT_EQ(find(check, "GCP4").status, OrthoMarkerStatus::not_seen);
+  EXPECT_EQ(find(check, "GCP5").status, OrthoMarkerStatus::not_detected);
+  EXPECT_EQ(find(check, "GCP6").status, OrthoMarkerStatus::partly_seen);
+  EXPECT_EQ(check.unknown_ids, std::vector<int>{9});
+
+  EXPECT_EQ(check.detected, 2);
+  EXPECT_EQ(check.over_tolerance, 1);  // GCP2 is more than 2 px off
+  EXPECT_DOUBLE_EQ(check.max_px, m2.offset_px);
+  EXPECT_NEAR(check.rmse_px, std::sqrt(0.5 * (m1.offset_px * m1.offset_px + m2.offset_px * m2.offset_px)), 1e-9);
+  EXPECT_NEAR(check.rmse_m, check.rmse_px * kCell, 1e-12);
+}
+
+TEST_F(OrthoMarkers, ANamingRuleMapsIdsToMarkers) {
+  render(4, 80.4, 90.1);
+  const RgbaRaster ortho = finish(kWidth);
+  OrthoMarkerCheckOptions o;
+  o.naming.rule = "T{id:02}";
+  const std::vector<SurveyedMarker> survey{{"T04", Eigen::Vector3d(map_of(80.4, 90.1).x(), map_of(80.4, 90.1).y(), 0), "check"},
+                                           {"GCP4", Eigen::Vector3d(map_of(80.4, 90.1).x(), map_of(80.4, 90.1).y(), 0), "control"}};
+  const OrthoMarkerCheck check = check_ortho_markers(ortho, survey, o);
+  EXPECT_EQ(check.markers[0].status, OrthoMarkerStatus::detected);
+  EXPECT_LT(check.markers[0].offset_px, kCentreTolerancePx);
+  EXPECT_EQ(check.markers[1].status, OrthoMarkerStatus::not_detected);
+}
+
+TEST(OrthoMarkerOptions, RejectsBadValues) {
+  OrthoMarkerCheckOptions o;
+  o.tolerance_px = 0;
+  EXPECT_THROW(o.validate(), InputError);
+  o = {};
+  o.upsample = 0;
+  EXPECT_THROW(o.validate(), InputError);
+  o = {};
+  o.coverage_radius_m = -0.1;
+  EXPECT_THROW(o.validate(), InputError);
+  o = {};
+  o.targets.dictionary = "DICT_9X9";
+  EXPECT_THROW(o.validate(), InputError);
+  EXPECT_NO_THROW(OrthoMarkerCheckOptions{}.validate());
+}
+
+}  // namespace
+}  // namespace strata
