@@ -27,9 +27,10 @@ command -v /usr/bin/time >/dev/null && /usr/bin/python3 -c 'import numpy, osgeo'
   sudo_cmd=; [[ $(id -u) -ne 0 ]] && sudo_cmd=sudo
   $sudo_cmd env DEBIAN_FRONTEND=noninteractive apt-get install -y -q time python3-numpy python3-gdal >/dev/null
 }
-cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo >/dev/null
-cmake --build build -j "$(nproc)" --target strata
-strata=$PWD/build/src/cli/strata
+build=${STRATA_BUILD_DIR:-build}  # another build directory of the same tree, e.g. a developer's
+cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo >/dev/null
+cmake --build "$build" -j "$(nproc)" --target strata
+strata=$PWD/$build/src/cli/strata
 
 data=example/data-$size
 if [[ ! -f "$data/site.json" ]]; then "$strata" synth "$data" --size "$size"; fi
@@ -44,6 +45,10 @@ photos=$(awk -F, -v l="$layer" '$1 == l { print $4 }' "$data/layers.csv")
 "$strata" -q layer add "$site" "$layer" --unit "$unit"
 "$strata" -q import photos "$site" --layer "$layer" "$data/$photos"/*.jpg
 "$strata" -q import markers "$site" "$data/markers.csv"
+# The hand-placed observations of this layer's photos (as scripts/example.sh imports them).
+ls "$data/$photos" > "$work/names.txt"
+awk 'NR == FNR { keep[$1] = 1; next } FNR == 1 || ($6 in keep)' "$work/names.txt" "$data/gcp_list.txt" > "$work/gcp_list.txt"
+"$strata" -q import markers "$site" "$work/gcp_list.txt"
 n_photos=$(ls "$data/$photos"/*.jpg | wc -l)
 
 # timed NAME CMD...: wall seconds of CMD (stdout to $work/NAME.json), peak RSS in $work/NAME.mem (kB).

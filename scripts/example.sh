@@ -47,7 +47,11 @@ echo "== processing every layer (alignment -> dense surface -> DTM, orthophoto, 
 "$strata" process "$site" --all
 
 echo "== unit volumes (between consecutive layer surfaces)"
-"$strata" volume "$site"
+# The limit of excavation recorded in the field (nothing outside it was dug); the
+# project keeps it for later volume runs, reports and exports.
+outline=()
+[[ -f "$data/trench_outline.geojson" ]] && outline=(--outline "$data/trench_outline.geojson")
+"$strata" volume "$site" "${outline[@]}"
 "$strata" check "$site" || echo "(the geometry contradicts a recorded relation: see above)"
 
 echo "== exports"

@@ -45,7 +45,7 @@ void add_model_options(CLI::App* cmd, ModelArgs& a) {
   cmd->add_option("--voxel-size", a.voxel, "voxel edge of the voxel model, metres (default 0.01)");
   cmd->add_option("--noise", a.noise, "surface noise when no dense quality figure exists, metres (default 0.003)");
   cmd->add_option("--outline", a.outline,
-                  "FILE: trench outline / limit of excavation (first polygon, site CRS): gaps in the layer "
+                  "FILE: trench outline / limit of excavation (first polygon, site CRS): nothing outside it counts as dug, and gaps in the layer "
                   "surfaces are filled inside it (default: the closed union of the surfaces' data)");
   cmd->add_option("--fill-closing", a.fill_closing,
                   "radius of the closing that derives the trench outline from the data, metres (default 0.25)");

@@ -252,6 +252,20 @@ void write_dataset(const SyntheticExcavationOptions& o, const fs::path& dir, Syn
     for (const auto& l : gcp_lines) gcp.out() << l << "\n";
     gcp.close();
   }
+  {
+    // The limit of excavation as the surveyor laid it out: a field record, used by
+    // `strata volume --outline` (nothing outside it was dug).
+    const double e0 = origin.x() + scene.trench_x0(), e1 = origin.x() + scene.trench_x1();
+    const double n0 = origin.y() + scene.trench_y0(), n1 = origin.y() + scene.trench_y1();
+    TextFile outline(dir / "trench_outline.geojson");
+    outline.out() << fmt::format(
+        "{{\"type\": \"FeatureCollection\", \"crs\": {{\"type\": \"name\", \"properties\": {{\"name\": "
+        "\"urn:ogc:def:crs:EPSG::{}\"}}}},\n \"features\": [{{\"type\": \"Feature\", \"properties\": "
+        "{{\"name\": \"trench\"}}, \"geometry\": {{\"type\": \"Polygon\", \"coordinates\": "
+        "[[[{:.4f}, {:.4f}], [{:.4f}, {:.4f}], [{:.4f}, {:.4f}], [{:.4f}, {:.4f}], [{:.4f}, {:.4f}]]]}}}}]}}\n",
+        o.site.epsg, e0, n0, e1, n0, e1, n1, e0, n1, e0, n0);
+    outline.close();
+  }
   summary.marker_observations = int(gcp_lines.size());
   summary.markers = int(scene.markers().size());
   summary.layers = scene.layers();

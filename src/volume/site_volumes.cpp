@@ -3,6 +3,8 @@
 
 #include "core/error.hpp"
 #include "core/log.hpp"
+
+#include <fstream>
 #include "volume/raster_io.hpp"
 
 #include <fmt/format.h>
@@ -214,7 +216,34 @@ SiteModel load_site_model(Project& project, const SiteVolumeOptions& options) {
 
   VolumeOptions vo = options.volume;
   for (const auto& [unit, path] : options.footprint_files) vo.footprints[unit] = read_footprint(path, origin);
-  if (!options.outline_file.empty()) vo.fill.outline = read_footprint(options.outline_file, origin);
+  // The trench outline: given now, it is kept with the project (so reports and
+  // exports that recompute the volumes use it too); else the kept one, if any.
+  const fs::path kept = project.dir() / kTrenchOutlineFile;
+  if (!options.outline_file.empty()) {
+    vo.fill.outline = read_footprint(options.outline_file, origin);
+    if (fs::absolute(options.outline_file) != fs::absolute(kept)) {
+      std::string coords;
+      const auto& ring = vo.fill.outline;
+      const bool closed = ring.front() == ring.back();
+      for (std::size_t k = 0; k < ring.size() + (closed ? 0 : 1); ++k) {
+        const Eigen::Vector2d& p = ring[k % ring.size()];
+        coords += fmt::format("{}[{:.4f}, {:.4f}]", k ? ", " : "", p.x() + origin.x(), p.y() + origin.y());
+      }
+      const fs::path tmp = kept.string() + ".tmp";
+      {
+        std::ofstream out(tmp);
+        out << fmt::format("{{\"type\": \"FeatureCollection\", \"features\": [{{\"type\": \"Feature\", "
+                           "\"properties\": {{\"name\": \"trench outline ({})\"}}, \"geometry\": {{\"type\": "
+                           "\"Polygon\", \"coordinates\": [[{}]]}}}}]}}\n",
+                           model.site.crs, coords);
+        if (!out.flush()) throw IoError(fmt::format("volume: cannot write {}", tmp.string()));
+      }
+      fs::rename(tmp, kept);
+      log::info("volume: trench outline kept as {}", kept.string());
+    }
+  } else if (fs::exists(kept)) {
+    vo.fill.outline = read_footprint(kept, origin);
+  }
   model.fill = fill_surface_gaps(model.layers, vo);
   model.solids = build_unit_solids(model.layers, vo);
   return model;

@@ -15,6 +15,9 @@
 
 namespace strata {
 
+// The project file that holds the trench outline once `strata volume --outline` gave one.
+inline constexpr const char* kTrenchOutlineFile = "trench_outline.geojson";
+
 struct SiteVolumeOptions {
   VolumeOptions volume;
   VoxelOptions voxels;
@@ -30,6 +33,7 @@ struct SiteVolumeOptions {
   // Vector file (first polygon, site CRS) of the trench outline / limit of
   // excavation: the domain where layer surface gaps are filled. Empty: derived
   // from the data (GapFillOptions).
+  // Kept in the project folder as kTrenchOutlineFile once given; used when empty.
   std::filesystem::path outline_file;
   double default_noise_m = 0.003;  // surface noise when no dense quality figure exists, metres
 

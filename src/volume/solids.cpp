@@ -221,6 +221,14 @@ std::vector<UnitSolid> build_unit_solids(const std::vector<LayerSurface>& layers
         }
     } else {
       dug = dug_cells(t, grid, options);
+      // Nothing was dug outside the limit of excavation: noise or clutter on the
+      // ground around the trench is not a deposit.
+      if (!options.fill.outline.empty())
+        for (int j = 0; j < grid.ny; ++j)
+          for (int i = 0; i < grid.nx; ++i) {
+            const std::size_t c = std::size_t(j) * grid.nx + i;
+            if (dug[c] && !inside_polygon(options.fill.outline, grid.x(i), grid.y(j))) dug[c] = 0;
+          }
     }
     // 3. Measures.
     std::vector<std::size_t> bottom_count(later.size(), 0);
