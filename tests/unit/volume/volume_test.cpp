@@ -149,6 +149,27 @@ TEST(VolumeAnalytic, FootprintLimitsTheSolid) {
   EXPECT_NEAR(solids[0].measures.volume_m3, 0.5 * analytic_volume(), 0.02 * analytic_volume());
 }
 
+TEST(VolumeAnalytic, NothingOutsideTheTrenchOutlineCountsAsDug) {
+  // Clutter on the ground outside the trench (a spoil heap, speckle of a poorly
+  // seen border) differs between the surfaces by far more than the noise; the
+  // limit of excavation keeps it out of the unit.
+  const double cell = 0.01;
+  std::vector<LayerSurface> layers{analytic_layer("L1", "1", cell, 0), analytic_layer("L2", "2", cell, 1)};
+  const SiteGrid g = SiteGrid::of(layers[0].z);
+  for (int j = 0; j < g.ny; ++j)
+    for (int i = 0; i < g.nx; ++i)
+      if (g.x(i) > 1.7 && g.y(j) > 1.2) layers[0].z.z[std::size_t(j) * g.nx + i] += 0.1;  // 0.3 x 0.3 m heap
+  const auto cluttered = build_unit_solids(layers, VolumeOptions{});
+  ASSERT_EQ(cluttered.size(), 1u);
+  EXPECT_GT(cluttered[0].measures.area_m2, 1.05);  // the heap counts without an outline
+  VolumeOptions o;
+  o.fill.outline = {{0.45, 0.2}, {1.55, 0.2}, {1.55, 1.3}, {0.45, 1.3}};
+  const auto solids = build_unit_solids(layers, o);
+  ASSERT_EQ(solids.size(), 1u);
+  EXPECT_NEAR(solids[0].measures.area_m2, 1.0, 0.02);
+  EXPECT_NEAR(solids[0].measures.volume_m3, analytic_volume(), kAnalyticRel * analytic_volume() + 1e-3);
+}
+
 TEST(VolumeAnalytic, UncertaintyGrowsWithGeoreferenceError) {
   const double cell = 0.01;
   std::vector<LayerSurface> layers{analytic_layer("L1", "1", cell, 0), analytic_layer("L2", "2", cell, 1)};
