@@ -54,20 +54,6 @@ void distance_1d(const std::vector<double>& f, std::vector<double>& d, std::vect
   }
 }
 
-// Even-odd rule (ray casting along +x).
-bool inside(const std::vector<Eigen::Vector2d>& poly, double x, double y) {
-  bool in = false;
-  for (std::size_t i = 0, j = poly.size() - 1; i < poly.size(); j = i++) {
-    const auto& a = poly[i];
-    const auto& b = poly[j];
-    if ((a.y() > y) != (b.y() > y)) {
-      const double xc = a.x() + (y - a.y()) * (b.x() - a.x()) / (b.y() - a.y());
-      if (x < xc) in = !in;
-    }
-  }
-  return in;
-}
-
 // Cells of `mask` not 4-connected to the grid border through unset cells are set:
 // the holes the mask encloses.
 void fill_enclosed_holes(std::vector<std::uint8_t>& mask, int nx, int ny) {
@@ -101,7 +87,7 @@ std::vector<std::uint8_t> fill_domain(const std::vector<LayerSurface>& layers, c
   std::vector<std::uint8_t> domain(g.size(), 0);
   if (!o.fill.outline.empty()) {
     for (int j = 0; j < g.ny; ++j)
-      for (int i = 0; i < g.nx; ++i) domain[std::size_t(j) * g.nx + i] = inside(o.fill.outline, g.x(i), g.y(j));
+      for (int i = 0; i < g.nx; ++i) domain[std::size_t(j) * g.nx + i] = inside_polygon(o.fill.outline, g.x(i), g.y(j));
   } else {
     // Union of the measured cells, closed with a disc: dilation = within r of the
     // union, erosion = farther than r from what is outside the dilation.
@@ -121,7 +107,7 @@ std::vector<std::uint8_t> fill_domain(const std::vector<LayerSurface>& layers, c
   for (const auto& [unit, poly] : o.footprints)
     for (int j = 0; j < g.ny; ++j)
       for (int i = 0; i < g.nx; ++i)
-        if (inside(poly, g.x(i), g.y(j))) domain[std::size_t(j) * g.nx + i] = 1;
+        if (inside_polygon(poly, g.x(i), g.y(j))) domain[std::size_t(j) * g.nx + i] = 1;
   return domain;
 }
 

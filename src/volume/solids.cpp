@@ -20,19 +20,6 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 bool finite(double v) { return std::isfinite(v); }
 
-// Even-odd rule (ray casting along +x).
-bool inside_polygon(const std::vector<Eigen::Vector2d>& poly, double x, double y) {
-  bool in = false;
-  for (std::size_t i = 0, j = poly.size() - 1; i < poly.size(); j = i++) {
-    const auto& a = poly[i];
-    const auto& b = poly[j];
-    if ((a.y() > y) != (b.y() > y)) {
-      const double xc = a.x() + (y - a.y()) * (b.x() - a.x()) / (b.y() - a.y());
-      if (x < xc) in = !in;
-    }
-  }
-  return in;
-}
 
 // Where a unit without a footprint was dug, from its thickness per cell (NaN where
 // a surface is missing): cells thicker than the threshold, less 8-connected specks
@@ -94,6 +81,19 @@ std::vector<std::uint8_t> dug_cells(const std::vector<double>& t, const SiteGrid
 }
 
 }  // namespace
+
+bool inside_polygon(const std::vector<Eigen::Vector2d>& poly, double x, double y) {
+  bool in = false;
+  for (std::size_t i = 0, j = poly.size() - 1; i < poly.size(); j = i++) {
+    const auto& a = poly[i];
+    const auto& b = poly[j];
+    if ((a.y() > y) != (b.y() > y)) {
+      const double xc = a.x() + (y - a.y()) * (b.x() - a.x()) / (b.y() - a.y());
+      if (x < xc) in = !in;
+    }
+  }
+  return in;
+}
 
 HeightField SiteGrid::empty_field() const {
   HeightField f;

@@ -43,6 +43,9 @@ struct SiteGrid {
   static SiteGrid of(const HeightField& f) { return {f.x0, f.y0, f.cell, f.nx, f.ny}; }
 };
 
+// Whether (x, y) lies inside the polygon (even-odd rule; closed or open ring).
+bool inside_polygon(const std::vector<Eigen::Vector2d>& poly, double x, double y);
+
 // Bilinear height at (x, y) in the site frame from the four surrounding cell
 // centres; when some of them are NaN, the nearest finite centre within one cell;
 // NaN outside the field or where nothing is known.
