@@ -95,6 +95,7 @@ nlohmann::ordered_json measures_json(const UnitSolid& s, const VoxelSummary& v) 
                       {"mean_thickness_m", m.mean_thickness_m},
                       {"min_thickness_m", m.min_thickness_m},
                       {"max_thickness_m", m.max_thickness_m},
+                      {"max_thickness_raw_m", m.max_thickness_raw_m},
                       {"volume_sigma_m3", m.volume_sigma_m3},
                       {"filled_area_m2", m.filled_area_m2},
                       {"filled_fraction", m.filled_fraction},
@@ -136,7 +137,7 @@ void register_volume(CLI::App& app) {
       return;
     }
     fmt::print("{:<8} {:>10} {:>9} {:>9} {:>8} {:>9} {:>9} {:>10}  {}\n", "unit", "volume m3", "+/- m3", "area m2",
-               "filled %", "mean m", "max m", "voxels m3", "surfaces");
+               "filled %", "mean m", "p99 m", "voxels m3", "surfaces");
     for (const auto& s : m.solids) {
       if (!unit->empty() && s.unit != *unit) continue;
       const auto& q = s.measures;
@@ -150,6 +151,8 @@ void register_volume(CLI::App& app) {
                  q.max_thickness_m, vox, s.top_layer, bottoms,
                  q.filled_fraction > o.volume.fill.warn_fraction ? "  (gaps filled: uncertain)" : "");
     }
+    fmt::print("p99: the thickness exceeded over 1 % of the unit's area (robust maximum; the thickest single cell "
+               "is max_thickness_raw_m in --json)\n");
     log::info("wrote {}", (p.products_dir() / "volume" / "units.vdb").string());
   });
 }
@@ -165,7 +168,9 @@ void register_check(CLI::App& app) {
   auto min_area = std::make_shared<double>(CheckOptions{}.min_area_m2);
   add_model_options(cmd, *a);
   cmd->add_option("--tolerance", *tolerance, "height differences below this are no conflict, metres (default 0.01)");
-  cmd->add_option("--min-area", *min_area, "ignore conflicts smaller than this, m2 (default 0.0025)");
+  cmd->add_option("--min-area", *min_area,
+                  "a conflict is a contiguous region of at least this area, m2; smaller regions (outlier spikes "
+                  "of the dense surfaces) are counted and listed as ignored (default 0.02)");
   cmd->callback([=] {
     const SiteVolumeOptions o = site_options(*a);
     Project p = Project::open(a->dir);
@@ -173,11 +178,16 @@ void register_check(CLI::App& app) {
     CheckOptions co;
     co.tolerance_m = *tolerance;
     co.min_area_m2 = *min_area;
-    const auto conflicts = check_stratigraphy(site_matrix(m), m.layers, m.solids, co);
-    for (const auto& c : conflicts) fmt::print("{}\n", c.describe(m.site.origin));
-    if (!conflicts.empty())
+    co.validate();
+    const StratigraphicCheck check = check_stratigraphy(site_matrix(m), m.layers, m.solids, co);
+    for (const auto& c : check.conflicts) fmt::print("{}\n", c.describe(m.site.origin));
+    for (const auto& c : check.ignored) fmt::print("{}\n", c.describe_ignored());
+    if (check.ignored_regions() > 0)
+      fmt::print("{} small region(s) below the minimum area of {} m2 ignored ({:.4f} m2 in all)\n",
+                 check.ignored_regions(), co.min_area_m2, check.ignored_area_m2());
+    if (!check.conflicts.empty())
       throw ProcessingError(fmt::format("check: {} conflict(s) between the Harris matrix and the geometry",
-                                        conflicts.size()));
+                                        check.conflicts.size()));
     fmt::print("no conflict between the Harris matrix and the geometry ({} units with geometry, {} layers)\n",
                m.solids.size(), m.layers.size());
   });

@@ -133,9 +133,13 @@ std::string volumes_section(Database& db) {
     return s + missing("No volumes yet: they need at least two processed layers; run: strata volume DIR") + "</section>\n";
   }
   s += "<table class=\"grid\"><tr><th>unit</th><th>top surface</th><th>bottom surface</th><th>volume (m³)</th>"
-       "<th>area (m²)</th><th>mean thickness (mm)</th><th>thickness range (mm)</th><th>method</th></tr>" +
+       "<th>area (m²)</th><th>mean thickness (mm)</th><th>thickness min–p99 (mm)</th><th>method</th></tr>" +
        rows + "</table>\n";
-  s += fmt::format("<p class=\"caption\">Total excavated volume {:.3f} m³.</p>\n", total);
+  s += fmt::format(
+      "<p class=\"caption\">Total excavated volume {:.3f} m³. The upper end of the thickness range is the 99th "
+      "percentile of the unit's cells (outlier cells of the dense surfaces left out; the single-cell maximum is in "
+      "unit_volumes.details_json).</p>\n",
+      total);
   return s + "</section>\n";
 }
 

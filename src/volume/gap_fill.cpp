@@ -3,6 +3,7 @@
 // and the distance of every filled cell to measured data (its uncertainty).
 #include "core/error.hpp"
 #include "core/log.hpp"
+#include "volume/connected_components.hpp"
 #include "volume/distance_transform.hpp"
 #include "volume/volume.hpp"
 
@@ -16,6 +17,9 @@
 
 namespace strata {
 namespace {
+using volume_detail::Components;
+using volume_detail::connected_components;
+using volume_detail::Connectivity;
 using volume_detail::distance_transform;
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
@@ -57,28 +61,17 @@ void distance_1d(const std::vector<double>& f, std::vector<double>& d, std::vect
 // Cells of `mask` not 4-connected to the grid border through unset cells are set:
 // the holes the mask encloses.
 void fill_enclosed_holes(std::vector<std::uint8_t>& mask, int nx, int ny) {
-  std::vector<std::uint8_t> outside(mask.size(), 0);
-  std::vector<std::size_t> stack;
-  auto seed = [&](int i, int j) {
-    const std::size_t c = std::size_t(j) * nx + i;
-    if (!mask[c] && !outside[c]) {
-      outside[c] = 1;
-      stack.push_back(c);
-    }
-  };
-  for (int i = 0; i < nx; ++i) seed(i, 0), seed(i, ny - 1);
-  for (int j = 0; j < ny; ++j) seed(0, j), seed(nx - 1, j);
-  while (!stack.empty()) {
-    const std::size_t c = stack.back();
-    stack.pop_back();
-    const int i = int(c % nx), j = int(c / nx);
-    if (i > 0) seed(i - 1, j);
-    if (i + 1 < nx) seed(i + 1, j);
-    if (j > 0) seed(i, j - 1);
-    if (j + 1 < ny) seed(i, j + 1);
+  std::vector<std::uint8_t> unset(mask.size());
+  for (std::size_t c = 0; c < mask.size(); ++c) unset[c] = !mask[c];
+  const Components gaps = connected_components(unset, nx, ny, Connectivity::four);
+  for (std::size_t k = 0; k < gaps.count(); ++k) {
+    const bool open = std::any_of(gaps.begin(k), gaps.end(k), [&](std::size_t c) {
+      const int i = int(c % nx), j = int(c / nx);
+      return i == 0 || j == 0 || i + 1 == nx || j + 1 == ny;
+    });
+    if (!open)
+      for (auto c = gaps.begin(k); c != gaps.end(k); ++c) mask[*c] = 1;
   }
-  for (std::size_t c = 0; c < mask.size(); ++c)
-    if (!outside[c]) mask[c] = 1;
 }
 
 // The fill domain on the grid (see GapFillOptions).
@@ -118,39 +111,21 @@ std::size_t fill_layer(LayerSurface& l, const std::vector<std::uint8_t>& domain,
   std::vector<std::uint8_t> known(n, 0);
   for (std::size_t c = 0; c < n; ++c) known[c] = std::isfinite(l.z.z[c]);
   // Unknowns: domain cells without a height, in components that touch a known cell.
+  std::vector<std::uint8_t> missing(n, 0);
+  for (std::size_t c = 0; c < n; ++c) missing[c] = domain[c] && !known[c];
+  const Components gaps = connected_components(missing, nx, ny, Connectivity::four);
   std::vector<std::int64_t> index(n, -1);
   std::vector<std::size_t> unknowns;
-  {
-    std::vector<std::uint8_t> seen(n, 0);
-    std::vector<std::size_t> comp, stack;
-    for (std::size_t c0 = 0; c0 < n; ++c0) {
-      if (!domain[c0] || known[c0] || seen[c0]) continue;
-      comp.clear();
-      bool anchored = false;
-      seen[c0] = 1;
-      stack.push_back(c0);
-      while (!stack.empty()) {
-        const std::size_t c = stack.back();
-        stack.pop_back();
-        comp.push_back(c);
-        const int i = int(c % nx), j = int(c / nx);
-        const std::size_t nb[4] = {c - 1, c + 1, c - nx, c + nx};
-        const bool ok[4] = {i > 0, i + 1 < nx, j > 0, j + 1 < ny};
-        for (int k = 0; k < 4; ++k) {
-          if (!ok[k]) continue;
-          const std::size_t q = nb[k];
-          if (known[q]) anchored = true;
-          else if (domain[q] && !seen[q]) {
-            seen[q] = 1;
-            stack.push_back(q);
-          }
-        }
-      }
-      if (!anchored) continue;  // no measured height around it: nothing to interpolate from
-      for (std::size_t c : comp) {
-        index[c] = std::int64_t(unknowns.size());
-        unknowns.push_back(c);
-      }
+  for (std::size_t k = 0; k < gaps.count(); ++k) {
+    const bool anchored = std::any_of(gaps.begin(k), gaps.end(k), [&](std::size_t c) {
+      const int i = int(c % nx), j = int(c / nx);
+      return (i > 0 && known[c - 1]) || (i + 1 < nx && known[c + 1]) || (j > 0 && known[c - nx]) ||
+             (j + 1 < ny && known[c + nx]);
+    });
+    if (!anchored) continue;  // no measured height around it: nothing to interpolate from
+    for (auto c = gaps.begin(k); c != gaps.end(k); ++c) {
+      index[*c] = std::int64_t(unknowns.size());
+      unknowns.push_back(*c);
     }
   }
   if (unknowns.empty()) return 0;

@@ -294,6 +294,8 @@ VoxelSummary store_site_volumes(Project& project, const SiteModel& model, const 
     nlohmann::json details = {{"cell_m", s.top.cell},
                               {"cells", m.cells},
                               {"noise_threshold_m", options.volume.noise_threshold_m},
+                              {"max_thickness_raw_m", m.max_thickness_raw_m},
+                              {"max_thickness_quantile", options.volume.max_thickness_quantile},
                               {"footprint", options.footprint_files.count(s.unit) > 0},
                               {"gap_fill", options.volume.fill.enabled},
                               {"trench_outline", options.outline_file.string()},

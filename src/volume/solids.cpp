@@ -3,6 +3,7 @@
 #include "core/error.hpp"
 #include "core/log.hpp"
 #include "stratigraphy/harris_matrix.hpp"
+#include "volume/connected_components.hpp"
 #include "volume/volume.hpp"
 
 #include <fmt/format.h>
@@ -16,10 +17,23 @@
 namespace strata {
 namespace {
 
+using volume_detail::Components;
+using volume_detail::connected_components;
+using volume_detail::Connectivity;
+
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 bool finite(double v) { return std::isfinite(v); }
 
+// The q-quantile of `values` by nearest rank: the smallest value with at least a
+// fraction q of them at or below it. Reorders `values`; NaN when empty.
+double quantile(std::vector<double>& values, double q) {
+  if (values.empty()) return kNaN;
+  const auto rank = std::max<std::size_t>(1, std::size_t(std::ceil(q * double(values.size()) - 1e-9)));
+  const auto k = std::ptrdiff_t(std::min(rank, values.size()) - 1);
+  std::nth_element(values.begin(), values.begin() + k, values.end());
+  return values[std::size_t(k)];
+}
 
 // Where a unit without a footprint was dug, from its thickness per cell (NaN where
 // a surface is missing): cells thicker than the threshold, less 8-connected specks
@@ -32,32 +46,10 @@ std::vector<std::uint8_t> dug_cells(const std::vector<double>& t, const SiteGrid
   for (std::size_t c = 0; c < n; ++c) dug[c] = t[c] > o.noise_threshold_m;  // false for NaN
   const std::size_t min_cells = std::size_t(std::ceil(o.min_dug_area_m2 / (g.cell * g.cell)));
   if (min_cells > 1) {
-    std::vector<std::uint8_t> seen(n, 0);
-    std::vector<std::size_t> comp, stack;
-    for (std::size_t c0 = 0; c0 < n; ++c0) {
-      if (!dug[c0] || seen[c0]) continue;
-      comp.clear();
-      seen[c0] = 1;
-      stack.push_back(c0);
-      while (!stack.empty()) {
-        const std::size_t c = stack.back();
-        stack.pop_back();
-        comp.push_back(c);
-        const int i = int(c % nx), j = int(c / nx);
-        for (int dj = -1; dj <= 1; ++dj)
-          for (int di = -1; di <= 1; ++di) {
-            const int a = i + di, b = j + dj;
-            if (a < 0 || b < 0 || a >= nx || b >= ny) continue;
-            const std::size_t q = std::size_t(b) * nx + a;
-            if (dug[q] && !seen[q]) {
-              seen[q] = 1;
-              stack.push_back(q);
-            }
-          }
-      }
-      if (comp.size() < min_cells)
-        for (std::size_t c : comp) dug[c] = 0;
-    }
+    const Components specks = connected_components(dug, nx, ny, Connectivity::eight);
+    for (std::size_t k = 0; k < specks.count(); ++k)
+      if (specks.size(k) < min_cells)
+        for (auto c = specks.begin(k); c != specks.end(k); ++c) dug[*c] = 0;
   }
   const int steps = int(std::floor(o.edge_growth_m / g.cell + 1e-9));
   std::vector<std::size_t> front, next;
@@ -140,6 +132,9 @@ void VolumeOptions::validate() const {
     throw InputError(fmt::format("volume options: min_dug_area_m2 = {} is not in 0..1 m2", min_dug_area_m2));
   if (!(edge_growth_m >= 0 && edge_growth_m <= 0.5))
     throw InputError(fmt::format("volume options: edge_growth_m = {} is not in 0..0.5 m", edge_growth_m));
+  if (!(max_thickness_quantile > 0 && max_thickness_quantile <= 1))
+    throw InputError(
+        fmt::format("volume options: max_thickness_quantile = {} is not in (0, 1]", max_thickness_quantile));
   if (!(fill.closing_m >= 0 && fill.closing_m <= 10))
     throw InputError(fmt::format("volume options: fill.closing_m = {} is not in 0..10 m", fill.closing_m));
   if (!(fill.slope_error >= 0 && fill.slope_error <= 10))
@@ -238,7 +233,8 @@ std::vector<UnitSolid> build_unit_solids(const std::vector<LayerSurface>& layers
     std::size_t filled_cells = 0;
     UnitMeasures& m = s.measures;
     m.min_thickness_m = std::numeric_limits<double>::infinity();
-    m.max_thickness_m = -std::numeric_limits<double>::infinity();
+    m.max_thickness_raw_m = -std::numeric_limits<double>::infinity();
+    std::vector<double> thickness;  // metres, of every dug cell: the robust maximum
     for (std::size_t c = 0; c < n; ++c) {
       if (!dug[c]) continue;
       const LayerSurface& top = layers[std::size_t(top_of[c])];
@@ -249,7 +245,8 @@ std::vector<UnitSolid> build_unit_solids(const std::vector<LayerSurface>& layers
       ++m.cells;
       m.volume_m3 += t[c] * cell_area;
       m.min_thickness_m = std::min(m.min_thickness_m, t[c]);
-      m.max_thickness_m = std::max(m.max_thickness_m, t[c]);
+      m.max_thickness_raw_m = std::max(m.max_thickness_raw_m, t[c]);
+      thickness.push_back(t[c]);
       n_top2 += top.noise_m * top.noise_m;
       g_top2 += top.vertical_rmse_m * top.vertical_rmse_m;
       n_bot2 += bottom.noise_m * bottom.noise_m;
@@ -264,13 +261,14 @@ std::vector<UnitSolid> build_unit_solids(const std::vector<LayerSurface>& layers
     for (std::size_t q = 0; q < later.size(); ++q)
       if (bottom_count[q] > 0) s.bottom_layers.push_back(layers[later[q]].layer);
     if (m.cells == 0) {
-      m.min_thickness_m = m.max_thickness_m = 0;
+      m.min_thickness_m = m.max_thickness_raw_m = 0;
       log::warn("volume: unit {}: no cell differs by more than {:.1f} mm between {} and the later surfaces",
                 unit, 1000 * options.noise_threshold_m, s.top_layer);
     } else {
       const double nc = double(m.cells);
       m.area_m2 = nc * cell_area;
       m.mean_thickness_m = m.volume_m3 / m.area_m2;
+      m.max_thickness_m = quantile(thickness, options.max_thickness_quantile);
       m.filled_area_m2 = double(filled_cells) * cell_area;
       m.filled_fraction = m.filled_area_m2 / m.area_m2;
       m.fill_sigma_m3 = fill_error;
@@ -382,18 +380,53 @@ DenseMesh unit_solid_mesh(const UnitSolid& solid) {
 
 // ---- Harris matrix against geometry ---------------------------------------------
 
-std::string StratigraphicConflict::describe(const Eigen::Vector3d& site_origin) const {
-  return fmt::format(
-      "conflict: {} is recorded above {} but lies up to {:.3f} m below it at E {:.2f} N {:.2f} "
-      "(over {:.3f} m2)",
-      later, earlier, amount_m, where.x() + site_origin.x(), where.y() + site_origin.y(), area_m2);
+void CheckOptions::validate() const {
+  if (!(tolerance_m >= 0 && tolerance_m <= 1))
+    throw InputError(fmt::format("check options: tolerance_m = {} is not in 0..1 m", tolerance_m));
+  if (!(min_area_m2 >= 0 && min_area_m2 <= 100))
+    throw InputError(fmt::format("check options: min_area_m2 = {} is not in 0..100 m2", min_area_m2));
+  if (!(depth_quantile > 0 && depth_quantile <= 1))
+    throw InputError(fmt::format("check options: depth_quantile = {} is not in (0, 1]", depth_quantile));
 }
 
-std::vector<StratigraphicConflict> check_stratigraphy(const HarrisMatrix& matrix,
-                                                      const std::vector<LayerSurface>& layers,
-                                                      const std::vector<UnitSolid>& solids,
-                                                      const CheckOptions& options) {
-  if (layers.empty()) return {};
+std::string StratigraphicConflict::describe(const Eigen::Vector3d& site_origin) const {
+  std::string s = fmt::format(
+      "conflict: {} is recorded above {} but lies {:.3f} m below it ({:.0f}th percentile; at most {:.3f} m, at E "
+      "{:.2f} N {:.2f}) over {:.3f} m2 in {} region{}",
+      later, earlier, amount_m, 100 * depth_quantile, max_amount_m, where.x() + site_origin.x(),
+      where.y() + site_origin.y(), area_m2, regions, regions == 1 ? "" : "s");
+  if (ignored_regions > 0)
+    s += fmt::format("; {} smaller region{} ({:.4f} m2) ignored", ignored_regions, ignored_regions == 1 ? "" : "s",
+                     ignored_area_m2);
+  return s;
+}
+
+std::string StratigraphicConflict::describe_ignored() const {
+  return fmt::format("ignored: {} lies below {} (recorded above it) by up to {:.3f} m, but only in {} region{} "
+                     "smaller than the minimum area ({:.4f} m2 in all)",
+                     later, earlier, ignored_max_amount_m, ignored_regions, ignored_regions == 1 ? "" : "s",
+                     ignored_area_m2);
+}
+
+std::size_t StratigraphicCheck::ignored_regions() const {
+  std::size_t n = 0;
+  for (const auto* list : {&conflicts, &ignored})
+    for (const auto& c : *list) n += c.ignored_regions;
+  return n;
+}
+
+double StratigraphicCheck::ignored_area_m2() const {
+  double a = 0;
+  for (const auto* list : {&conflicts, &ignored})
+    for (const auto& c : *list) a += c.ignored_area_m2;
+  return a;
+}
+
+StratigraphicCheck check_stratigraphy(const HarrisMatrix& matrix, const std::vector<LayerSurface>& layers,
+                                      const std::vector<UnitSolid>& solids, const CheckOptions& options) {
+  options.validate();
+  StratigraphicCheck out;
+  if (layers.empty()) return out;
   // Each unit with geometry: its top and where it is present.
   struct Presence {
     std::string unit;
@@ -405,8 +438,14 @@ std::vector<StratigraphicConflict> check_stratigraphy(const HarrisMatrix& matrix
     const bool known = std::any_of(units.begin(), units.end(), [&](const Presence& p) { return p.unit == l.unit; });
     if (!known) units.push_back({l.unit, &l.z});  // not dug: its (first) layer surface
   }
-  const double cell_area = layers.front().z.cell * layers.front().z.cell;
-  std::vector<StratigraphicConflict> out;
+  const SiteGrid g = SiteGrid::of(layers.front().z);
+  const double cell_area = g.cell * g.cell;
+  // A region counts from this many cells (at least one).
+  const std::size_t min_cells =
+      std::max<std::size_t>(1, std::size_t(std::ceil(options.min_area_m2 / cell_area - 1e-9)));
+  std::vector<double> depth(g.size());
+  std::vector<std::uint8_t> below(g.size());
+  std::vector<double> values;
   for (const auto& a : units)
     for (const auto& b : units) {
       if (a.unit == b.unit) continue;
@@ -417,26 +456,49 @@ std::vector<StratigraphicConflict> check_stratigraphy(const HarrisMatrix& matrix
         continue;  // a layer's unit unknown to the matrix: nothing recorded
       }
       if (!later) continue;
+      STRATA_CHECK(a.top->z.size() == g.size() && b.top->z.size() == g.size(), "units {} and {} are not on one grid",
+                   a.unit, b.unit);
+      // Where the later unit's top lies below the earlier one's by more than the
+      // tolerance, and by how much (metres).
+      for (std::size_t c = 0; c < g.size(); ++c) {
+        depth[c] = b.top->z[c] - a.top->z[c];
+        below[c] = depth[c] > options.tolerance_m;  // false for NaN
+      }
+      const Components regions = connected_components(below, g.nx, g.ny, Connectivity::eight);
+      if (regions.count() == 0) continue;
       StratigraphicConflict c;
       c.later = a.unit;
       c.earlier = b.unit;
-      std::size_t cells = 0;
-      const auto& za = a.top->z;
-      const auto& zb = b.top->z;
-      for (std::size_t i = 0; i < za.size(); ++i) {
-        const double d = zb[i] - za[i];  // how far the later unit's top lies below
-        if (!(d > options.tolerance_m)) continue;  // also false for NaN
-        ++cells;
-        if (d > c.amount_m) {
-          c.amount_m = d;
-          c.where = {a.top->x0 + double(i % a.top->nx) * a.top->cell,
-                     a.top->y0 + double(i / a.top->nx) * a.top->cell};
+      c.depth_quantile = options.depth_quantile;
+      for (std::size_t k = 0; k < regions.count(); ++k) {
+        values.clear();
+        std::size_t deepest = *regions.begin(k);
+        for (auto q = regions.begin(k); q != regions.end(k); ++q) {
+          values.push_back(depth[*q]);
+          if (depth[*q] > depth[deepest]) deepest = *q;
+        }
+        const double area = double(values.size()) * cell_area;
+        if (values.size() < min_cells) {  // an outlier spike, not a contiguous contradiction
+          ++c.ignored_regions;
+          c.ignored_area_m2 += area;
+          c.ignored_max_amount_m = std::max(c.ignored_max_amount_m, depth[deepest]);
+          continue;
+        }
+        const double robust = quantile(values, options.depth_quantile);
+        log::debug("check: {} below {}: region of {:.4f} m2, {:.0f}th percentile {:.3f} m, deepest {:.3f} m", a.unit,
+                   b.unit, area, 100 * options.depth_quantile, robust, depth[deepest]);
+        ++c.regions;
+        c.area_m2 += area;
+        if (robust > c.amount_m) {
+          c.amount_m = robust;
+          c.max_amount_m = depth[deepest];
+          c.where = {g.x(int(deepest % std::size_t(g.nx))), g.y(int(deepest / std::size_t(g.nx)))};
         }
       }
-      c.area_m2 = double(cells) * cell_area;
-      if (c.area_m2 >= options.min_area_m2 && cells > 0) out.push_back(c);
+      (c.regions > 0 ? out.conflicts : out.ignored).push_back(c);
     }
-  std::sort(out.begin(), out.end(), [](const auto& x, const auto& y) { return x.amount_m > y.amount_m; });
+  std::sort(out.conflicts.begin(), out.conflicts.end(),
+            [](const auto& x, const auto& y) { return x.amount_m > y.amount_m; });
   return out;
 }
 

@@ -120,6 +120,11 @@ struct VolumeOptions {
   // of a unit (a feather edge, the foot of the trench side) are not chopped off.
   double min_dug_area_m2 = 0.0025;  // 5 x 5 cm
   double edge_growth_m = 0.02;      // metres
+  // The reported maximum thickness is this quantile of the dug cells' thickness
+  // (the thickness exceeded over only 1 % of the unit's area): a dense surface
+  // keeps a few outlier cells (wall faces, pit edges) whose single-cell maximum is
+  // metres off; UnitMeasures::max_thickness_raw_m keeps that maximum.
+  double max_thickness_quantile = 0.99;
   GapFillOptions fill;
 
   // Throws InputError naming the first invalid field.
@@ -130,8 +135,11 @@ struct UnitMeasures {
   double volume_m3 = 0;        // sum of thickness x cell area over dug cells
   double area_m2 = 0;          // horizontal area of the dug cells
   double mean_thickness_m = 0; // volume / area
-  double min_thickness_m = 0;
+  double min_thickness_m = 0;  // thinnest dug cell
+  // Robust maximum: the VolumeOptions::max_thickness_quantile (99 %) quantile of
+  // the dug cells' thickness, what tables and reports show as the maximum.
   double max_thickness_m = 0;
+  double max_thickness_raw_m = 0;  // thickest single dug cell (dense outliers included)
   // One-sigma volume uncertainty, m3:
   //   sigma_V^2 = A^2 (g_top^2 + g_bottom^2) + A L^2 (n_top^2 + n_bottom^2)
   // g: vertical georeference error of each surface (a shift of the whole surface),
@@ -180,26 +188,55 @@ DenseMesh unit_solid_mesh(const UnitSolid& solid);
 
 struct CheckOptions {
   double tolerance_m = 0.01;    // a height difference below this is no contradiction
-  double min_area_m2 = 0.0025;  // conflicts smaller than this (5 x 5 cm) are noise
+  // A contradiction is a contiguous area: 8-connected cells where the later top
+  // lies lower by more than tolerance_m, reported when a region covers at least
+  // this much (0.02 m2, 200 cm2: about 14 x 14 cm, a patch an excavator can find
+  // and check with a trowel; 800 cells of 5 mm). Smaller regions are outlier
+  // spikes of a dense surface (single cells to a few cm2 along wall faces and pit
+  // edges on the example) and are counted as ignored, never dropped silently.
+  double min_area_m2 = 0.02;
+  // The depth of a region is this quantile of the height difference over its
+  // cells, not its single worst cell (itself often an outlier spike).
+  double depth_quantile = 0.95;
+
+  void validate() const;  // InputError naming the field
 };
 
 // A recorded relation "later above earlier" that the geometry contradicts: where
-// both units are present, the later unit's top lies below the earlier unit's top.
+// both units are present, the later unit's top lies below the earlier unit's top
+// over at least one region of CheckOptions::min_area_m2.
 struct StratigraphicConflict {
   std::string later, earlier;   // unit codes: the matrix says `later` is above `earlier`
-  double amount_m = 0;          // largest height by which `later` lies below `earlier`, metres
-  Eigen::Vector2d where = Eigen::Vector2d::Zero();  // site frame XY of that place
-  double area_m2 = 0;           // horizontal area of the contradiction
+  // Over the reported region with the largest robust depth: its depth_quantile of
+  // how far `later` lies below `earlier` (metres), its deepest cell (metres) and
+  // that cell's place (site frame XY).
+  double amount_m = 0;
+  double max_amount_m = 0;
+  Eigen::Vector2d where = Eigen::Vector2d::Zero();
+  double depth_quantile = 0.95;  // the quantile amount_m is
+  double area_m2 = 0;           // horizontal area of the reported regions, m2
+  std::size_t regions = 0;      // regions of at least min_area_m2
+  // Regions of this pair below min_area_m2: how many, their area (m2) and the
+  // largest height difference in them (metres).
+  std::size_t ignored_regions = 0;
+  double ignored_area_m2 = 0;
+  double ignored_max_amount_m = 0;
   std::string describe(const Eigen::Vector3d& site_origin) const;  // one line, CRS coordinates
+  std::string describe_ignored() const;  // one line for a pair with only small regions
+};
+
+struct StratigraphicCheck {
+  std::vector<StratigraphicConflict> conflicts;  // regions >= min area; largest amount first
+  std::vector<StratigraphicConflict> ignored;    // pairs whose every region was below the min area
+  std::size_t ignored_regions() const;           // over all pairs
+  double ignored_area_m2() const;                // m2, over all pairs
 };
 
 // For every pair of units with geometry where the matrix says one is later
 // (above, cuts, fills, abuts, transitively), compares their tops where both are
 // present. A unit is present where its solid is; a unit with a layer but no
 // solid (not dug yet) is present wherever its layer has a surface.
-std::vector<StratigraphicConflict> check_stratigraphy(const HarrisMatrix& matrix,
-                                                      const std::vector<LayerSurface>& layers,
-                                                      const std::vector<UnitSolid>& solids,
-                                                      const CheckOptions& options);
+StratigraphicCheck check_stratigraphy(const HarrisMatrix& matrix, const std::vector<LayerSurface>& layers,
+                                      const std::vector<UnitSolid>& solids, const CheckOptions& options);
 
 }  // namespace strata

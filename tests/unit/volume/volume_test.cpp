@@ -8,6 +8,7 @@
 #include "stratigraphy/harris_matrix.hpp"
 #include "support/test_support.hpp"
 #include "synthetic/synthetic.hpp"
+#include "volume/connected_components.hpp"
 #include "volume/raster_io.hpp"
 #include "volume/section.hpp"
 #include "volume/site_volumes.hpp"
@@ -17,6 +18,7 @@
 #include <gtest/gtest.h>
 #include <ogrsf_frmts.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <fstream>
@@ -182,6 +184,148 @@ TEST(VolumeAnalytic, UncertaintyGrowsWithGeoreferenceError) {
   EXPECT_LT(s1, 0.008);
 }
 
+TEST(VolumeAnalytic, RobustMaxThicknessIgnoresOutlierSpikes) {
+  // Dense outliers: 20 isolated cells and a 3 x 3 cluster inside the dug area where
+  // the bottom surface dips 1 m (0.07 % of the area). The single-cell maximum
+  // follows them; the 99th percentile must not.
+  const double cell = 0.005;
+  std::vector<LayerSurface> layers{analytic_layer("L1", "1", cell, 0), analytic_layer("L2", "2", cell, 1)};
+  const auto clean = build_unit_solids(layers, VolumeOptions{});
+  ASSERT_EQ(clean.size(), 1u);
+  const SiteGrid g = SiteGrid::of(layers[1].z);
+  auto cell_at = [&](double x, double y) {
+    return std::size_t(std::lround((y - g.y0) / g.cell)) * g.nx + std::size_t(std::lround((x - g.x0) / g.cell));
+  };
+  for (int k = 0; k < 20; ++k) layers[1].z.z[cell_at(0.55 + 0.045 * k, 0.3 + 0.04 * k)] -= 1.0;
+  for (int dj = -1; dj <= 1; ++dj)
+    for (int di = -1; di <= 1; ++di) layers[1].z.z[cell_at(1.0 + di * cell, 0.75 + dj * cell)] -= 1.0;
+  const auto spiky = build_unit_solids(layers, VolumeOptions{});
+  ASSERT_EQ(spiky.size(), 1u);
+  const auto& c = clean[0].measures;
+  const auto& m = spiky[0].measures;
+  // The analytic thickness peaks at 0.20 m; its 99th percentile lies 0.8 mm below
+  // (the top 1 % of a paraboloid cap: 0.05 m x 0.01 pi / 2).
+  constexpr double kAnalyticP99 = 0.20 - 0.05 * 0.01 * std::numbers::pi / 2;
+  // Midpoint-sampled cells: the nearest-rank quantile moves by less than 0.2 mm.
+  constexpr double kQuantileSampling = 2e-4;
+  // 29 of 40 000 cells shift the rank by 29 cells: far below 0.1 mm on this slope.
+  constexpr double kSpikeShift = 1e-4;
+  EXPECT_NEAR(c.max_thickness_raw_m, 0.20, 1e-3);
+  EXPECT_NEAR(c.max_thickness_m, kAnalyticP99, kQuantileSampling);
+  EXPECT_GT(m.max_thickness_raw_m, 1.1);  // 1 m spike on a 0.15-0.2 m unit
+  EXPECT_NEAR(m.max_thickness_m, c.max_thickness_m, kSpikeShift);
+  // The volume does count the spikes (29 cells x 25 cm2 x 1 m).
+  EXPECT_NEAR(m.volume_m3 - c.volume_m3, 29 * cell * cell * 1.0, 1e-6);
+  VolumeOptions raw;
+  raw.max_thickness_quantile = 1.0;  // the 100th percentile is the single-cell maximum
+  EXPECT_DOUBLE_EQ(build_unit_solids(layers, raw)[0].measures.max_thickness_m, m.max_thickness_raw_m);
+}
+
+TEST(ConnectedComponents, FourAndEightConnectivity) {
+  // 5 x 3 grid:  row 2: . . . . #
+  //              row 1: # # . # .
+  //              row 0: # . . . .
+  const int nx = 5, ny = 3;
+  std::vector<std::uint8_t> mask(nx * ny, 0);
+  for (int c : {0, 5, 6, 8, 14}) mask[std::size_t(c)] = 1;
+  const auto four = volume_detail::connected_components(mask, nx, ny, volume_detail::Connectivity::four);
+  ASSERT_EQ(four.count(), 3u);  // {0, 5, 6}, {8}, {14}
+  EXPECT_EQ(four.size(0), 3u);
+  EXPECT_EQ(four.size(1), 1u);
+  EXPECT_EQ(four.label[5], 0);
+  EXPECT_EQ(four.label[8], 1);
+  EXPECT_EQ(four.label[14], 2);
+  EXPECT_EQ(four.label[1], -1);
+  const auto eight = volume_detail::connected_components(mask, nx, ny, volume_detail::Connectivity::eight);
+  ASSERT_EQ(eight.count(), 2u);  // {0, 5, 6}, {8, 14} (diagonal)
+  EXPECT_EQ(eight.size(1), 2u);
+  EXPECT_EQ(eight.label[14], eight.label[8]);
+  EXPECT_EQ(eight.cells.size(), 5u);
+}
+
+// Two units on a 1 x 1 m grid of 5 mm cells: unit "1" (layer L1, with a footprint
+// over the whole grid, so it is present everywhere) recorded above unit "2" (L2,
+// not dug yet). L1 lies 5 cm above L2 except in a 20 x 20 cm patch where it lies
+// 10 cm below it (one cell 0.8 m: an outlier inside the patch) and a 3 x 3 cell
+// speck 0.5 m below it: a real contradiction and a dense-surface spike.
+struct CheckScene {
+  std::vector<LayerSurface> layers;
+  std::vector<UnitSolid> solids;
+  HarrisMatrix matrix{{"1", "2"}, {{"1", RelationKind::above, "2"}}};
+  static constexpr double kCell = 0.005;
+  static constexpr double kPatchArea = 0.04;          // m2: 40 x 40 cells
+  static constexpr double kSpeckArea = 9 * kCell * kCell;
+  Eigen::Vector2d outlier{0.3025, 0.3025};             // site frame: the outlier cell of the patch
+
+  CheckScene() {
+    const SiteGrid g{0.5 * kCell, 0.5 * kCell, kCell, 200, 200};
+    LayerSurface l1, l2;
+    l1.layer = "L1", l1.unit = "1", l1.z = g.empty_field();
+    l2.layer = "L2", l2.unit = "2", l2.z = g.empty_field();
+    for (int j = 0; j < g.ny; ++j)
+      for (int i = 0; i < g.nx; ++i) {
+        const std::size_t c = std::size_t(j) * g.nx + i;
+        l2.z.z[c] = 1.0;
+        l1.z.z[c] = 1.05;
+        if (i >= 40 && i < 80 && j >= 40 && j < 80) l1.z.z[c] = 0.9;   // the patch
+        if (i >= 150 && i < 153 && j >= 150 && j < 153) l1.z.z[c] = 0.5;  // the speck
+      }
+    l1.z.z[std::size_t(60) * g.nx + 60] = 0.2;  // outlier inside the patch, at (0.3025, 0.3025)
+    layers = {l1, l2};
+    VolumeOptions o;
+    o.footprints["1"] = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
+    solids = build_unit_solids(layers, o);
+  }
+};
+
+TEST(StratigraphicCheck, ReportsARegionAndIgnoresASpeck) {
+  const CheckScene scene;
+  ASSERT_EQ(scene.solids.size(), 1u);
+  const StratigraphicCheck check = check_stratigraphy(scene.matrix, scene.layers, scene.solids, CheckOptions{});
+  ASSERT_EQ(check.conflicts.size(), 1u);
+  EXPECT_TRUE(check.ignored.empty());
+  const StratigraphicConflict& c = check.conflicts[0];
+  EXPECT_EQ(c.later, "1");
+  EXPECT_EQ(c.earlier, "2");
+  EXPECT_EQ(c.regions, 1u);
+  EXPECT_NEAR(c.area_m2, CheckScene::kPatchArea, 1e-9);
+  // The robust depth is the patch's 10 cm, not its 0.8 m outlier cell...
+  EXPECT_NEAR(c.amount_m, 0.10, 1e-9);
+  EXPECT_NEAR(c.max_amount_m, 0.80, 1e-9);
+  EXPECT_NEAR((c.where - scene.outlier).norm(), 0, 1e-9);
+  // ...and the speck is counted as ignored, not dropped silently.
+  EXPECT_EQ(c.ignored_regions, 1u);
+  EXPECT_NEAR(c.ignored_area_m2, CheckScene::kSpeckArea, 1e-12);
+  EXPECT_NEAR(c.ignored_max_amount_m, 0.5, 1e-9);
+  EXPECT_EQ(check.ignored_regions(), 1u);
+  const std::string line = c.describe(Eigen::Vector3d(734000, 4174000, 1450));
+  EXPECT_NE(line.find("1 is recorded above 2 but lies 0.100 m below it"), std::string::npos) << line;
+  EXPECT_NE(line.find("1 smaller region (0.0002 m2) ignored"), std::string::npos) << line;
+}
+
+TEST(StratigraphicCheck, MinimumAreaDecidesWhatIsAConflict) {
+  const CheckScene scene;
+  CheckOptions all;
+  all.min_area_m2 = 0;  // every region counts, the speck too
+  const auto every = check_stratigraphy(scene.matrix, scene.layers, scene.solids, all);
+  ASSERT_EQ(every.conflicts.size(), 1u);
+  EXPECT_EQ(every.conflicts[0].regions, 2u);
+  EXPECT_NEAR(every.conflicts[0].area_m2, CheckScene::kPatchArea + CheckScene::kSpeckArea, 1e-9);
+  EXPECT_NEAR(every.conflicts[0].amount_m, 0.5, 1e-9);  // the speck's depth is the larger one
+  EXPECT_EQ(every.ignored_regions(), 0u);
+  CheckOptions large;
+  large.min_area_m2 = 0.05;  // larger than the patch: nothing is a conflict, both are listed
+  const auto none = check_stratigraphy(scene.matrix, scene.layers, scene.solids, large);
+  EXPECT_TRUE(none.conflicts.empty());
+  ASSERT_EQ(none.ignored.size(), 1u);
+  EXPECT_EQ(none.ignored[0].ignored_regions, 2u);
+  EXPECT_NEAR(none.ignored_area_m2(), CheckScene::kPatchArea + CheckScene::kSpeckArea, 1e-9);
+  EXPECT_NEAR(none.ignored[0].ignored_max_amount_m, 0.8, 1e-9);
+  CheckOptions bad;
+  bad.depth_quantile = 0;
+  EXPECT_THROW(bad.validate(), InputError);
+}
+
 // A tilted plane on a 1 cm grid with the data around `keep` only.
 LayerSurface plane_with_gaps(const std::string& name, const std::function<bool(double, double)>& keep) {
   const SiteGrid g{0.005, 0.005, 0.01, 200, 150};
@@ -333,15 +477,21 @@ TEST_F(SyntheticVolumes, VolumesMatchTruth) {
       const auto& m = s.measures;
       const std::string figures =
           fmt::format("threshold {} unit {}: volume {:.5f} (truth {:.5f}), area {:.4f} (truth {:.4f}), mean {:.5f} "
-                      "(truth {:.5f}), max {:.4f} (truth {:.4f})",
+                      "(truth {:.5f}), max {:.4f} (truth {:.4f}), p99 {:.4f}",
                       threshold, s.unit, m.volume_m3, t.volume, m.area_m2, t.area, m.mean_thickness_m, t.mean,
-                      m.max_thickness_m, t.max);
+                      m.max_thickness_raw_m, t.max, m.max_thickness_m);
       fmt::print("{}\n", figures);
       SCOPED_TRACE(figures);
       EXPECT_NEAR(m.volume_m3, t.volume, kTruthVolumeRel * t.volume);
       EXPECT_NEAR(m.mean_thickness_m, t.mean, kTruthMeanThickness);
       EXPECT_NEAR(m.area_m2, t.area, 0.01 * t.area);
-      EXPECT_NEAR(m.max_thickness_m, t.max, 0.01);
+      EXPECT_NEAR(m.max_thickness_raw_m, t.max, 0.01);
+      // The robust maximum (99th percentile) lies below the single-cell one and
+      // above the mean; no outliers in the truth rasters: within 3 cm of the truth's
+      // maximum (unit 102's pit covers under 1 % of its area).
+      EXPECT_LE(m.max_thickness_m, m.max_thickness_raw_m);
+      EXPECT_GT(m.max_thickness_m, m.mean_thickness_m);
+      EXPECT_NEAR(m.max_thickness_m, t.max, 0.03);
     }
   }
 }
@@ -543,7 +693,9 @@ TEST_F(SyntheticVolumes, ProjectStoresVolumesAndProducts) {
 
   // The recorded relations agree with the geometry: no conflict.
   const HarrisMatrix matrix = site_matrix(m);
-  EXPECT_TRUE(check_stratigraphy(matrix, m.layers, m.solids, CheckOptions{}).empty());
+  const StratigraphicCheck check = check_stratigraphy(matrix, m.layers, m.solids, CheckOptions{});
+  EXPECT_TRUE(check.conflicts.empty());
+  EXPECT_EQ(check.ignored_regions(), 0u);
 }
 
 TEST_F(SyntheticVolumes, CheckReportsAContradiction) {
@@ -552,7 +704,7 @@ TEST_F(SyntheticVolumes, CheckReportsAContradiction) {
   // Recorded the wrong way round: 103 above 102 (and 104 above 101).
   const HarrisMatrix wrong({"101", "102", "103", "104"},
                            {{"103", RelationKind::above, "102"}, {"104", RelationKind::above, "101"}});
-  const auto conflicts = check_stratigraphy(wrong, layers, solids, CheckOptions{});
+  const auto conflicts = check_stratigraphy(wrong, layers, solids, CheckOptions{}).conflicts;
   ASSERT_EQ(conflicts.size(), 2u);
   // Sorted by amount: 104 lies under all three excavated units.
   EXPECT_EQ(conflicts[0].later, "104");
@@ -560,7 +712,19 @@ TEST_F(SyntheticVolumes, CheckReportsAContradiction) {
   EXPECT_NEAR(conflicts[0].amount_m, truth_.at("101").max + 0.3, 0.6);
   EXPECT_EQ(conflicts[1].later, "103");
   EXPECT_EQ(conflicts[1].earlier, "102");
-  EXPECT_NEAR(conflicts[1].amount_m, truth_.at("102").max, 0.02);  // 102's thickest point
+  // 103 lies below 102 by 102's thickness: deepest at 102's thickest point, and
+  // the robust depth is the 95th percentile of 102's thickness over the region.
+  EXPECT_NEAR(conflicts[1].max_amount_m, truth_.at("102").max, 0.02);
+  std::vector<double> t102;
+  for (const auto& s : solids)
+    if (s.unit == "102")
+      for (std::size_t c = 0; c < s.top.z.size(); ++c)
+        if (s.dug(c) && s.thickness(c) > CheckOptions{}.tolerance_m) t102.push_back(s.thickness(c));
+  ASSERT_FALSE(t102.empty());
+  std::sort(t102.begin(), t102.end());
+  const double p95 = t102[std::size_t(std::ceil(0.95 * double(t102.size()))) - 1];
+  EXPECT_LT(conflicts[1].amount_m, conflicts[1].max_amount_m);
+  EXPECT_NEAR(conflicts[1].amount_m, p95, 0.005);  // 5 mm: 102's solid edge cells vs the region's (same surfaces)
   EXPECT_GT(conflicts[1].area_m2, 5.0);
   const std::string line = conflicts[1].describe(origin());
   EXPECT_NE(line.find("103 is recorded above 102"), std::string::npos) << line;
