@@ -248,12 +248,17 @@ MarkerImportSummary import_markers(Project& project, const MarkerImportOptions& 
   std::optional<std::int64_t> layer_id;
   if (!options.layer.empty()) layer_id = require_layer(db, options.layer).id;
   std::vector<std::int64_t> image_ids;
+  std::vector<ParsedObservation> kept;
   for (const auto& o : observations) {
     std::vector<ImageRecord> found = find_images_by_name(db, o.image);
     if (layer_id) {
       std::erase_if(found, [&](const ImageRecord& im) { return im.layer_id != *layer_id; });
     }
     const std::string at = where(stage.c_str(), file, o.line);
+    if (found.empty() && options.skip_missing_images) {
+      summary.skipped.push_back(fmt::format("{}: image '{}'", at, o.image));
+      continue;
+    }
     if (found.empty()) {
       throw InputError(fmt::format("{}: image '{}' is not in the project{}; import the photos first",
                                    at, o.image, layer_id ? " (layer " + options.layer + ")" : ""));
@@ -263,7 +268,15 @@ MarkerImportSummary import_markers(Project& project, const MarkerImportOptions& 
                                    o.image, found.size()));
     }
     image_ids.push_back(found.front().id);
+    kept.push_back(o);
   }
+  if (!observations.empty() && kept.empty()) {
+    throw InputError(fmt::format("{}: {}: none of the {} observed images is in the project{}; import the "
+                                 "photos first",
+                                 stage, file.string(), observations.size(),
+                                 layer_id ? " (layer " + options.layer + ")" : ""));
+  }
+  observations = std::move(kept);
 
   Transaction tx(db);
   std::map<std::string, std::int64_t> marker_ids;

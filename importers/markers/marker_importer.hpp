@@ -23,6 +23,10 @@ struct MarkerImportOptions {
   double default_sigma = 0.01;
   bool update = false;  // replace markers already in the project with new coordinates
   std::string layer;    // ODM: look up observed images in this layer only
+  // ODM: observations of images that are not in the project (or not in `layer`) are
+  // skipped and listed in the summary instead of refusing the file: a site-wide
+  // gcp_list imported layer by layer. At least one observation must still match.
+  bool skip_missing_images = false;
 };
 
 struct MarkerImportSummary {
@@ -30,6 +34,7 @@ struct MarkerImportSummary {
   std::string source_crs;  // as used
   int markers_new = 0, markers_updated = 0, markers_unchanged = 0;
   int observations_new = 0, observations_updated = 0;
+  std::vector<std::string> skipped;  // "file:line: image 'X'" per skipped observation
 };
 
 MarkerImportSummary import_markers(Project& project, const MarkerImportOptions& options,

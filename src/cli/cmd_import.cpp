@@ -69,6 +69,9 @@ void register_import_commands(CLI::App& app) {
                     "survey precision in metres for markers without a sigma column (default 0.01)");
     cmd->add_flag("--update", options->update, "replace markers already in the project");
     cmd->add_option("--layer", options->layer, "ODM: observed images are in this layer");
+    cmd->add_flag("--skip-missing-images", options->skip_missing_images,
+                  "ODM: skip (and list) observations of photos not in the project or layer, e.g. a "
+                  "site-wide gcp_list imported layer by layer (default: refuse the file)");
     cmd->footer("Example: strata import markers site survey.csv --crs EPSG:32636");
     cmd->callback([=] {
       Project p = Project::open(*dir);
@@ -77,6 +80,11 @@ void register_import_commands(CLI::App& app) {
       fmt::print("{} ({}, {}): {} new, {} updated, {} unchanged markers; {} new, {} updated observations\n",
                  *file, s.format, s.source_crs, s.markers_new, s.markers_updated, s.markers_unchanged,
                  s.observations_new, s.observations_updated);
+      if (!s.skipped.empty()) {
+        log::warn("{} observation(s) of photos not in the project skipped:", s.skipped.size());
+        for (std::size_t i = 0; i < s.skipped.size() && i < 10; ++i) log::warn("  {}", s.skipped[i]);
+        if (s.skipped.size() > 10) log::warn("  ... and {} more", s.skipped.size() - 10);
+      }
     });
   }
   {

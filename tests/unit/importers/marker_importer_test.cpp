@@ -122,6 +122,35 @@ TEST_F(MarkerImportTest, OdmObservationOfAnUnknownImageIsRefused) {
   EXPECT_EQ(dump(), before);
 }
 
+TEST_F(MarkerImportTest, OdmObservationsOfMissingImagesCanBeSkipped) {
+  import_photos(project(), {"L1", false}, {make_photo("IMG_1.jpg", 1)});
+  const fs::path f = write("gcp_list.txt",
+                           "EPSG:32636\n"
+                           "734001.0 4174002.0 1450.0 10.5 20.5 IMG_1.jpg GCP1\n"
+                           "734001.0 4174002.0 1450.0 11.5 21.5 IMG_2.jpg GCP1\n");
+  MarkerImportOptions o;
+  o.skip_missing_images = true;
+  const auto s = import_markers(project(), o, f);
+  EXPECT_EQ(s.observations_new, 1);
+  ASSERT_EQ(s.skipped.size(), 1u);
+  EXPECT_NE(s.skipped[0].find("gcp_list.txt:3: image 'IMG_2.jpg'"), std::string::npos) << s.skipped[0];
+
+  // A file none of whose photos is in the project is still refused, and changes nothing.
+  const fs::path other = write("other.txt",
+                               "EPSG:32636\n"
+                               "734001.0 4174002.0 1450.0 10.5 20.5 IMG_8.jpg GCP2\n"
+                               "734001.0 4174002.0 1450.0 11.5 21.5 IMG_9.jpg GCP2\n");
+  const std::string before = dump();
+  try {
+    import_markers(project(), o, other);
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("none of the 2 observed images is in the project"), std::string::npos)
+        << e.what();
+  }
+  EXPECT_EQ(dump(), before);
+}
+
 TEST_F(MarkerImportTest, OdmFileOfTheCoprSet) {
   const fs::path dir = test::shared_data_dir() / "copr";
   if (!fs::exists(dir)) GTEST_SKIP() << "shared data not present: " << dir;
