@@ -42,6 +42,8 @@ struct PatchMatchOptions {
                                   // scale 0 (2400 px at 1.5-2 m -> 0.25; 1000 px -> 0.5)
   int window_radius = 4;          // NCC window half-size, pixels at depth-map scale
   int window_step = 2;            // use every n-th pixel of the window (speed)
+  double bilateral_sigma_colour = 0.1;  // grey levels in [0, 1]: NCC samples weighted by their
+                                  // likeness to the centre pixel (sharper depth edges); 0 = off
   int iterations = 4;             // red/black propagation sweeps
   int best_k = 2;                 // photometric cost = mean of the best k source costs
   double max_cost = 0.6;          // 1 - NCC above which a pixel has no depth, in [0, 2]

@@ -33,6 +33,8 @@ void DenseOptions::validate() const {
           "patch_match.window_radius", "must be in [1, 15] pixels");
   require(patch_match.window_step >= 1 && patch_match.window_step <= patch_match.window_radius,
           "patch_match.window_step", "must be in [1, window_radius]");
+  require(patch_match.bilateral_sigma_colour >= 0 && patch_match.bilateral_sigma_colour <= 10,
+          "patch_match.bilateral_sigma_colour", "must be in [0, 10] (0 = plain NCC)");
   require(patch_match.iterations >= 1 && patch_match.iterations <= 20, "patch_match.iterations",
           "must be in [1, 20]");
   require(patch_match.best_k >= 1 && patch_match.best_k <= views.max_neighbours,

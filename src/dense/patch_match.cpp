@@ -11,7 +11,8 @@
 //    Unstructured Multi-View Stereo": plane-induced homographies, NCC over a window,
 //    the perturbation scheme of the refinement step.
 // The photometric cost of a plane against one source view is 1 - NCC of the window
-// warped by the plane's homography; the cost of a hypothesis is the mean of the best
+// warped by the plane's homography, its samples weighted bilaterally (by distance and
+// by grey-level likeness to the centre pixel, Yoon & Kweon 2006); the cost of a hypothesis is the mean of the best
 // K source costs, which tolerates occlusion in the other sources.
 #include "core/error.hpp"
 #include "core/progress.hpp"
@@ -32,6 +33,7 @@ namespace {
 constexpr float kMaxCost = 2.0f;          // 1 - NCC of anti-correlated windows
 constexpr float kMinVariance = 1e-5f;     // gray^2: below this a window is textureless
 constexpr int kMaxSources = 16;
+constexpr int kMaxWindowSamples = 31 * 31;  // window_radius <= 15, window_step >= 1
 constexpr double kSamePlaneDepth = 1e-4;  // relative depth difference of "the same plane"
 constexpr float kSamePlaneCos = 0.99995f;   // cos(0.57 deg) between "the same" normals
 
@@ -92,9 +94,23 @@ class Solver {
     normal_.assign(n, Eigen::Vector3f::Zero());
     cost_.assign(n, kMaxCost);
     ref_ok_.assign(n, 0);
-    ref_mean_.assign(n, 0.f);
-    ref_inv_std_.assign(n, 0.f);
     precompute_reference_windows();
+    // Bilateral support weights (Yoon & Kweon 2006, as COLMAP weights its NCC): a
+    // window sample counts by its distance from the centre and by how much its grey
+    // value differs from the centre's, so a window straddling a stone's edge is
+    // driven by the side the centre pixel is on and depth edges stay where the
+    // photo's edges are instead of fattening the nearer surface.
+    const int rad = opt.window_radius, st = opt.window_step;
+    const double sc = opt.bilateral_sigma_colour, ss = std::max(1.0, static_cast<double>(rad));
+    for (int dy = -rad; dy <= rad; dy += st) {
+      for (int dx = -rad; dx <= rad; dx += st) {
+        spatial_weight_.push_back(sc > 0 ? static_cast<float>(std::exp(-(dx * dx + dy * dy) / (2 * ss * ss))) : 1.f);
+      }
+    }
+    for (int k = 0; k < kColourLevels; ++k) {
+      const double dv = static_cast<double>(k) / (kColourLevels - 1);
+      colour_weight_[k] = sc > 0 ? static_cast<float>(std::exp(-dv * dv / (2 * sc * sc))) : 1.f;
+    }
   }
 
   DepthMap run() {
@@ -145,8 +161,8 @@ class Solver {
     return {(x - cam_.cx) / cam_.fx, (y - cam_.cy) / cam_.fy, 1.0};
   }
 
-  // Mean and 1/std of every reference window (the reference side of NCC never
-  // changes); windows that leave the photo or are textureless are skipped.
+  // Which reference windows can be matched at all: windows that leave the photo or
+  // are textureless (plain variance below kMinVariance) get no depth.
   void precompute_reference_windows() {
     const int w = cam_.width, h = cam_.height, rad = opt_.window_radius, st = opt_.window_step;
     tbb::parallel_for(tbb::blocked_range<int>(0, h), [&](const tbb::blocked_range<int>& r) {
@@ -173,8 +189,6 @@ class Solver {
           if (var < kMinVariance) continue;
           const std::size_t i = index(x, y);
           ref_ok_[i] = 1;
-          ref_mean_[i] = static_cast<float>(mean);
-          ref_inv_std_[i] = static_cast<float>(1.0 / std::sqrt(var));
         }
       }
     });
@@ -216,7 +230,35 @@ class Solver {
                             n.z() - n.x() * cam_.cx / cam_.fx - n.y() * cam_.cy / cam_.fy);
     std::array<float, kMaxSources> costs{};
     const int rad = opt_.window_radius, st = opt_.window_step;
-    const float rmean = ref_mean_[i], rinv = ref_inv_std_[i];
+    // The reference side of the weighted NCC: normalised weights w_k and weighted,
+    // standardised values r_k = w_k (v_k - mean_w) / std_w, so that for a source
+    // window s: NCC_w = sum r_k s_k / std_w(s) (sum r_k = 0, sum w_k = 1).
+    std::array<float, kMaxWindowSamples> wk, rk;
+    int count = 0;
+    {
+      const float centre = ref_.gray_at(x, y);
+      float wsum = 0, s1 = 0, s2 = 0;
+      for (int dy = -rad; dy <= rad; dy += st) {
+        const float* row = ref_.gray.data() + index(x - rad, y + dy);
+        for (int dx = 0; dx <= 2 * rad; dx += st, ++count) {
+          const float v = row[dx];
+          const int level = std::min(kColourLevels - 1, static_cast<int>(std::abs(v - centre) * (kColourLevels - 1) + 0.5f));
+          const float w = spatial_weight_[count] * colour_weight_[level];
+          wk[count] = w;
+          rk[count] = v;
+          wsum += w;
+          s1 += w * v;
+          s2 += w * v * v;
+        }
+      }
+      const float mean = s1 / wsum, var = s2 / wsum - mean * mean;
+      if (!(var > kMinVariance)) return kMaxCost;
+      const float inv = 1.0f / (wsum * std::sqrt(var));
+      for (int k = 0; k < count; ++k) {
+        rk[k] = wk[k] * (rk[k] - mean) * inv;
+        wk[k] /= wsum;
+      }
+    }
     for (std::size_t s = 0; s < sources_.size(); ++s) {
       const Eigen::Matrix3d H = sources_[s].A + sources_[s].b * m.transpose() / c;
       const Eigen::Vector3f hu = (st * H.col(0)).cast<float>(), hv = (st * H.col(1)).cast<float>();
@@ -246,12 +288,11 @@ class Solver {
         continue;
       }
       float sum_s = 0, sum_ss = 0, sum_rs = 0;
-      int count = 0;
+      int k = 0;
       Eigen::Vector3f q_row = h0;
       for (int dy = 0; dy <= 2 * rad; dy += st, q_row += hv) {
         Eigen::Vector3f q = q_row;
-        const float* ref_row = ref_.gray.data() + index(x - rad, y - rad + dy);
-        for (int dx = 0; dx <= 2 * rad; dx += st, q += hu) {
+        for (int dx = 0; dx <= 2 * rad; dx += st, q += hu, ++k) {
           const float iz = 1.0f / q.z();
           const float u = std::clamp(q.x() * iz, 0.0f, wmax), v = std::clamp(q.y() * iz, 0.0f, hmax);
           const int u0 = static_cast<int>(u), v0 = static_cast<int>(v);
@@ -260,25 +301,22 @@ class Solver {
           const float* p1 = p0 + w;
           const float top = p0[0] + au * (p0[1] - p0[0]);
           const float val = top + av * (p1[0] + au * (p1[1] - p1[0]) - top);
-          const float rv = (ref_row[dx] - rmean) * rinv;  // standardised reference value
-          sum_s += val;
-          sum_ss += val * val;
-          sum_rs += rv * val;
-          ++count;
+          sum_s += wk[k] * val;
+          sum_ss += wk[k] * val * val;
+          sum_rs += rk[k] * val;
         }
       }
       if (std::isnan(sum_s)) {
         costs[s] = kMaxCost;
         continue;
       }
-      const float mean_s = sum_s / count;
-      const float var_s = sum_ss / count - mean_s * mean_s;
+      const float mean_s = sum_s;  // weights sum to 1
+      const float var_s = sum_ss - mean_s * mean_s;
       if (var_s < kMinVariance) {
         costs[s] = kMaxCost;
         continue;
       }
-      // NCC = mean(r_std * s) / std(s), since r_std has zero mean and unit variance.
-      const float ncc = (sum_rs / count) / std::sqrt(var_s);
+      const float ncc = sum_rs / std::sqrt(var_s);
       costs[s] = 1.0f - std::clamp(ncc, -1.0f, 1.0f);
     }
     const int ns = static_cast<int>(sources_.size());
@@ -370,7 +408,9 @@ class Solver {
   std::vector<Eigen::Vector3f> normal_;
   std::vector<float> cost_;
   std::vector<std::uint8_t> ref_ok_;
-  std::vector<float> ref_mean_, ref_inv_std_;
+  static constexpr int kColourLevels = 256;
+  std::vector<float> spatial_weight_;                 // per window sample
+  std::array<float, kColourLevels> colour_weight_{};  // by |grey - centre grey|
 };
 
 }  // namespace

@@ -44,7 +44,6 @@ std::vector<ViewNeighbours> select_views(const Reconstruction& rec, const ViewSe
 
   // Per image, the sparse points it sees (each point once per image).
   std::vector<std::vector<int>> seen_by(static_cast<std::size_t>(n));
-  std::vector<std::vector<double>> depths(static_cast<std::size_t>(n));
   std::vector<std::vector<int>> tracks(rec.points.size());
   for (std::size_t k = 0; k < rec.points.size(); ++k) {
     auto& seen = tracks[k];
@@ -52,11 +51,7 @@ std::vector<ViewNeighbours> select_views(const Reconstruction& rec, const ViewSe
       if (e.image < 0 || e.image >= n || !rec.images[e.image].registered) continue;
       if (std::find(seen.begin(), seen.end(), e.image) == seen.end()) seen.push_back(e.image);
     }
-    for (int i : seen) {
-      seen_by[i].push_back(static_cast<int>(k));
-      const double z = rec.images[i].pose.to_camera(rec.points[k].X).z();
-      if (z > 0) depths[i].push_back(z);
-    }
+    for (int i : seen) seen_by[i].push_back(static_cast<int>(k));
   }
 
   for (int i = 0; i < n; ++i) {
@@ -102,11 +97,13 @@ std::vector<ViewNeighbours> select_views(const Reconstruction& rec, const ViewSe
       for (const auto& sp : shared[best_j]) ++cover[sp.point];
     }
 
-    // Depth range: robust percentiles of the sparse depths, widened because the
-    // dense surface reaches where no sparse point was triangulated.
-    auto& d = depths[i];
-    if (d.size() < 3) {
-      d.clear();
+    // Depth range: robust percentiles of the depths of every sparse point inside the
+    // photo's frustum, not only the points this photo matched: markers and ground at
+    // the far edge of an oblique photo are often matched only by photos taken nearer
+    // to them, and a range cut at this photo's own matches leaves them without depth.
+    // Points hidden behind a wall only widen the range, which PatchMatch tolerates.
+    std::vector<double> d;
+    {
       const auto& intr = rec.groups.at(rec.images[i].group).intrinsics;
       for (const auto& p : rec.points) {
         const Eigen::Vector3d Xc = rec.images[i].pose.to_camera(p.X);
@@ -121,13 +118,11 @@ std::vector<ViewNeighbours> select_views(const Reconstruction& rec, const ViewSe
       out[i].sources.clear();  // no depth prior: cannot run stereo reliably
       continue;
     }
-    const double lo = percentile(d, 0.02), hi = percentile(d, 0.98), mid = percentile(d, 0.5);
+    const double lo = percentile(d, 0.01), hi = percentile(d, 0.99), mid = percentile(d, 0.5);
     const double widen = depth_margin * std::max(hi - lo, 0.2 * mid);
     out[i].depth_min = std::max(lo - widen, 0.05 * mid);
     out[i].depth_max = hi + widen;
     out[i].depth_median = mid;
-    d.clear();
-    d.shrink_to_fit();
   }
   return out;
 }
