@@ -36,6 +36,10 @@ void IncrementalOptions::validate() const {
   if (ransac_max_iterations < 10) fail("ransac_max_iterations", ransac_max_iterations, ">= 10");
   if (resection_min_inliers < 4) fail("resection_min_inliers", resection_min_inliers, ">= 4");
   if (!(resection_min_inlier_ratio >= 0 && resection_min_inlier_ratio <= 1)) fail("resection_min_inlier_ratio", resection_min_inlier_ratio, "in [0, 1]");
+  if (retry_min_inliers < 4 || retry_min_inliers > resection_min_inliers) fail("retry_min_inliers", retry_min_inliers, "in [4, resection_min_inliers]");
+  if (!(retry_min_inlier_ratio >= 0 && retry_min_inlier_ratio <= 1)) fail("retry_min_inlier_ratio", retry_min_inlier_ratio, "in [0, 1]");
+  if (retry_min_pair_matches < 8) fail("retry_min_pair_matches", retry_min_pair_matches, ">= 8");
+  if (!(retry_min_pair_agreement > 0 && retry_min_pair_agreement <= 1)) fail("retry_min_pair_agreement", retry_min_pair_agreement, "in (0, 1]");
   if (!(min_triangulation_angle_deg >= 0 && min_triangulation_angle_deg < 90)) fail("min_triangulation_angle_deg", min_triangulation_angle_deg, "in [0, 90)");
   if (!(max_reprojection_px > 0)) fail("max_reprojection_px", max_reprojection_px, "> 0");
   if (!(final_max_reprojection_px > 0)) fail("final_max_reprojection_px", final_max_reprojection_px, "> 0");
@@ -96,8 +100,20 @@ class IncrementalMapper {
   // --- stages
   TwoViewGeometry two_view(const PairMatches& pair) const;
   std::pair<int, int> initialise();
-  bool try_register(int image);
+  // Acceptance rule of a resection: the normal one, or the retry's (fewer inliers,
+  // checked against the verified pair matches).
+  struct ResectionRule {
+    int min_inliers;
+    double min_inlier_ratio;
+    bool check_pairs;
+  };
+  bool try_register(int image, const ResectionRule& rule);
   int register_next();
+  int register_left_out();
+  // Verified matches of `image` with registered photos, and how many of them lie
+  // within `max_px` of the epipolar lines implied by `pose` and the registered poses.
+  std::pair<std::size_t, std::size_t> pair_agreement(int image, const Pose& pose,
+                                                     double max_px) const;
   bool triangulate_track(Track& t, double max_error_px);
   std::size_t triangulate_image(int image);
   std::size_t retriangulate_all();
@@ -113,6 +129,7 @@ class IncrementalMapper {
   void local_adjust(int image);
   void global_adjust(double max_error_px);
   Reconstruction result() const;
+  void log_unregistered(int image) const;  // why an image stayed out (debug log)
 
   const IncrementalOptions& opt_;
   const std::vector<CameraGroup>& groups_;
@@ -127,6 +144,9 @@ class IncrementalMapper {
   std::vector<char> registered_;
   std::vector<Pose> poses_;
   std::vector<int> failed_at_;  // registered count at the last failed attempt, -1 if none
+  std::vector<int> retried_at_; // the same for the relaxed retry
+  std::vector<std::vector<int>> pairs_of_; // [image] -> indices into matches_
+  std::size_t retry_registered_ = 0;
   int n_registered_ = 0;
   std::pair<int, int> init_pair_{-1, -1};
   int local_count_ = 0, global_count_ = 0;
@@ -409,7 +429,7 @@ std::size_t IncrementalMapper::filter_points(const std::vector<int>& ids, double
   return removed;
 }
 
-bool IncrementalMapper::try_register(int image) {
+bool IncrementalMapper::try_register(int image, const ResectionRule& rule) {
   std::vector<cv::Point3d> object;
   std::vector<cv::Point2d> image_points;
   std::vector<int> which;  // track of each correspondence
@@ -424,20 +444,28 @@ bool IncrementalMapper::try_register(int image) {
       which.push_back(id);
     }
   }
-  if (int(object.size()) < opt_.resection_min_inliers) return false;
+  if (int(object.size()) < rule.min_inliers) {
+    log::debug("sfm: resection of {}: {} 2D-3D correspondences, fewer than {}", images_[image].name,
+               object.size(), rule.min_inliers);
+    return false;
+  }
   // Normalised coordinates with K = I: the threshold is in focal units.
   const double threshold = opt_.ransac_threshold_px / focal_of(image);
   cv::Mat rvec, tvec;
   std::vector<int> inliers;
+  std::size_t n_inliers = 0;
   const cv::Mat K = cv::Mat::eye(3, 3, CV_64F);
   try {
     const bool ok = cv::solvePnPRansac(object, image_points, K, cv::noArray(), rvec, tvec, false,
                                        opt_.ransac_max_iterations, float(threshold),
                                        opt_.ransac_confidence, inliers, cv::SOLVEPNP_AP3P);
-    if (!ok || int(inliers.size()) < opt_.resection_min_inliers ||
-        double(inliers.size()) < opt_.resection_min_inlier_ratio * double(object.size())) {
+    if (!ok || int(inliers.size()) < rule.min_inliers ||
+        double(inliers.size()) < rule.min_inlier_ratio * double(object.size())) {
+      log::debug("sfm: resection of {} rejected: {} of {} correspondences inliers (RANSAC {})",
+                 images_[image].name, inliers.size(), object.size(), ok ? "ok" : "failed");
       return false;
     }
+    n_inliers = inliers.size();
     // Levenberg-Marquardt on the inliers (the minimal-sample pose is noisy).
     std::vector<cv::Point3d> in_obj;
     std::vector<cv::Point2d> in_img;
@@ -456,7 +484,20 @@ bool IncrementalMapper::try_register(int image) {
   Eigen::Vector3d t;
   cv::cv2eigen(Rcv, R);
   cv::cv2eigen(tvec, t);
-  poses_[image] = Pose{R, t};
+  const Pose pose{R, t};
+  if (rule.check_pairs) {
+    const auto [matches, agree] = pair_agreement(image, pose, opt_.ransac_threshold_px);
+    const bool ok = int(matches) >= opt_.retry_min_pair_matches &&
+                    double(agree) >= opt_.retry_min_pair_agreement * double(matches);
+    log::debug("sfm: retry of {}: {} of {} 2D-3D inliers; {} of {} verified pair matches agree "
+               "with the pose: {}", images_[image].name, n_inliers, object.size(), agree, matches,
+               ok ? "accepted" : "rejected");
+    if (!ok) return false;
+    log::info("sfm: {} registered on retry: {} of {} 2D-3D inliers, {} of {} verified matches "
+              "with registered photos agree with its pose", images_[image].name, n_inliers,
+              object.size(), agree, matches);
+  }
+  poses_[image] = pose;
   registered_[image] = 1;
   ++n_registered_;
   // Observations of existing points in the new image join only when they fit.
@@ -484,10 +525,66 @@ int IncrementalMapper::register_next() {
   std::sort(ranked.rbegin(), ranked.rend());
   for (const auto& [visible, image] : ranked) {
     check_cancelled();
-    if (try_register(image)) return image;
+    if (try_register(image, {opt_.resection_min_inliers, opt_.resection_min_inlier_ratio, false})) {
+      return image;
+    }
     failed_at_[image] = n_registered_;
   }
   return -1;
+}
+
+int IncrementalMapper::register_left_out() {
+  if (!opt_.retry_unregistered) return -1;
+  std::vector<std::pair<int, int>> ranked;
+  for (int i = 0; i < int(images_.size()); ++i) {
+    if (registered_[i] || retried_at_[i] == n_registered_) continue;
+    int visible = 0;
+    for (int id : image_tracks_[i]) visible += tracks_[id].has_point ? 1 : 0;
+    if (visible >= opt_.retry_min_inliers) ranked.emplace_back(visible, i);
+  }
+  std::sort(ranked.rbegin(), ranked.rend());
+  for (const auto& [visible, image] : ranked) {
+    check_cancelled();
+    retried_at_[image] = n_registered_;
+    if (try_register(image, {opt_.retry_min_inliers, opt_.retry_min_inlier_ratio, true})) {
+      ++retry_registered_;
+      return image;
+    }
+  }
+  return -1;
+}
+
+std::pair<std::size_t, std::size_t> IncrementalMapper::pair_agreement(int image, const Pose& pose,
+                                                                      double max_px) const {
+  std::size_t total = 0, agree = 0;
+  for (int m : pairs_of_[image]) {
+    const auto& pair = matches_[m];
+    const int other = pair.image_a == image ? pair.image_b : pair.image_a;
+    if (!registered_[other]) continue;
+    // x_image ~ R X + t, x_other ~ R_o X + t_o: from `image` to `other`,
+    // R_rel = R_o R^T, t_rel = t_o - R_rel t, E = [t_rel]x R_rel, x_o^T E x = 0.
+    const Pose& po = poses_[other];
+    const Eigen::Matrix3d R_rel = po.R * pose.R.transpose();
+    const Eigen::Vector3d t_rel = po.t - R_rel * pose.t;
+    if (t_rel.norm() < 1e-12) continue;  // no baseline: no epipolar geometry
+    Eigen::Matrix3d tx;
+    tx << 0, -t_rel.z(), t_rel.y(), t_rel.z(), 0, -t_rel.x(), -t_rel.y(), t_rel.x(), 0;
+    const Eigen::Matrix3d E = tx * R_rel;
+    // Sampson distance in normalised units; the pixel limit by the mean focal length.
+    const double limit = max_px / (0.5 * (focal_of(image) + focal_of(other)));
+    for (const auto& [ka, kb] : pair.matches) {
+      const int k_image = pair.image_a == image ? ka : kb;
+      const int k_other = pair.image_a == image ? kb : ka;
+      const Eigen::Vector3d x = normalised({image, k_image}).homogeneous();
+      const Eigen::Vector3d xo = normalised({other, k_other}).homogeneous();
+      const Eigen::Vector3d Ex = E * x, Etxo = E.transpose() * xo;
+      const double r = xo.dot(Ex);
+      const double d2 = r * r / (Ex.head<2>().squaredNorm() + Etxo.head<2>().squaredNorm());
+      ++total;
+      if (d2 <= limit * limit) ++agree;
+    }
+  }
+  return {total, agree};
 }
 
 void IncrementalMapper::adjust(const std::vector<int>& variable_images, bool global) {
@@ -643,6 +740,12 @@ Reconstruction IncrementalMapper::run(IncrementalSummary& summary) {
   registered_.assign(images_.size(), 0);
   poses_.assign(images_.size(), Pose{});
   failed_at_.assign(images_.size(), -1);
+  retried_at_.assign(images_.size(), -1);
+  pairs_of_.assign(images_.size(), {});
+  for (std::size_t m = 0; m < matches_.size(); ++m) {
+    pairs_of_[matches_[m].image_a].push_back(int(m));
+    pairs_of_[matches_[m].image_b].push_back(int(m));
+  }
   Progress progress("aligning photos", images_.size());
 
   init_pair_ = initialise();
@@ -654,19 +757,26 @@ Reconstruction IncrementalMapper::run(IncrementalSummary& summary) {
   int last_global = n_registered_;
   while (n_registered_ < int(images_.size())) {
     check_cancelled();
-    const int image = register_next();
+    int image = register_next();
+    bool retried = false;
     if (image < 0) {
       // Stuck: a global refinement may add points that let another image in, so every
       // image that failed gets another try.
-      if (last_global == n_registered_) break;
-      global_adjust(opt_.max_reprojection_px);
-      last_global = n_registered_;
-      std::fill(failed_at_.begin(), failed_at_.end(), -1);
-      continue;
+      if (last_global != n_registered_) {
+        global_adjust(opt_.max_reprojection_px);
+        last_global = n_registered_;
+        std::fill(failed_at_.begin(), failed_at_.end(), -1);
+        continue;
+      }
+      // Still stuck after a global adjustment: the relaxed, cross-checked retry.
+      image = register_left_out();
+      if (image < 0) break;
+      retried = true;
     }
     progress.step();
     triangulate_image(image);
-    if (n_registered_ < opt_.early_global_images ||
+    // A pose from few points: the global adjustment pins it with its new two-view points.
+    if (retried || n_registered_ < opt_.early_global_images ||
         n_registered_ >= opt_.global_ba_growth * last_global) {
       global_adjust(opt_.max_reprojection_px);  // covers what the local one would do
       last_global = n_registered_;
@@ -705,12 +815,42 @@ Reconstruction IncrementalMapper::run(IncrementalSummary& summary) {
   summary.local_adjustments = local_count_;
   summary.global_adjustments = global_count_;
   summary.filtered_observations = filtered_;
+  summary.registered_on_retry = retry_registered_;
   for (std::size_t i = 0; i < images_.size(); ++i) {
-    if (!registered_[i]) summary.unregistered.push_back(images_[i].name);
+    if (!registered_[i]) {
+      summary.unregistered.push_back(images_[i].name);
+      log_unregistered(int(i));
+    }
   }
   summary.adjustment_seconds = ba_seconds_;
   summary.seconds = clock.seconds();
   return rec;
+}
+
+void IncrementalMapper::log_unregistered(int image) const {
+  std::size_t pairs = 0, matched = 0;
+  std::string per_pair;
+  for (const auto& p : matches_) {
+    if (p.image_a != image && p.image_b != image) continue;
+    const int other = p.image_a == image ? p.image_b : p.image_a;
+    if (!registered_[other] || p.matches.empty()) continue;
+    ++pairs;
+    matched += p.matches.size();
+    per_pair += fmt::format(" {}:{}", images_[other].name, p.matches.size());
+  }
+  std::size_t with_point = 0, rays = 0;
+  for (int id : image_tracks_[image]) {
+    const auto& t = tracks_[id];
+    if (!t.has_point) continue;
+    ++with_point;
+    for (std::size_t k = 0; k < t.elements.size(); ++k) {
+      if (t.inlier[k] && registered_[t.elements[k].image]) ++rays;
+    }
+  }
+  log::debug("sfm: {} not registered: {} verified matches in {} pairs with registered photos "
+             "({}); {} of its {} tracks have a point ({} registered rays)",
+             images_[image].name, matched, pairs, per_pair.empty() ? "none" : per_pair.substr(1),
+             with_point, image_tracks_[image].size(), rays);
 }
 
 Reconstruction IncrementalMapper::result() const {

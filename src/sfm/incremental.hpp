@@ -38,6 +38,23 @@ struct IncrementalOptions {
   int resection_min_inliers = 15;          // 2D-3D inliers to accept a new image
   double resection_min_inlier_ratio = 0.2; // inliers / candidate correspondences
 
+  // --- retry of photos left out -------------------------------------------------
+  // When the model stops growing (no photo passes the resection above, even after a
+  // global adjustment), each photo still out is tried once more per model size with
+  // a relaxed inlier count. Such a photo typically overlaps mostly one or two
+  // registered photos: its matches are two-view tracks without a 3D point, so it
+  // sees too few triangulated points, however many verified matches it has. The
+  // few-point pose is accepted only when it also explains those verified matches
+  // with registered photos (Sampson distance to the epipolar geometry the poses
+  // imply, Hartley & Zisserman sec. 11.4.3): many observations, independent of the
+  // points it was computed from. A retried photo is followed by a global adjustment.
+  bool retry_unregistered = true;
+  int retry_min_inliers = 6;                // 2D-3D inliers (a pose has 6 unknowns)
+  double retry_min_inlier_ratio = 0.5;      // inliers / candidate correspondences
+  int retry_min_pair_matches = 60;          // verified matches with registered photos
+  // fraction of those matches within ransac_threshold_px of their epipolar lines
+  double retry_min_pair_agreement = 0.8;
+
   // --- triangulation and filtering ----------------------------------------------
   double min_triangulation_angle_deg = 1.5;  // degrees: largest ray angle of a point
   double max_reprojection_px = 4.0;          // pixels: observations beyond are outliers
@@ -88,6 +105,7 @@ struct IncrementalSummary {
   int local_adjustments = 0;
   int global_adjustments = 0;
   std::size_t filtered_observations = 0; // outlier observations removed over the run
+  std::size_t registered_on_retry = 0;   // photos placed by the relaxed retry
   std::vector<std::string> unregistered; // image names that could not be placed
   double initial_pair_seconds = 0;       // choosing the initial pair
   double adjustment_seconds = 0;         // all bundle adjustments

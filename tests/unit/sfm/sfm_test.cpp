@@ -11,8 +11,11 @@
 #include <gtest/gtest.h>
 #include <Eigen/Geometry>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
+#include <map>
 #include <random>
 
 namespace strata {
@@ -157,6 +160,15 @@ TEST(IncrementalOptions, RefusesInvalidFieldsByName) {
   IncrementalOptions b;
   b.bundle.loss_scale_px = 0;
   EXPECT_THROW(b.validate(), InputError);
+  // The retry may only relax the resection, never ask for more than it.
+  IncrementalOptions r;
+  r.retry_min_inliers = r.resection_min_inliers + 1;
+  try {
+    r.validate();
+    FAIL() << "expected InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("retry_min_inliers"), std::string::npos);
+  }
 }
 
 // --- incremental reconstruction -----------------------------------------------------
@@ -245,6 +257,148 @@ TEST(Incremental, RefusesWhenNoPairOverlaps) {
   SyntheticScene scene = make_scene({.cameras = 4, .points = 300});
   scene.matches.clear();
   EXPECT_THROW(run(scene, nullptr), ProcessingError);
+}
+
+// A photo that overlaps mostly two registered photos (site-small L2_0017: a nadir
+// photo at a trench corner whose other neighbours are 45-60 degree obliques): its
+// verified matches are two-view tracks without a 3D point, and only a few of its
+// matches join multi-view tracks. The last photo of the scene is rewired that way:
+// `shared` of its matches with its best neighbour keep their (multi-view) tracks,
+// every other match of it is replaced by `private_r1` / `private_r2` matches of new
+// ground points seen only by it and one of its two best neighbours. The shared points
+// are matched to both neighbours, so their matches close triangles and survive the
+// repair of tracks glued by the scene's wrong matches.
+struct LoneView {
+  SyntheticScene scene;
+  int image = -1;
+};
+
+LoneView make_lone_view(std::size_t shared, int private_r1, int private_r2, unsigned seed) {
+  LoneView lv{make_scene({.seed = seed}), -1};
+  SyntheticScene& s = lv.scene;
+  const int u = int(s.images.size()) - 1;
+  lv.image = u;
+  // The two neighbours with the most matches.
+  std::vector<std::pair<std::size_t, int>> by_matches;
+  for (const auto& m : s.matches) {
+    if (m.image_a == u || m.image_b == u) {
+      by_matches.emplace_back(m.matches.size(), m.image_a == u ? m.image_b : m.image_a);
+    }
+  }
+  std::sort(by_matches.rbegin(), by_matches.rend());
+  const int r1 = by_matches.at(0).second, r2 = by_matches.at(1).second;
+
+  // `shared` true points seen by u, r1 and r2, spread over u's keypoint list.
+  auto keypoint_of = [&](int image) {
+    std::map<int, int> k;
+    for (std::size_t i = 0; i < s.point_of_keypoint[image].size(); ++i) {
+      k[s.point_of_keypoint[image][i]] = int(i);
+    }
+    return k;
+  };
+  const auto in_r1 = keypoint_of(r1), in_r2 = keypoint_of(r2);
+  std::vector<std::array<int, 3>> common;  // keypoints in u, r1, r2
+  for (std::size_t ku = 0; ku < s.point_of_keypoint[u].size(); ++ku) {
+    const int p = s.point_of_keypoint[u][ku];
+    if (in_r1.count(p) && in_r2.count(p)) common.push_back({int(ku), in_r1.at(p), in_r2.at(p)});
+  }
+  std::vector<std::pair<int, int>> shared_r1, shared_r2;  // (keypoint in r, keypoint in u)
+  for (std::size_t i = 0; i < shared; ++i) {
+    const auto& c = common.at(i * common.size() / shared);
+    shared_r1.emplace_back(c[1], c[0]);
+    shared_r2.emplace_back(c[2], c[0]);
+  }
+  std::erase_if(s.matches, [&](const PairMatches& m) { return m.image_a == u || m.image_b == u; });
+
+  std::mt19937 rng(seed + 1);
+  std::uniform_real_distribution<double> uni(0.0, 1.0);
+  std::normal_distribution<double> noise(0.0, 0.3);  // pixels, as the scene's keypoints
+  auto add_private = [&](int r, int count, std::vector<std::pair<int, int>> matches) {
+    const Camera cu{s.truth, s.poses[u]}, cr{s.truth, s.poses[r]};
+    auto inside = [&](const std::optional<Eigen::Vector2d>& p) {
+      return p && p->x() >= 0 && p->y() >= 0 && p->x() <= s.truth.width - 1 &&
+             p->y() <= s.truth.height - 1;
+    };
+    const std::size_t target = matches.size() + std::size_t(count);
+    for (int tries = 0; matches.size() < target && tries < 200000; ++tries) {
+      const double e = -2.0 + 4.0 * uni(rng), n = -1.5 + 3.0 * uni(rng);
+      const Eigen::Vector3d X(e, n, test::ground_height(e, n));
+      const auto pu = cu.project(X), pr = cr.project(X);
+      if (!inside(pu) || !inside(pr)) continue;
+      const int pid = int(s.points.size());
+      s.points.push_back(X);
+      s.keypoints[u].points.push_back(*pu + Eigen::Vector2d(noise(rng), noise(rng)));
+      s.point_of_keypoint[u].push_back(pid);
+      s.keypoints[r].points.push_back(*pr + Eigen::Vector2d(noise(rng), noise(rng)));
+      s.point_of_keypoint[r].push_back(pid);
+      matches.emplace_back(int(s.keypoints[r].points.size()) - 1,
+                           int(s.keypoints[u].points.size()) - 1);
+    }
+    PairMatches pm;
+    pm.image_a = std::min(u, r);
+    pm.image_b = std::max(u, r);
+    pm.model = TwoViewModel::essential;
+    for (const auto& [kr, ku] : matches) pm.matches.emplace_back(r < u ? kr : ku, r < u ? ku : kr);
+    s.matches.push_back(std::move(pm));
+  };
+  add_private(r1, private_r1, shared_r1);
+  add_private(r2, private_r2, shared_r2);
+  return lv;
+}
+
+// The normal resection needs resection_min_inliers (15) triangulated points; the
+// lone view sees 10. Matches with its two neighbours: 160 and 90.
+constexpr std::size_t kLoneShared = 10;
+constexpr int kLonePrivateR1 = 150, kLonePrivateR2 = 80;
+
+TEST(Incremental, RetryRegistersAPhotoSeenMostlyInTwoViewTracks) {
+  const LoneView lv = make_lone_view(kLoneShared, kLonePrivateR1, kLonePrivateR2, 7);
+  const std::size_t n = lv.scene.images.size();
+
+  IncrementalOptions without;
+  without.retry_unregistered = false;
+  IncrementalSummary s0;
+  const Reconstruction rec0 = run(lv.scene, &s0, without);
+  EXPECT_EQ(count_registered(rec0), n - 1) << "the scene must reproduce the failure";
+  EXPECT_FALSE(rec0.images[lv.image].registered);
+
+  IncrementalSummary s1;
+  const Reconstruction rec1 = run(lv.scene, &s1);
+  ASSERT_EQ(count_registered(rec1), n);
+  EXPECT_EQ(s1.registered_on_retry, 1u);
+  EXPECT_LT(s1.reprojection_rmse_px, kRmseFactor * 0.3 * std::sqrt(2.0));
+  // The retried photo is as accurate as the others: its two-view points pin it.
+  const Alignment a = align_to_truth(rec1, lv.scene);
+  const Eigen::Vector3d c = a.s.apply(rec1.images[lv.image].pose.centre());
+  const double err = (c - lv.scene.poses[lv.image].centre()).norm();
+  std::printf("[ figures  ] lone view: %zu/%zu without retry, %zu/%zu with; its centre %.2f mm, "
+              "all max %.2f mm\n", s0.registered, n, s1.registered, n, err * 1e3,
+              a.max_centre_error * 1e3);
+  EXPECT_LT(err, kCentreTolM);
+  EXPECT_LT(a.max_centre_error, kCentreTolM);
+}
+
+TEST(Incremental, RetryRefusesAPoseItsPairMatchesContradict) {
+  // The same photo, but its matches with the two neighbours are scrambled (each
+  // private keypoint of the photo moved to another one's place): the 10 points
+  // still give a pose, the verified matches do not confirm it, so the photo stays out.
+  LoneView lv = make_lone_view(kLoneShared, kLonePrivateR1, kLonePrivateR2, 7);
+  auto& kp = lv.scene.keypoints[lv.image].points;
+  const std::size_t first_private = kp.size() - std::size_t(kLonePrivateR1 + kLonePrivateR2);
+  std::mt19937 rng(3);
+  std::shuffle(kp.begin() + std::ptrdiff_t(first_private), kp.end(), rng);
+  IncrementalSummary s;
+  const Reconstruction rec = run(lv.scene, &s);
+  EXPECT_EQ(s.registered_on_retry, 0u);
+  EXPECT_FALSE(rec.images[lv.image].registered);
+  EXPECT_EQ(count_registered(rec), lv.scene.images.size() - 1);
+  // The pair check is what refuses it: with (almost) no agreement required, the
+  // 10 points alone place it.
+  IncrementalOptions lax;
+  lax.retry_min_pair_agreement = 0.01;
+  IncrementalSummary s_lax;
+  run(lv.scene, &s_lax, lax);
+  EXPECT_EQ(s_lax.registered_on_retry, 1u);
 }
 
 // --- bundle adjustment on a Reconstruction ------------------------------------------
