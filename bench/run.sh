@@ -5,18 +5,20 @@
 # the Debian `colmap` package is installed, runs COLMAP's CPU sparse pipeline on the
 # same photos for comparison (time ratio and camera accuracy after a similarity fit).
 #
-# Usage: bench/run.sh [--size full|small] [--layer L1] [--keep DIR]
-# Writes bench/results/<UTC timestamp>-<size>-<layer>.json and bench/results/latest-<size>.json.
+# Usage: bench/run.sh [--size full|small] [--layer L1] [--keep DIR] [--no-colmap]
+# Writes bench/results/<UTC timestamp>-<size>-<layer>.json and bench/results/latest-<size>-<layer>.json.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 size=full
 layer=L1
 keep=
+colmap=1
 while [[ $# -gt 0 ]]; do
   case "$1" in
     --size) size="$2"; shift 2 ;;
     --layer) layer="$2"; shift 2 ;;
     --keep) keep="$2"; shift 2 ;;
+    --no-colmap) colmap=0; shift ;;
     *) echo "unknown option $1" >&2; exit 2 ;;
   esac
 done
@@ -75,7 +77,7 @@ if [[ -n "$dtm" && -f bench/eval_surface.py ]]; then
 fi
 
 colmap_json=null
-if command -v colmap >/dev/null 2>&1; then
+if [[ $colmap == 1 ]] && command -v colmap >/dev/null 2>&1; then
   echo "bench: COLMAP (CPU) sparse pipeline on the same photos"
   cdir=$work/colmap
   mkdir -p "$cdir/sparse"
@@ -98,7 +100,7 @@ fi
 mkdir -p bench/results
 stamp=$(date -u +%Y%m%dT%H%M%SZ)
 out=bench/results/$stamp-$size-$layer.json
-latest=bench/results/latest-$size.json
+latest=bench/results/latest-$size-$layer.json  # the previous run of the same layer
 /usr/bin/python3 bench/summarise.py --size "$size" --layer "$layer" --photos "$n_photos" \
   --sparse "$work/sparse.json" --sparse-seconds "$sparse_s" \
   --dense "$work/dense.json" --dense-seconds "$dense_s" --products-seconds "$products_s" --memdir "$work" \
