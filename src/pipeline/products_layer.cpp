@@ -142,9 +142,10 @@ ProductsLayerResult products_layer(Project& project, const std::string& layer_na
   const auto [surveyed, markers_digest] = surveyed_markers(db, site.origin);
 
   const std::string inputs_key = sha256_hex(fmt::format(
-      "{}|{}|{}|{}|{}|{}|{}|{}|{}|markers-v2|{}|{}|{}|{}|{}", surface->sha256, alignment->inputs_key,
+      "{}|{}|{}|{}|{}|{}|{}|{}|ortho-v2|{}|{}|markers-v3|{}|{}|{}|{}|{}", surface->sha256, alignment->inputs_key,
       options.dtm.cell_m, options.ortho_cell_m, options.contours.interval_m, options.ortho.radiometric_balance,
-      options.ortho.smoothness, options.ortho.feather_m, options.geotiff.cog, options.check_ortho_markers,
+      options.ortho.smoothness, options.ortho.feather_m, options.ortho.normal_radius_m, options.geotiff.cog,
+      options.check_ortho_markers,
       markers_digest, options.ortho_markers.targets.dictionary, options.ortho_markers.naming.rule,
       options.ortho_markers.tolerance_px));
   ProductsLayerResult result;

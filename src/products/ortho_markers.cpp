@@ -15,6 +15,41 @@ namespace strata {
 namespace {
 // A missed marker counts as fully covered from this share of coloured cells around it.
 constexpr double kMinCoveredShare = 0.9;
+
+// Fills the pixels of `grey` where `mask` is set from the outside in: each pass
+// gives every masked pixel with known 8-neighbours their mean (onion peeling).
+void fill_from_border(cv::Mat& grey, cv::Mat mask) {
+  std::vector<cv::Point> todo;
+  for (int r = 0; r < mask.rows; ++r)
+    for (int c = 0; c < mask.cols; ++c)
+      if (mask.at<std::uint8_t>(r, c)) todo.emplace_back(c, r);
+  while (!todo.empty()) {
+    std::vector<std::pair<cv::Point, std::uint8_t>> done;
+    std::vector<cv::Point> left;
+    for (const cv::Point& p : todo) {
+      int sum = 0, n = 0;
+      for (int dr = -1; dr <= 1; ++dr)
+        for (int dc = -1; dc <= 1; ++dc) {
+          const int r = p.y + dr, c = p.x + dc;
+          if ((dr || dc) && r >= 0 && c >= 0 && r < grey.rows && c < grey.cols && !mask.at<std::uint8_t>(r, c)) {
+            sum += grey.at<std::uint8_t>(r, c);
+            ++n;
+          }
+        }
+      if (n > 0) {
+        done.emplace_back(p, std::uint8_t((sum + n / 2) / n));
+      } else {
+        left.push_back(p);
+      }
+    }
+    if (done.empty()) break;  // nothing known around the rest (cannot happen for a bounded hole)
+    for (const auto& [p, v] : done) {
+      grey.at<std::uint8_t>(p.y, p.x) = v;
+      mask.at<std::uint8_t>(p.y, p.x) = 0;
+    }
+    todo = std::move(left);
+  }
+}
 }  // namespace
 
 void OrthoMarkerCheckOptions::validate() const {
@@ -26,6 +61,10 @@ void OrthoMarkerCheckOptions::validate() const {
   if (!(coverage_radius_m >= 0)) {
     throw InputError(
         fmt::format("products.ortho_markers: coverage_radius_m must be >= 0 metres, got {}", coverage_radius_m));
+  }
+  if (fill_holes_max_cells < 0) {
+    throw InputError(
+        fmt::format("products.ortho_markers: fill_holes_max_cells must be >= 0 cells, got {}", fill_holes_max_cells));
   }
   if (upsample < 1 || upsample > 8) {
     throw InputError(fmt::format("products.ortho_markers: upsample must be in [1, 8], got {}", upsample));
@@ -60,11 +99,28 @@ OrthoMarkerCheck check_ortho_markers(const RgbaRaster& ortho, const std::vector<
   cv::Mat rgba(g.height, g.width, CV_8UC4, const_cast<std::uint8_t*>(ortho.rgba.data()));
   cv::Mat grey;
   cv::cvtColor(rgba, grey, cv::COLOR_RGBA2GRAY);
+  // Small holes (a few cells no photo coloured, e.g. inside a target) are
+  // inpainted from their surroundings; larger unseen areas become mid-grey.
+  cv::Mat holes(g.height, g.width, CV_8UC1, cv::Scalar(0));
   for (int r = 0; r < g.height; ++r) {
     for (int c = 0; c < g.width; ++c) {
-      if (ortho.rgba[4 * g.index(c, r) + 3] == 0) grey.at<std::uint8_t>(r, c) = 128;
+      if (ortho.rgba[4 * g.index(c, r) + 3] == 0) holes.at<std::uint8_t>(r, c) = 255;
     }
   }
+  cv::Mat small_holes(g.height, g.width, CV_8UC1, cv::Scalar(0));
+  if (options.fill_holes_max_cells > 0 && cv::countNonZero(holes) > 0) {
+    cv::Mat labels, stats, centroids;
+    const int n = cv::connectedComponentsWithStats(holes, labels, stats, centroids, 8, CV_32S);
+    for (int r = 0; r < g.height; ++r) {
+      for (int c = 0; c < g.width; ++c) {
+        const int l = labels.at<int>(r, c);
+        if (l > 0 && l < n && stats.at<int>(l, cv::CC_STAT_AREA) <= options.fill_holes_max_cells)
+          small_holes.at<std::uint8_t>(r, c) = 255;
+      }
+    }
+  }
+  grey.setTo(128, holes);
+  fill_from_border(grey, small_holes);
   const int s = options.upsample;
   if (s > 1) {
     cv::Mat big;

@@ -33,6 +33,11 @@ struct OrthoMarkerCheckOptions {
   // coloured (>= 90 % of cells) for the miss to count as not_detected rather than
   // partly_seen: a 15 cm target and its margin.
   double coverage_radius_m = 0.1;
+  // Holes in the orthophoto (alpha 0) of at most this many connected cells are
+  // filled from their surroundings (OpenCV Telea inpainting) in the detection
+  // image only: single unseen cells on a target's white margin or code would
+  // otherwise break its outline. Larger unseen areas become mid-grey. 0 = none.
+  int fill_holes_max_cells = 16;
   // Throws InputError naming the first invalid field.
   void validate() const;
 };

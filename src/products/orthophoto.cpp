@@ -35,6 +35,7 @@ void OrthoOptions::validate() const {
   if (!(smoothness >= 0)) bad("smoothness", smoothness, ">= 0");
   if (smoothing_iterations < 0) bad("smoothing_iterations", smoothing_iterations, ">= 0");
   if (!(feather_m >= 0)) bad("feather_m", feather_m, ">= 0 metres");
+  if (!(normal_radius_m >= 0)) bad("normal_radius_m", normal_radius_m, ">= 0 metres");
   if (threads < 1) bad("threads", threads, ">= 1");
 }
 
@@ -361,6 +362,37 @@ void box_blur(std::vector<float>& img, int w, int h, int r) {
   }
 }
 
+// The DTM smoothed by a tent of half-width about `radius_m` (two box filters),
+// weighted by validity so that holes do not pull heights; cells without a
+// height stay NaN. Used only for the normals.
+Dtm smoothed_for_normals(const Dtm& dtm, double radius_m) {
+  const RasterGrid& g = dtm.grid;
+  const int r = std::max(0, int(std::lround(radius_m / g.cell / 2.0)));
+  if (r == 0) return dtm;
+  std::vector<float> sum(g.cells(), 0.f), weight(g.cells(), 0.f);
+  // Heights relative to a reference keep the float sums precise.
+  double ref = 0;
+  for (float z : dtm.z)
+    if (std::isfinite(z)) {
+      ref = z;
+      break;
+    }
+  for (std::size_t i = 0; i < g.cells(); ++i) {
+    if (!std::isfinite(dtm.z[i])) continue;
+    sum[i] = float(double(dtm.z[i]) - ref);
+    weight[i] = 1.f;
+  }
+  for (int pass = 0; pass < 2; ++pass) {
+    box_blur(sum, g.width, g.height, r);
+    box_blur(weight, g.width, g.height, r);
+  }
+  Dtm out = dtm;
+  for (std::size_t i = 0; i < g.cells(); ++i) {
+    if (std::isfinite(dtm.z[i]) && weight[i] > 1e-6f) out.z[i] = float(double(sum[i] / weight[i]) + ref);
+  }
+  return out;
+}
+
 }  // namespace
 
 RgbaRaster build_orthophoto(const Dtm& dtm, const std::vector<OrthoView>& views, const OrthoOptions& o,
@@ -375,7 +407,7 @@ RgbaRaster build_orthophoto(const Dtm& dtm, const std::vector<OrthoView>& views,
   for (const auto& v : views) s.view_names.push_back(v.name);
   for (float z : dtm.z) s.dtm_cells += std::isfinite(z) ? 1 : 0;
 
-  const std::vector<Eigen::Vector3f> normals = dtm_normals(dtm);
+  const std::vector<Eigen::Vector3f> normals = dtm_normals(smoothed_for_normals(dtm, o.normal_radius_m));
   Candidates cand(g.cells(), o.candidates);
 
   // 1. Visibility, scores and colours, one photo per worker at a time.

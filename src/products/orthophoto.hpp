@@ -46,6 +46,13 @@ struct OrthoOptions {
   double smoothness = 0.6;           // Potts weight against the relative score, >= 0
   int smoothing_iterations = 5;      // ICM sweeps
   double feather_m = 0.02;           // metres, half-width of the blend across seams
+  // Surface normals (view angle test, score, depth tolerance) are taken from the
+  // DTM smoothed over about this radius (metres, a tent filter). Central
+  // differences over one 5 mm cell turn centimetre noise of the fused surface into
+  // 45-70 degree slopes: views are then rejected at random (holes) and scores
+  // jump from cell to cell (fragmented regions, seams through the markers).
+  // 0 = one-cell central differences.
+  double normal_radius_m = 0.02;
   bool radiometric_balance = true;   // per-photo gains from the overlaps
   int threads = 2;                   // photos processed in parallel
   // Throws InputError naming the first invalid field.

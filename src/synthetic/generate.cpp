@@ -29,7 +29,6 @@ namespace fs = std::filesystem;
 namespace strata {
 namespace {
 
-constexpr double kTruthMargin = 0.25;        // metres of truth raster around the trench
 constexpr double kAreaThreshold = 0.001;     // metres: removed thickness counted as area
 constexpr double kOcclusionTol = 0.005;      // metres: a marker centre hidden by more is not observed
 constexpr double kMaxMarkerIncidence = 80.0; // degrees from the marker normal still observed
@@ -226,11 +225,12 @@ void write_dataset(const SyntheticExcavationOptions& o, const fs::path& dir, Syn
     // Truth surface: cell centres on a grid aligned to multiples of the cell in the CRS.
     Raster raster;
     raster.cell = o.render.truth_cell;
+    const double margin = o.render.truth_margin;
     raster.epsg = site.epsg;
-    raster.west = std::floor((origin.x() + scene.trench_x0() - kTruthMargin) / raster.cell) * raster.cell;
-    raster.north = std::ceil((origin.y() + scene.trench_y1() + kTruthMargin) / raster.cell) * raster.cell;
-    raster.cols = int(std::ceil((origin.x() + scene.trench_x1() + kTruthMargin - raster.west) / raster.cell));
-    raster.rows = int(std::ceil((raster.north - (origin.y() + scene.trench_y0() - kTruthMargin)) / raster.cell));
+    raster.west = std::floor((origin.x() + scene.trench_x0() - margin) / raster.cell) * raster.cell;
+    raster.north = std::ceil((origin.y() + scene.trench_y1() + margin) / raster.cell) * raster.cell;
+    raster.cols = int(std::ceil((origin.x() + scene.trench_x1() + margin - raster.west) / raster.cell));
+    raster.rows = int(std::ceil((raster.north - (origin.y() + scene.trench_y0() - margin)) / raster.cell));
     raster.values.resize(std::size_t(raster.cols) * std::size_t(raster.rows));
     const HeightGrid& surface = scene.surface(k);
     tbb::parallel_for(0, raster.rows, [&](int r) {
@@ -388,6 +388,8 @@ void SyntheticExcavationOptions::validate() const {
   require(render.height_cell >= 0.001 && render.height_cell <= 0.01, "render.height_cell", render.height_cell, "0.001..0.01 m");
   require(render.texel >= 0.0005 && render.texel <= 0.01, "render.texel", render.texel, "0.0005..0.01 m");
   require(render.edge_samples >= 0 && render.edge_samples <= 8, "render.edge_samples", render.edge_samples, "0..8");
+  require(render.truth_margin >= 0 && render.truth_margin <= 1.1, "render.truth_margin", render.truth_margin,
+          "0..1.1 m (the scene's fine grid reaches 1.2 m around the trench)");
   require(render.truth_cell >= 0.001 && render.truth_cell <= 0.05, "render.truth_cell", render.truth_cell, "0.001..0.05 m");
   require(render.threads >= 0 && render.threads <= 1024, "render.threads", render.threads, "0 (all cores)..1024");
   constexpr double kGridMarginBoth = 2 * 1.2;  // metres: fine grid margin, both sides (scene.cpp)

@@ -55,6 +55,9 @@ struct SyntheticExcavationOptions {
     double texel = 0.0035;         // metres, baked surface texture resolution
     int edge_samples = 4;          // extra rays per pixel on depth edges (0 = none)
     double truth_cell = 0.005;     // metres, cell of the truth surface GeoTIFFs
+    double truth_margin = 0.75;    // metres of truth surface around the trench: covers the
+                                   // markers (0.3-0.5 m out, 15 cm prints) so the ground
+                                   // under them can be checked too
     int threads = 0;               // 0 = all cores
   } render;
 

@@ -43,9 +43,9 @@ std::vector<std::vector<std::string>> read_csv(const fs::path& p) {
 }
 
 // Bilinear resampling of a DTM onto a finer grid `margin` metres larger on every
-// side. The truth rasters stop short of the markers around the trench; outside
-// them the ground is the plane through the markers (the synthetic ground is smooth
-// there and the targets lie on it).
+// side. The generator's truth rasters cover 0.75 m around the trench, the markers
+// included; beyond them the ground is the plane through the markers (the synthetic
+// ground is smooth there and the targets lie on it).
 Dtm resample(const Dtm& src, double cell, double margin, const Eigen::Vector3d& plane,
              const std::vector<Eigen::Vector3d>& markers) {
   Dtm d;

@@ -422,6 +422,7 @@ class SyntheticVolumes : public ::testing::Test {
     o.photos.height = 64;
     o.render.texel = 0.01;
     o.render.edge_samples = 0;
+    o.render.truth_margin = 0.25;  // punch_gaps() below places the trench sides 0.25 m in
     generate_excavation(o, *dir_ / "synth");
     std::ifstream in(*dir_ / "synth" / "truth" / "units.csv");
     std::string line;
