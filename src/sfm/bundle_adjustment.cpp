@@ -7,6 +7,7 @@
 #include "sfm/triangulation.hpp"
 
 #include <ceres/ceres.h>
+#include <glog/logging.h>
 #include <Eigen/Geometry>
 
 #include <algorithm>
@@ -16,6 +17,20 @@
 #include <memory>
 
 namespace strata {
+namespace {
+
+// Ceres reports through glog, whose warnings (e.g. "Linear solver failure ... dense
+// Cholesky" when a Levenberg-Marquardt step is retried with more damping, which the
+// solver handles itself) would interleave with strata's own messages and progress
+// bars as unformatted lines. Only glog errors and above reach the terminal; the
+// outcome of every solve is judged from its summary here and reported by strata.
+[[maybe_unused]] const bool kSolverLogQuiet = [] {
+  FLAGS_minloglevel = std::max(FLAGS_minloglevel, static_cast<std::int32_t>(google::GLOG_ERROR));
+  return true;
+}();
+
+}  // namespace
+
 
 void BundleOptions::validate() const {
   auto positive = [](double v, const char* name) {
