@@ -63,6 +63,9 @@ timed() {
   echo "$t0 $t1" | awk '{ printf "%.2f", $2 - $1 }'
 }
 echo "bench: $size $layer, $n_photos photos: alignment"
+# Other work on the machine makes the timings meaningless: the 1-minute load average
+# just before the timed stages is kept with the results (quiet: below about 0.5).
+load_before=$(cut -d' ' -f1 /proc/loadavg)
 sparse_s=$(timed sparse "$strata" -q process "$site" --layer "$layer" --until sparse --json)
 "$strata" -q export cameras "$site" --layer "$layer" --out "$work/cameras.csv"
 echo "bench: dense surface"
@@ -105,6 +108,6 @@ latest=bench/results/latest-$size-$layer.json  # the previous run of the same la
   --sparse "$work/sparse.json" --sparse-seconds "$sparse_s" \
   --dense "$work/dense.json" --dense-seconds "$dense_s" --products-seconds "$products_s" --memdir "$work" \
   --cameras "$work/cameras.csv" --truth "$data/truth/$layer/cameras.csv" \
-  --surface "$surface" --colmap "$colmap_json" --previous "$latest" --out "$out"
+  --surface "$surface" --colmap "$colmap_json" --previous "$latest" --load-before "$load_before" --out "$out"
 cp "$out" "$latest"
 echo "bench: wrote $out"

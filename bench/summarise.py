@@ -15,6 +15,7 @@ import argparse, csv, json, math, os, sys
 import numpy as np
 
 TARGET_LAYER_SECONDS = 180.0  # issue 5: whole per-layer pipeline under 3 minutes on 2 cores
+QUIET_LOAD = 0.5  # 1-minute load average above which the machine was not free for timing
 
 
 def read_json(path):
@@ -77,7 +78,8 @@ def stats(errors):
 def main():
     ap = argparse.ArgumentParser()
     for name in ["size", "layer", "photos", "sparse", "sparse-seconds", "dense", "dense-seconds",
-                 "products-seconds", "memdir", "cameras", "truth", "colmap", "surface", "previous", "out"]:
+                 "products-seconds", "memdir", "cameras", "truth", "colmap", "surface", "previous", "load-before",
+                 "out"]:
         ap.add_argument("--" + name)
     a = ap.parse_args()
     sparse = read_json(a.sparse)
@@ -102,7 +104,12 @@ def main():
         "dense_steps": dense.get("steps"), "dense_completeness": dense.get("completeness"),
         "surface": read_json(a.surface) if a.surface and os.path.exists(a.surface) else None,
         "colmap": json.loads(a.colmap) if a.colmap and a.colmap != "null" else None,
+        "load_average_before": float(a.load_before) if a.load_before else None,
     }
+    if result["load_average_before"] is not None and result["load_average_before"] > QUIET_LOAD:
+        result["timing_warning"] = (f"load average {result['load_average_before']:.2f} before the run: "
+                                    "other work shared the cores, the times are not comparable")
+        print("bench: warning: " + result["timing_warning"], file=sys.stderr)
     if a.memdir:
         for stage in ["sparse", "dense", "products"]:
             path = os.path.join(a.memdir, stage + ".mem")
@@ -127,7 +134,7 @@ def main():
                                        if prev.get(k) and result.get(k)}
     with open(a.out, "w") as f:
         json.dump(result, f, indent=2)
-    keys = ["photos", "registered", "sparse_seconds", "dense_seconds", "products_seconds", "layer_seconds",
+    keys = ["timing_warning", "photos", "registered", "sparse_seconds", "dense_seconds", "products_seconds", "layer_seconds",
             "ratio_to_target", "reprojection_rmse_px", "check_rmse_xyz_m", "camera_centres_georeferenced",
             "camera_centres_shape", "sparse_peak_rss_mb", "dense_peak_rss_mb", "products_peak_rss_mb",
             "dense_completeness", "surface", "colmap", "ratio_sparse_to_colmap",
