@@ -108,6 +108,9 @@ class IncrementalMapper {
     bool check_pairs;
   };
   bool try_register(int image, const ResectionRule& rule);
+  // Unregistered images not yet tried at the current model size (`tried_at`), with at
+  // least `min_visible` triangulated tracks, most visible first.
+  std::vector<int> next_best(const std::vector<int>& tried_at, int min_visible) const;
   int register_next();
   int register_left_out();
   // Verified matches of `image` with registered photos, and how many of them lie
@@ -513,17 +516,24 @@ bool IncrementalMapper::try_register(int image, const ResectionRule& rule) {
   return true;
 }
 
-int IncrementalMapper::register_next() {
-  // Next best images: most visible triangulated tracks (Snavely et al. 2006).
+std::vector<int> IncrementalMapper::next_best(const std::vector<int>& tried_at, int min_visible) const {
+  // Next best images: most visible triangulated tracks (Snavely et al. 2006), skipping
+  // those already tried at the current model size.
   std::vector<std::pair<int, int>> ranked;
   for (int i = 0; i < int(images_.size()); ++i) {
-    if (registered_[i] || failed_at_[i] == n_registered_) continue;
+    if (registered_[i] || tried_at[i] == n_registered_) continue;
     int visible = 0;
     for (int id : image_tracks_[i]) visible += tracks_[id].has_point ? 1 : 0;
-    if (visible >= opt_.resection_min_inliers) ranked.emplace_back(visible, i);
+    if (visible >= min_visible) ranked.emplace_back(visible, i);
   }
   std::sort(ranked.rbegin(), ranked.rend());
-  for (const auto& [visible, image] : ranked) {
+  std::vector<int> out;
+  for (const auto& r : ranked) out.push_back(r.second);
+  return out;
+}
+
+int IncrementalMapper::register_next() {
+  for (int image : next_best(failed_at_, opt_.resection_min_inliers)) {
     check_cancelled();
     if (try_register(image, {opt_.resection_min_inliers, opt_.resection_min_inlier_ratio, false})) {
       return image;
@@ -535,15 +545,7 @@ int IncrementalMapper::register_next() {
 
 int IncrementalMapper::register_left_out() {
   if (!opt_.retry_unregistered) return -1;
-  std::vector<std::pair<int, int>> ranked;
-  for (int i = 0; i < int(images_.size()); ++i) {
-    if (registered_[i] || retried_at_[i] == n_registered_) continue;
-    int visible = 0;
-    for (int id : image_tracks_[i]) visible += tracks_[id].has_point ? 1 : 0;
-    if (visible >= opt_.retry_min_inliers) ranked.emplace_back(visible, i);
-  }
-  std::sort(ranked.rbegin(), ranked.rend());
-  for (const auto& [visible, image] : ranked) {
+  for (int image : next_best(retried_at_, opt_.retry_min_inliers)) {
     check_cancelled();
     retried_at_[image] = n_registered_;
     if (try_register(image, {opt_.retry_min_inliers, opt_.retry_min_inlier_ratio, true})) {
@@ -830,8 +832,8 @@ Reconstruction IncrementalMapper::run(IncrementalSummary& summary) {
 void IncrementalMapper::log_unregistered(int image) const {
   std::size_t pairs = 0, matched = 0;
   std::string per_pair;
-  for (const auto& p : matches_) {
-    if (p.image_a != image && p.image_b != image) continue;
+  for (int m : pairs_of_[image]) {
+    const auto& p = matches_[m];
     const int other = p.image_a == image ? p.image_b : p.image_a;
     if (!registered_[other] || p.matches.empty()) continue;
     ++pairs;
