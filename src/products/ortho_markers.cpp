@@ -6,6 +6,7 @@
 #include <fmt/format.h>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
+#include <opencv2/photo.hpp>
 
 #include <cmath>
 #include <limits>
@@ -16,40 +17,6 @@ namespace {
 // A missed marker counts as fully covered from this share of coloured cells around it.
 constexpr double kMinCoveredShare = 0.9;
 
-// Fills the pixels of `grey` where `mask` is set from the outside in: each pass
-// gives every masked pixel with known 8-neighbours their mean (onion peeling).
-void fill_from_border(cv::Mat& grey, cv::Mat mask) {
-  std::vector<cv::Point> todo;
-  for (int r = 0; r < mask.rows; ++r)
-    for (int c = 0; c < mask.cols; ++c)
-      if (mask.at<std::uint8_t>(r, c)) todo.emplace_back(c, r);
-  while (!todo.empty()) {
-    std::vector<std::pair<cv::Point, std::uint8_t>> done;
-    std::vector<cv::Point> left;
-    for (const cv::Point& p : todo) {
-      int sum = 0, n = 0;
-      for (int dr = -1; dr <= 1; ++dr)
-        for (int dc = -1; dc <= 1; ++dc) {
-          const int r = p.y + dr, c = p.x + dc;
-          if ((dr || dc) && r >= 0 && c >= 0 && r < grey.rows && c < grey.cols && !mask.at<std::uint8_t>(r, c)) {
-            sum += grey.at<std::uint8_t>(r, c);
-            ++n;
-          }
-        }
-      if (n > 0) {
-        done.emplace_back(p, std::uint8_t((sum + n / 2) / n));
-      } else {
-        left.push_back(p);
-      }
-    }
-    if (done.empty()) break;  // nothing known around the rest (cannot happen for a bounded hole)
-    for (const auto& [p, v] : done) {
-      grey.at<std::uint8_t>(p.y, p.x) = v;
-      mask.at<std::uint8_t>(p.y, p.x) = 0;
-    }
-    todo = std::move(left);
-  }
-}
 }  // namespace
 
 void OrthoMarkerCheckOptions::validate() const {
@@ -120,7 +87,13 @@ OrthoMarkerCheck check_ortho_markers(const RgbaRaster& ortho, const std::vector<
     }
   }
   grey.setTo(128, holes);
-  fill_from_border(grey, small_holes);
+  if (cv::countNonZero(small_holes) > 0) {
+    // Fast-marching inpainting (Telea 2004) fills the small holes from the outside in;
+    // a radius of 2 cells reaches across the narrowest ones and no further.
+    cv::Mat filled;
+    cv::inpaint(grey, small_holes, filled, 2.0, cv::INPAINT_TELEA);
+    grey = filled;
+  }
   const int s = options.upsample;
   if (s > 1) {
     cv::Mat big;
