@@ -11,7 +11,9 @@ size=full
 if [[ "${1:-}" == "--size" ]]; then size="${2:?--size needs small or full}"; fi
 
 bash scripts/setup.sh
-cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo >/dev/null
+# Every module, whatever a developer's build/ cache says (STRATA_SKIP_MODULES is for
+# partial development builds only).
+cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DSTRATA_SKIP_MODULES= >/dev/null
 cmake --build build -j "$(nproc)" --target strata
 strata=build/src/cli/strata
 
@@ -59,9 +61,7 @@ mkdir -p "$site/exports"
 "$strata" export qgis "$site" --out "$site/exports/site.qgz"
 "$strata" export grass "$site" --out "$site/exports/grass"
 "$strata" export voxels "$site" --out "$site/exports/units.vdb"
-if "$strata" report --help >/dev/null 2>&1; then
-  "$strata" report "$site" --out "$site/exports/report.html"
-fi
+"$strata" report "$site" --out "$site/exports/report.html"
 
 echo "== the project"
 "$strata" info "$site"
@@ -71,5 +71,5 @@ echo "  project database (open in QGIS):  $site/project.gpkg"
 echo "  QGIS project:                      $site/exports/site.qgz"
 echo "  per-layer products:                $site/products/<layer>/ (dtm.tif, ortho.tif, dense/mesh.ply, ...)"
 echo "  GRASS import script:               $site/exports/grass/import.sh"
-[[ -f "$site/exports/report.html" ]] && echo "  field report:                      $site/exports/report.html"
+echo "  field report:                      $site/exports/report.html"
 echo "  Harris matrix:                     $strata matrix $site --format svg --out matrix.svg"
