@@ -111,6 +111,8 @@ class Solver {
       const double dv = static_cast<double>(k) / (kColourLevels - 1);
       colour_weight_[k] = sc > 0 ? static_cast<float>(std::exp(-dv * dv / (2 * sc * sc))) : 1.f;
     }
+    window_samples_ = spatial_weight_.size();
+    cache_reference_windows();
   }
 
   DepthMap run() {
@@ -215,6 +217,60 @@ class Solver {
     return n.cast<double>().dot(view) >= cos_max_normal_;
   }
 
+  // The reference side of the weighted NCC at (x, y): normalised weights w_k and
+  // weighted, standardised values r_k = w_k (v_k - mean_w) / std_w, so that for a
+  // source window s: NCC_w = sum r_k s_k / std_w(s) (sum r_k = 0, sum w_k = 1).
+  // False when the weighted window is textureless.
+  bool reference_window(int x, int y, float* wk, float* rk) const {
+    const int rad = opt_.window_radius, st = opt_.window_step;
+    const float centre = ref_.gray_at(x, y);
+    float wsum = 0, s1 = 0, s2 = 0;
+    int count = 0;
+    for (int dy = -rad; dy <= rad; dy += st) {
+      const float* row = ref_.gray.data() + index(x - rad, y + dy);
+      for (int dx = 0; dx <= 2 * rad; dx += st, ++count) {
+        const float v = row[dx];
+        const int level = std::min(kColourLevels - 1, static_cast<int>(std::abs(v - centre) * (kColourLevels - 1) + 0.5f));
+        const float w = spatial_weight_[count] * colour_weight_[level];
+        wk[count] = w;
+        rk[count] = v;
+        wsum += w;
+        s1 += w * v;
+        s2 += w * v * v;
+      }
+    }
+    const float mean = s1 / wsum, var = s2 / wsum - mean * mean;
+    if (!(var > kMinVariance)) return false;
+    const float inv = 1.0f / (wsum * std::sqrt(var));
+    for (int k = 0; k < count; ++k) {
+      rk[k] = wk[k] * (rk[k] - mean) * inv;
+      wk[k] /= wsum;
+    }
+    return true;
+  }
+
+  // Every cost evaluation of a pixel needs its reference window: computed once per
+  // pixel and kept when it fits in kReferenceCacheBytes (it does at the usual 1/4 and
+  // 1/2 depth-map scales), else recomputed per evaluation.
+  void cache_reference_windows() {
+    const std::size_t n = ref_ok_.size();
+    if (n * window_samples_ * 2 * sizeof(float) > kReferenceCacheBytes) return;
+    ref_w_.assign(n * window_samples_, 0.f);
+    ref_r_.assign(n * window_samples_, 0.f);
+    const int w = cam_.width, h = cam_.height;
+    tbb::parallel_for(tbb::blocked_range<int>(0, h), [&](const tbb::blocked_range<int>& r) {
+      for (int y = r.begin(); y < r.end(); ++y) {
+        for (int x = 0; x < w; ++x) {
+          const std::size_t i = index(x, y);
+          if (ref_ok_[i] &&
+              !reference_window(x, y, ref_w_.data() + i * window_samples_, ref_r_.data() + i * window_samples_)) {
+            ref_ok_[i] = 0;  // its cost would always be kMaxCost
+          }
+        }
+      }
+    });
+  }
+
   // Photometric cost of the plane (depth d at pixel (x, y), normal n), best-K mean.
   // Inner loop in float: 25-36 samples of values in [0, 1] lose nothing at float
   // precision, and it is where all the time goes.
@@ -230,34 +286,16 @@ class Solver {
                             n.z() - n.x() * cam_.cx / cam_.fx - n.y() * cam_.cy / cam_.fy);
     std::array<float, kMaxSources> costs{};
     const int rad = opt_.window_radius, st = opt_.window_step;
-    // The reference side of the weighted NCC: normalised weights w_k and weighted,
-    // standardised values r_k = w_k (v_k - mean_w) / std_w, so that for a source
-    // window s: NCC_w = sum r_k s_k / std_w(s) (sum r_k = 0, sum w_k = 1).
-    std::array<float, kMaxWindowSamples> wk, rk;
-    int count = 0;
-    {
-      const float centre = ref_.gray_at(x, y);
-      float wsum = 0, s1 = 0, s2 = 0;
-      for (int dy = -rad; dy <= rad; dy += st) {
-        const float* row = ref_.gray.data() + index(x - rad, y + dy);
-        for (int dx = 0; dx <= 2 * rad; dx += st, ++count) {
-          const float v = row[dx];
-          const int level = std::min(kColourLevels - 1, static_cast<int>(std::abs(v - centre) * (kColourLevels - 1) + 0.5f));
-          const float w = spatial_weight_[count] * colour_weight_[level];
-          wk[count] = w;
-          rk[count] = v;
-          wsum += w;
-          s1 += w * v;
-          s2 += w * v * v;
-        }
-      }
-      const float mean = s1 / wsum, var = s2 / wsum - mean * mean;
-      if (!(var > kMinVariance)) return kMaxCost;
-      const float inv = 1.0f / (wsum * std::sqrt(var));
-      for (int k = 0; k < count; ++k) {
-        rk[k] = wk[k] * (rk[k] - mean) * inv;
-        wk[k] /= wsum;
-      }
+    const float* wk;
+    const float* rk;
+    std::array<float, kMaxWindowSamples> w_local, r_local;
+    if (!ref_w_.empty()) {
+      wk = ref_w_.data() + i * window_samples_;
+      rk = ref_r_.data() + i * window_samples_;
+    } else {
+      if (!reference_window(x, y, w_local.data(), r_local.data())) return kMaxCost;
+      wk = w_local.data();
+      rk = r_local.data();
     }
     for (std::size_t s = 0; s < sources_.size(); ++s) {
       const Eigen::Matrix3d H = sources_[s].A + sources_[s].b * m.transpose() / c;
@@ -269,7 +307,8 @@ class Solver {
       const int w = img.camera.width;
       // The warped window is a convex quadrilateral when the plane stays in front of
       // the source camera, so checking its 4 corners bounds every sample: the inner
-      // loop then runs without branches (a NaN of the photo border propagates into
+      // loop then runs without branches or clamps (the 0.001 px margin absorbs the
+      // float rounding of interior samples; a NaN of the photo border propagates into
       // the sums and is caught once at the end).
       const int last = (2 * rad / st);
       bool inside = true;
@@ -294,7 +333,7 @@ class Solver {
         Eigen::Vector3f q = q_row;
         for (int dx = 0; dx <= 2 * rad; dx += st, q += hu, ++k) {
           const float iz = 1.0f / q.z();
-          const float u = std::clamp(q.x() * iz, 0.0f, wmax), v = std::clamp(q.y() * iz, 0.0f, hmax);
+          const float u = q.x() * iz, v = q.y() * iz;  // inside: the corners were checked
           const int u0 = static_cast<int>(u), v0 = static_cast<int>(v);
           const float au = u - u0, av = v - v0;
           const float* p0 = img.gray.data() + static_cast<std::size_t>(v0) * w + u0;
@@ -410,6 +449,9 @@ class Solver {
   std::vector<std::uint8_t> ref_ok_;
   static constexpr int kColourLevels = 256;
   std::vector<float> spatial_weight_;                 // per window sample
+  std::size_t window_samples_ = 0;
+  static constexpr std::size_t kReferenceCacheBytes = std::size_t{256} << 20;
+  std::vector<float> ref_w_, ref_r_;  // per pixel x window sample, when cached
   std::array<float, kColourLevels> colour_weight_{};  // by |grey - centre grey|
 };
 
