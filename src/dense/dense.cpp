@@ -212,7 +212,8 @@ DenseSummary run_dense(const DenseOptions& options, const Reconstruction& rec,
       key = mix(mix(key, nb.depth_min), nb.depth_max);
       for (double v : {pm.scale, static_cast<double>(pm.window_radius), static_cast<double>(pm.window_step),
                        static_cast<double>(pm.iterations), static_cast<double>(pm.best_k), pm.max_cost,
-                       pm.max_normal_angle_deg, static_cast<double>(pm.seed), pm.bilateral_sigma_colour}) {
+                       pm.max_normal_angle_deg, static_cast<double>(pm.seed), pm.bilateral_sigma_colour,
+                       pm.coarse_to_fine ? 1.0 : 0.0, static_cast<double>(pm.fine_iterations)}) {
         key = mix(key, v);
       }
       raw_key[i] = key;

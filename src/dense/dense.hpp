@@ -40,11 +40,13 @@ struct PatchMatchOptions {
                                   // 0 = the coarsest of them whose GSD is <= target_gsd_m
   double target_gsd_m = 0.008;    // metres per depth-map pixel at the median sparse depth, for
                                   // scale 0 (2400 px at 1.5-2 m -> 0.25; 1000 px -> 0.5)
-  int window_radius = 4;          // NCC window half-size, pixels at depth-map scale
+  int window_radius = 3;          // NCC window half-size, pixels at depth-map scale
   int window_step = 2;            // use every n-th pixel of the window (speed)
   double bilateral_sigma_colour = 0.1;  // grey levels in [0, 1]: NCC samples weighted by their
                                   // likeness to the centre pixel (sharper depth edges); 0 = off
   int iterations = 4;             // red/black propagation sweeps
+  bool coarse_to_fine = true;     // solve at half resolution first and start from its planes
+  int fine_iterations = 2;        // sweeps at full resolution after the coarse level, <= iterations
   int best_k = 2;                 // photometric cost = mean of the best k source costs
   double max_cost = 0.6;          // 1 - NCC above which a pixel has no depth, in [0, 2]
   double depth_margin = 0.25;     // widening of the sparse depth range, fraction of it

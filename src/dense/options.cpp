@@ -37,6 +37,8 @@ void DenseOptions::validate() const {
           "patch_match.bilateral_sigma_colour", "must be in [0, 10] (0 = plain NCC)");
   require(patch_match.iterations >= 1 && patch_match.iterations <= 20, "patch_match.iterations",
           "must be in [1, 20]");
+  require(patch_match.fine_iterations >= 1 && patch_match.fine_iterations <= patch_match.iterations,
+          "patch_match.fine_iterations", "must be in [1, iterations]");
   require(patch_match.best_k >= 1 && patch_match.best_k <= views.max_neighbours,
           "patch_match.best_k", "must be in [1, views.max_neighbours]");
   require(patch_match.max_cost > 0 && patch_match.max_cost <= 2, "patch_match.max_cost",

@@ -62,6 +62,29 @@ struct SourceGeometry {
   const ViewImage* image;
 };
 
+// The view at half resolution: 2 x 2 box average (NaN where any of the four is
+// outside the photo), camera scaled with the pixel-centre convention kept.
+ViewImage half_resolution(const ViewImage& v) {
+  ViewImage out;
+  out.camera = v.camera;
+  const int w = v.camera.width / 2, h = v.camera.height / 2;
+  out.camera.width = w;
+  out.camera.height = h;
+  out.camera.fx = v.camera.fx / 2;
+  out.camera.fy = v.camera.fy / 2;
+  out.camera.cx = (v.camera.cx + 0.5) / 2 - 0.5;
+  out.camera.cy = (v.camera.cy + 0.5) / 2 - 0.5;
+  out.gray.resize(static_cast<std::size_t>(w) * h);
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      out.gray[static_cast<std::size_t>(y) * w + x] =
+          0.25f * (v.gray_at(2 * x, 2 * y) + v.gray_at(2 * x + 1, 2 * y) + v.gray_at(2 * x, 2 * y + 1) +
+                   v.gray_at(2 * x + 1, 2 * y + 1));
+    }
+  }
+  return out;
+}
+
 class Solver {
  public:
   Solver(const ViewImage& ref, const std::vector<const ViewImage*>& sources, double dmin,
@@ -115,10 +138,15 @@ class Solver {
     cache_reference_windows();
   }
 
-  DepthMap run() {
+  // coarse: the solved half-resolution level of the same views, or null. Its planes
+  // initialise this level and only `fine_iterations` sweeps follow, starting with the
+  // smaller perturbations of a later iteration.
+  DepthMap run(const Solver* coarse = nullptr) {
     const int w = cam_.width, h = cam_.height;
     // Random initialisation (Bleyer 2011 §2.2): depth uniform in inverse depth (even
-    // coverage of disparities), normal tilted randomly towards the camera.
+    // coverage of disparities), normal tilted randomly towards the camera. From a
+    // coarse level: the coarse pixel's plane (the same plane in the same camera
+    // frame) where it has one that matched, cut with this pixel's ray.
     tbb::parallel_for(tbb::blocked_range<int>(0, h), [&](const tbb::blocked_range<int>& r) {
       for (int y = r.begin(); y < r.end(); ++y) {
         Random rng{opt_.seed * 0x100000001B3ull + static_cast<std::uint64_t>(y) * 7919u};
@@ -127,12 +155,21 @@ class Solver {
           if (!ref_ok_[i]) continue;
           depth_[i] = random_depth(rng);
           normal_[i] = random_normal(x, y, rng);
+          if (coarse) {
+            const double d = coarse->plane_depth_at(ray(x, y), x / 2, y / 2);
+            if (d >= dmin_ && d <= dmax_) {
+              depth_[i] = static_cast<float>(d);
+              normal_[i] = coarse->normal_[coarse->index(std::min(x / 2, coarse->cam_.width - 1),
+                                                         std::min(y / 2, coarse->cam_.height - 1))];
+            }
+          }
           cost_[i] = cost(x, y, depth_[i], normal_[i]);
         }
       }
     });
 
-    for (int it = 0; it < opt_.iterations; ++it) {
+    const int first = coarse ? opt_.iterations - opt_.fine_iterations : 0;
+    for (int it = std::max(first, 0); it < opt_.iterations; ++it) {
       check_cancelled();
       for (int colour = 0; colour < 2; ++colour) {
         tbb::parallel_for(tbb::blocked_range<int>(0, h), [&](const tbb::blocked_range<int>& r) {
@@ -145,6 +182,25 @@ class Solver {
       }
     }
 
+    return result();
+  }
+
+  // Depth along `ray` (a ray of a finer level's camera: the same camera frame) of the
+  // plane at pixel (xc, yc) of this level; 0 when it has none that matched.
+  double plane_depth_at(const Eigen::Vector3d& ray_fine, int xc, int yc) const {
+    xc = std::min(xc, cam_.width - 1);
+    yc = std::min(yc, cam_.height - 1);
+    const std::size_t j = index(xc, yc);
+    if (!ref_ok_[j] || !(cost_[j] <= opt_.max_cost) || !(depth_[j] > 0)) return 0;
+    const Eigen::Vector3d n = normal_[j].cast<double>();
+    const double c = depth_[j] * n.dot(ray(xc, yc));
+    const double denom = n.dot(ray_fine);
+    return std::abs(denom) < 1e-9 ? 0 : c / denom;
+  }
+
+ private:
+  DepthMap result() const {
+    const int w = cam_.width, h = cam_.height;
     DepthMap out;
     out.resize(w, h);
     for (std::size_t i = 0; i < depth_.size(); ++i) {
@@ -156,7 +212,6 @@ class Solver {
     return out;
   }
 
- private:
   std::size_t index(int x, int y) const { return static_cast<std::size_t>(y) * cam_.width + x; }
 
   Eigen::Vector3d ray(double x, double y) const {
@@ -465,6 +520,23 @@ DepthMap patch_match(const ViewImage& ref, const std::vector<const ViewImage*>& 
                      double depth_min, double depth_max, const PatchMatchOptions& opt) {
   STRATA_CHECK(depth_min > 0 && depth_max > depth_min, "bad depth range [{}, {}]", depth_min,
                depth_max);
+  // Coarse to fine: a half-resolution pass (a quarter of the pixels, all iterations)
+  // gives every pixel a plane near the surface, so the full resolution needs only
+  // `fine_iterations` sweeps to converge from it instead of all from random planes.
+  constexpr int kMinCoarseSide = 64;  // below this the coarse level has too few windows
+  if (opt.coarse_to_fine && ref.camera.width >= 2 * kMinCoarseSide &&
+      ref.camera.height >= 2 * kMinCoarseSide) {
+    const ViewImage ref_half = half_resolution(ref);
+    std::vector<ViewImage> src_half;
+    src_half.reserve(sources.size());
+    for (const ViewImage* s : sources) src_half.push_back(half_resolution(*s));
+    std::vector<const ViewImage*> src_half_ptr;
+    for (const auto& s : src_half) src_half_ptr.push_back(&s);
+    Solver coarse(ref_half, src_half_ptr, depth_min, depth_max, opt);
+    coarse.run();
+    Solver fine(ref, sources, depth_min, depth_max, opt);
+    return fine.run(&coarse);
+  }
   Solver solver(ref, sources, depth_min, depth_max, opt);
   return solver.run();
 }
