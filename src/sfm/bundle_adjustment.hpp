@@ -50,9 +50,9 @@ struct BundleOptions {
   IntrinsicsRefinement refine;
   int max_iterations = 100;
   // Ceres convergence tolerances (relative, unitless).
-  double function_tolerance = 1e-10;
+  double function_tolerance = 1e-8;
   double gradient_tolerance = 1e-12;
-  double parameter_tolerance = 1e-10;
+  double parameter_tolerance = 1e-8;
   int num_threads = 2;
 
   // Throws InputError naming the first invalid field.

@@ -86,7 +86,7 @@ struct IncrementalOptions {
   // `bundle` as given).
   int intermediate_ba_max_iterations = 30;
   double intermediate_ba_function_tolerance = 1e-6;  // relative cost change
-  int final_refinement_passes = 3;  // global BA / filter / retriangulate rounds at the end
+  int final_refinement_passes = 2;  // global BA / filter / retriangulate rounds at the end
 
   // Throws InputError naming the first invalid field.
   void validate() const;
