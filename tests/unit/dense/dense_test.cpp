@@ -366,12 +366,18 @@ TEST(Dense, PitWithSteepSidesIsComplete) {
 namespace strata {
 namespace {
 
-// Share of reference pixels near the block's edges whose depth is more than kGross
-// off the truth: the "fattening" of the nearer surface across a depth edge that
-// a plain NCC window produces and the bilateral weights are there to prevent.
-double edge_gross_share(const Scene& scene, double sigma_colour) {
-  constexpr double kGross = 0.02;       // metres: half the block's height
-  constexpr double kBand = 0.012;       // metres from a block edge (about 4 window radii)
+// The depth map of view 0 from views 1, 7, 2, 6, and where each of its pixels' rays
+// meets the true surface.
+struct ReferenceDepth {
+  dense::PinholeCamera cam;
+  dense::DepthMap map;
+  std::optional<Eigen::Vector3d> hit(int x, int y) const {
+    const Eigen::Vector3d C = cam.pose.centre();
+    return cast(C, (cam.to_world(cam.ray_point(x, y, 1.0)) - C).normalized(), height);
+  }
+};
+
+ReferenceDepth reference_depth(const Scene& scene, const PatchMatchOptions& pm) {
   const auto& in = scene.rec.groups[0].intrinsics;
   std::vector<dense::ViewImage> views;
   for (int v : {0, 1, 7, 2, 6}) {
@@ -379,16 +385,24 @@ double edge_gross_share(const Scene& scene, double sigma_colour) {
   }
   std::vector<const dense::ViewImage*> sources;
   for (std::size_t k = 1; k < views.size(); ++k) sources.push_back(&views[k]);
+  return {views[0].camera, dense::patch_match(views[0], sources, 0.6, 1.3, pm)};
+}
+
+// Share of reference pixels near the block's edges whose depth is more than kGross
+// off the truth: the "fattening" of the nearer surface across a depth edge that
+// a plain NCC window produces and the bilateral weights are there to prevent.
+double edge_gross_share(const Scene& scene, double sigma_colour) {
+  constexpr double kGross = 0.02;       // metres: half the block's height
+  constexpr double kBand = 0.012;       // metres from a block edge (about 4 window radii)
   PatchMatchOptions pm;
   pm.bilateral_sigma_colour = sigma_colour;
-  const dense::PinholeCamera& cam = views[0].camera;
-  const dense::DepthMap map = dense::patch_match(views[0], sources, 0.6, 1.3, pm);
+  const ReferenceDepth ref = reference_depth(scene, pm);
+  const dense::PinholeCamera& cam = ref.cam;
+  const dense::DepthMap& map = ref.map;
   int band = 0, gross = 0;
   for (int y = 0; y < cam.height; ++y) {
     for (int x = 0; x < cam.width; ++x) {
-      const Eigen::Vector3d C = cam.pose.centre();
-      const Eigen::Vector3d dir = (cam.to_world(cam.ray_point(x, y, 1.0)) - C).normalized();
-      const auto hit = cast(C, dir, height);
+      const auto hit = ref.hit(x, y);
       if (!hit) continue;
       const double px = hit->x(), py = hit->y();
       // Only the block's top and the soil beside it: the vertical faces themselves,
@@ -430,21 +444,13 @@ TEST(Dense, BilateralWeightsKeepStoneEdgesSharp) {
 // grazing vertical faces) whose depth is within kAccurate of the truth.
 double accurate_share(const Scene& scene, const PatchMatchOptions& pm) {
   constexpr double kAccurate = 0.003;  // metres: the median height target
-  const auto& in = scene.rec.groups[0].intrinsics;
-  std::vector<dense::ViewImage> views;
-  for (int v : {0, 1, 7, 2, 6}) {
-    views.push_back(dense::undistort_image(scene.photos[v], in, scene.rec.images[v].pose, 1.0));
-  }
-  std::vector<const dense::ViewImage*> sources;
-  for (std::size_t k = 1; k < views.size(); ++k) sources.push_back(&views[k]);
-  const dense::PinholeCamera& cam = views[0].camera;
-  const dense::DepthMap map = dense::patch_match(views[0], sources, 0.6, 1.3, pm);
+  const ReferenceDepth ref = reference_depth(scene, pm);
+  const dense::PinholeCamera& cam = ref.cam;
+  const dense::DepthMap& map = ref.map;
   int seen = 0, accurate = 0;
   for (int y = 0; y < cam.height; ++y) {
     for (int x = 0; x < cam.width; ++x) {
-      const Eigen::Vector3d C = cam.pose.centre();
-      const Eigen::Vector3d dir = (cam.to_world(cam.ray_point(x, y, 1.0)) - C).normalized();
-      const auto hit = cast(C, dir, height);
+      const auto hit = ref.hit(x, y);
       if (!hit) continue;
       const double top = std::abs(hit->z() - kBlockTop), soil = std::abs(hit->z() - ground(hit->x(), hit->y()));
       if (std::min(top, soil) > 0.002) continue;
