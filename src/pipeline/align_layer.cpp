@@ -56,9 +56,12 @@ void AlignOptions::validate() const {
 
 std::string AlignOptions::fingerprint() const {
   // g[...]: the georeference's screening and rejection rules (2: blunder screening).
-  return fmt::format("f[{}] m[{}] t[{},{},{}] s[{},{},{}] g[2,{},{},{},{},{}]", features.fingerprint(),
+  // s[...]: the structure-from-motion options that change its result, the final
+  // adjustments' tolerances included (a stored alignment from other ones is stale).
+  return fmt::format("f[{}] m[{}] t[{},{},{}] s[{},{},{},{},{},{}] g[2,{},{},{},{},{}]", features.fingerprint(),
                      matching.fingerprint(), detect_targets, targets.dictionary, naming.rule,
                      sfm.min_triangulation_angle_deg, sfm.max_reprojection_px, sfm.final_max_reprojection_px,
+                     sfm.final_refinement_passes, sfm.bundle.function_tolerance, sfm.bundle.parameter_tolerance,
                      georef.outlier_threshold_m, georef.outlier_sigma_factor, georef.observation_outlier_px,
                      georef.horizontal_only_sigma_m, georef.unknown_height_sigma_m);
 }
