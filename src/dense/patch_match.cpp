@@ -155,14 +155,7 @@ class Solver {
           if (!ref_ok_[i]) continue;
           depth_[i] = random_depth(rng);
           normal_[i] = random_normal(x, y, rng);
-          if (coarse) {
-            const double d = coarse->plane_depth_at(ray(x, y), x / 2, y / 2);
-            if (d >= dmin_ && d <= dmax_) {
-              depth_[i] = static_cast<float>(d);
-              normal_[i] = coarse->normal_[coarse->index(std::min(x / 2, coarse->cam_.width - 1),
-                                                         std::min(y / 2, coarse->cam_.height - 1))];
-            }
-          }
+          if (coarse) coarse->transfer_plane(ray(x, y), x / 2, y / 2, depth_[i], normal_[i]);
           cost_[i] = cost(x, y, depth_[i], normal_[i]);
         }
       }
@@ -185,17 +178,23 @@ class Solver {
     return result();
   }
 
-  // Depth along `ray` (a ray of a finer level's camera: the same camera frame) of the
-  // plane at pixel (xc, yc) of this level; 0 when it has none that matched.
-  double plane_depth_at(const Eigen::Vector3d& ray_fine, int xc, int yc) const {
+  // The plane at pixel (xc, yc) of this level, as seen along `ray_fine` (a ray of a
+  // finer level's camera: the same camera frame and depth range): writes its depth
+  // there and its normal when it matched and cuts the ray inside the range, else
+  // leaves both as they are.
+  void transfer_plane(const Eigen::Vector3d& ray_fine, int xc, int yc, float& depth,
+                      Eigen::Vector3f& normal) const {
     xc = std::min(xc, cam_.width - 1);
     yc = std::min(yc, cam_.height - 1);
     const std::size_t j = index(xc, yc);
-    if (!ref_ok_[j] || !(cost_[j] <= opt_.max_cost) || !(depth_[j] > 0)) return 0;
+    if (!ref_ok_[j] || !(cost_[j] <= opt_.max_cost) || !(depth_[j] > 0)) return;
     const Eigen::Vector3d n = normal_[j].cast<double>();
-    const double c = depth_[j] * n.dot(ray(xc, yc));
     const double denom = n.dot(ray_fine);
-    return std::abs(denom) < 1e-9 ? 0 : c / denom;
+    if (std::abs(denom) < 1e-9) return;
+    const double d = depth_[j] * n.dot(ray(xc, yc)) / denom;
+    if (!(d >= dmin_ && d <= dmax_)) return;
+    depth = static_cast<float>(d);
+    normal = normal_[j];
   }
 
  private:
