@@ -2,6 +2,9 @@
 // Schönberger et al. 2016 §4.4; Galliani et al. 2015 §4 "fusion"): a depth is kept
 // when enough neighbour depth maps see the same 3D point. Outliers of PatchMatch
 // (textureless or occluded windows) rarely agree across views; true surfaces do.
+// A depth that neighbours see through (their own depth at its pixel lies well
+// beyond it) is free space, not surface (Merrell et al. 2007, "free-space
+// violations"): it is dropped when such neighbours outnumber the agreeing ones.
 #include "core/error.hpp"
 #include "dense/internal.hpp"
 
@@ -27,7 +30,7 @@ DepthMap filter_consistent(const DepthMap& ref, const PinholeCamera& rc,
         const float d = ref.depth[i];
         if (!(d > 0)) continue;
         const Eigen::Vector3d Xw = rc.to_world(rc.ray_point(x, y, d));
-        int agree = 0, looked = 0;
+        int agree = 0, looked = 0, see_through = 0;
         for (const auto& nb : neighbours) {
           const PinholeCamera& sc = *nb.camera;
           const Eigen::Vector3d Xs = sc.pose.to_camera(Xw);
@@ -38,6 +41,12 @@ DepthMap filter_consistent(const DepthMap& ref, const PinholeCamera& rc,
           ++looked;
           const float ds = nb.depth->depth[static_cast<std::size_t>(v) * sc.width + u];
           if (!(ds > 0)) continue;
+          // The neighbour sees a surface well beyond the point: free space where the
+          // point should be.
+          if (Xs.z() < ds * (1.0 - opt.free_space_margin)) {
+            ++see_through;
+            continue;
+          }
           // Backward: the neighbour's own 3D point at that pixel, seen from the reference.
           const Eigen::Vector3d Xr = rc.pose.to_camera(sc.to_world(sc.ray_point(u, v, ds)));
           if (Xr.z() <= 0) continue;
@@ -48,6 +57,10 @@ DepthMap filter_consistent(const DepthMap& ref, const PinholeCamera& rc,
           ++agree;
         }
         if (agree < opt.min_consistent_views) continue;
+        if (opt.max_free_space_violations > 0 && see_through >= opt.max_free_space_violations &&
+            see_through > agree) {
+          continue;
+        }
         out.depth[i] = d;
         for (int k = 0; k < 3; ++k) out.normal[3 * i + k] = ref.normal[3 * i + k];
         // Photometric confidence scaled by the share of views that could see the

@@ -210,12 +210,7 @@ DenseSummary run_dense(const DenseOptions& options, const Reconstruction& rec,
       std::uint64_t key = mix(image_key[i], 0x444550544831ull);
       for (int s : nb.sources) key = mix(key, image_key[s]);
       key = mix(mix(key, nb.depth_min), nb.depth_max);
-      for (double v : {pm.scale, static_cast<double>(pm.window_radius), static_cast<double>(pm.window_step),
-                       static_cast<double>(pm.iterations), static_cast<double>(pm.best_k), pm.max_cost,
-                       pm.max_normal_angle_deg, static_cast<double>(pm.seed), pm.bilateral_sigma_colour,
-                       pm.coarse_to_fine ? 1.0 : 0.0, static_cast<double>(pm.fine_iterations)}) {
-        key = mix(key, v);
-      }
+      key = mix_string(key, pm.fingerprint());
       raw_key[i] = key;
       DepthMap map;
       if (options.reuse_cache && dense::read_depth_map(raw_file(i), key, map)) {
@@ -255,7 +250,7 @@ DenseSummary run_dense(const DenseOptions& options, const Reconstruction& rec,
       check_cancelled();
       std::uint64_t key = mix(raw_key[i], 0x46494c54ull);
       for (int s : neighbours[i].sources) key = mix(key, raw_key[s]);
-      key = mix(mix(mix(key, cons.min_consistent_views), cons.max_reprojection_px), cons.max_relative_depth);
+      key = mix_string(key, cons.fingerprint());
       filtered_key[i] = key;
       DepthMap filtered;
       if (!options.reuse_cache || !dense::read_depth_map(filtered_file(i), key, filtered)) {

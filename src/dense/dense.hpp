@@ -52,6 +52,10 @@ struct PatchMatchOptions {
   double depth_margin = 0.25;     // widening of the sparse depth range, fraction of it
   double max_normal_angle_deg = 75.0;  // plane normals kept within this angle of the view ray
   std::uint64_t seed = 1;         // random initialisation; results are deterministic
+
+  // Every field, as text: part of the depth-map cache keys and of the dense stage's
+  // inputs key, so that a change of any option recomputes what it affects.
+  std::string fingerprint() const;
 };
 
 // Forward-backward geometric consistency between depth maps (Schönberger et al. 2016, §4.4).
@@ -61,6 +65,17 @@ struct ConsistencyOptions {
                                   // few views) for no gain in the median error
   double max_reprojection_px = 1.0;   // pixels at depth-map scale
   double max_relative_depth = 0.01;   // |d_back - d| / d
+  // Free-space test (visibility-based fusion, Merrell et al. 2007): a neighbour whose
+  // own depth at the point's pixel lies more than `free_space_margin` (relative)
+  // beyond the point sees through it, so the point is not there. A depth is dropped
+  // when at least `max_free_space_violations` neighbours see through it and they
+  // outnumber those that agree: floaters of wrong matches that one other view
+  // happened to confirm (on grass at the edge of the coverage they stood 10-35 cm
+  // over the markers). 0 = no free-space test.
+  int max_free_space_violations = 2;
+  double free_space_margin = 0.03;
+
+  std::string fingerprint() const;  // every field, as text (cache keys)
 };
 
 // Truncated signed distance fusion (Curless & Levoy 1996) in a sparse OpenVDB grid.

@@ -16,6 +16,17 @@ void require(bool ok, std::string_view field, std::string_view why) {
 
 }  // namespace
 
+std::string PatchMatchOptions::fingerprint() const {
+  return fmt::format("pm {} {} {} {} {} {} {} {} {} {} {} {} {}", scale, target_gsd_m, window_radius, window_step,
+                     bilateral_sigma_colour, iterations, coarse_to_fine, fine_iterations, best_k, max_cost,
+                     depth_margin, max_normal_angle_deg, seed);
+}
+
+std::string ConsistencyOptions::fingerprint() const {
+  return fmt::format("cons {} {} {} {} {}", min_consistent_views, max_reprojection_px, max_relative_depth,
+                     max_free_space_violations, free_space_margin);
+}
+
 void DenseOptions::validate() const {
   require(views.max_neighbours >= 1 && views.max_neighbours <= 16, "views.max_neighbours",
           "must be in [1, 16]");
@@ -54,6 +65,10 @@ void DenseOptions::validate() const {
           "must be positive");
   require(consistency.max_relative_depth > 0 && consistency.max_relative_depth < 1,
           "consistency.max_relative_depth", "must be in (0, 1)");
+  require(consistency.max_free_space_violations >= 0, "consistency.max_free_space_violations",
+          "must be >= 0 (0 = no free-space test)");
+  require(consistency.free_space_margin > 0 && consistency.free_space_margin < 1,
+          "consistency.free_space_margin", "must be in (0, 1)");
 
   require(fusion.voxel_size_m >= 0 && std::isfinite(fusion.voxel_size_m), "fusion.voxel_size_m",
           "must be >= 0 metres (0 = from the GSD)");

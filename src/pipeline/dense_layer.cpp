@@ -53,15 +53,11 @@ DenseLayerResult dense_layer(Project& project, const std::string& layer_name, co
   DenseLayerResult result;
   // Every option that changes the surface is part of the key (a changed option
   // recomputes; the depth-map cache below still reuses what did not change).
-  const auto& pm = o.patch_match;
   const std::string inputs_key = sha256_hex(
       alignment->inputs_key +
-      fmt::format("|views {} {} {} {}|pm {} {} {} {} {} {} {} {} {} {} {} {} {}|cons {} {} {}|fusion {} {} {} {} {} {}",
-                  o.views.max_neighbours, o.views.min_shared_points, o.views.min_angle_deg, o.views.max_angle_deg,
-                  pm.scale, pm.target_gsd_m, pm.window_radius, pm.window_step, pm.iterations, pm.best_k,
-                  pm.max_cost, pm.depth_margin, pm.max_normal_angle_deg, pm.seed, pm.bilateral_sigma_colour, pm.coarse_to_fine, pm.fine_iterations,
-                  o.consistency.min_consistent_views, o.consistency.max_reprojection_px,
-                  o.consistency.max_relative_depth, o.fusion.voxel_size_m, o.fusion.voxel_gsd_factor,
+      fmt::format("|views {} {} {} {}|{}|{}|fusion {} {} {} {} {} {}", o.views.max_neighbours,
+                  o.views.min_shared_points, o.views.min_angle_deg, o.views.max_angle_deg, o.patch_match.fingerprint(),
+                  o.consistency.fingerprint(), o.fusion.voxel_size_m, o.fusion.voxel_gsd_factor,
                   o.fusion.min_voxel_size_m, o.fusion.max_voxel_size_m, o.fusion.truncation_voxels,
                   o.fusion.min_weight));
   if (!force) {

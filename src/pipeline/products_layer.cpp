@@ -107,6 +107,7 @@ nlohmann::json marker_check_json(const OrthoMarkerCheck& c, const Eigen::Vector3
       j["offset_px"] = m.offset_px;
       j["within_tolerance"] = m.offset_px <= c.tolerance_px;
       j["detections"] = m.detections;
+      j["scales"] = m.scales;
     }
     markers.push_back(std::move(j));
   }
@@ -142,8 +143,9 @@ ProductsLayerResult products_layer(Project& project, const std::string& layer_na
   const auto [surveyed, markers_digest] = surveyed_markers(db, site.origin);
 
   const std::string inputs_key = sha256_hex(fmt::format(
-      "{}|{}|{}|{}|{}|{}|{}|{}|ortho-v2|{}|{}|markers-v3|{}|{}|{}|{}|{}", surface->sha256, alignment->inputs_key,
+      "{}|{}|{}|{}|{}|{}|{}|{}|ortho-v3|{}|{}|{}|{}|markers-v4|{}|{}|{}|{}|{}", surface->sha256, alignment->inputs_key,
       options.dtm.cell_m, options.ortho_cell_m, options.contours.interval_m, options.ortho.radiometric_balance,
+      options.ortho.antialias, options.ortho.rectify_median_radius_m,
       options.ortho.smoothness, options.ortho.feather_m, options.ortho.normal_radius_m, options.geotiff.cog,
       options.check_ortho_markers,
       markers_digest, options.ortho_markers.targets.dictionary, options.ortho_markers.naming.rule,

@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 #include <opencv2/photo.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <map>
@@ -33,8 +34,9 @@ void OrthoMarkerCheckOptions::validate() const {
     throw InputError(
         fmt::format("products.ortho_markers: fill_holes_max_cells must be >= 0 cells, got {}", fill_holes_max_cells));
   }
-  if (upsample < 1 || upsample > 8) {
-    throw InputError(fmt::format("products.ortho_markers: upsample must be in [1, 8], got {}", upsample));
+  if (upsample.empty()) throw InputError("products.ortho_markers: upsample needs at least one factor");
+  for (int f : upsample) {
+    if (f < 1 || f > 8) throw InputError(fmt::format("products.ortho_markers: upsample factors must be in [1, 8], got {}", f));
   }
 }
 
@@ -94,33 +96,47 @@ OrthoMarkerCheck check_ortho_markers(const RgbaRaster& ortho, const std::vector<
     cv::inpaint(grey, small_holes, filled, 2.0, cv::INPAINT_TELEA);
     grey = filled;
   }
-  const int s = options.upsample;
-  if (s > 1) {
-    cv::Mat big;
-    cv::resize(grey, big, cv::Size(g.width * s, g.height * s), 0, 0, cv::INTER_CUBIC);
-    grey = big;
-  }
-  const std::vector<TargetDetection> found =
-      detect_targets(options.targets, grey.ptr<std::uint8_t>(), grey.cols, grey.rows);
-
-  // Detections by marker name, centres in the site frame. With the pixel-centre
-  // convention, detection pixel u is orthophoto column (u + 0.5) / s - 0.5, whose
-  // centre lies at x_min + (column + 0.5) * cell.
-  std::map<std::string, std::vector<Eigen::Vector2d>> by_name;
+  // Every enlargement is searched as it is: the photos' downscaling for detection
+  // (max_detection_size) would undo it.
+  TargetOptions targets = options.targets;
+  targets.max_detection_size = 0;
   OrthoMarkerCheck out;
   out.cell_m = g.cell;
   out.tolerance_px = options.tolerance_px;
   std::map<std::string, bool> surveyed;
   for (const SurveyedMarker& m : markers) surveyed[m.name] = true;
-  for (const TargetDetection& d : found) {
-    const std::string name = target_name(options.naming, d.id);
-    if (name.empty() || !surveyed.count(name)) {
-      if (out.unknown_ids.empty() || out.unknown_ids.back() != d.id) out.unknown_ids.push_back(d.id);
-      continue;
+  // Targets by marker name, centres in the site frame. With the pixel-centre
+  // convention, detection pixel u at enlargement s is orthophoto column
+  // (u + 0.5) / s - 0.5, whose centre lies at x_min + (column + 0.5) * cell.
+  // Detections of one name within `same_target_m` of each other (found at several
+  // enlargements) are one target, placed at their mean.
+  const double same_target_m = 0.05;
+  struct Target {
+    Eigen::Vector2d sum = Eigen::Vector2d::Zero();
+    int scales = 0;
+    Eigen::Vector2d centre() const { return sum / scales; }
+  };
+  std::map<std::string, std::vector<Target>> by_name;
+  for (int s : options.upsample) {
+    cv::Mat big = grey;
+    if (s > 1) cv::resize(grey, big, cv::Size(g.width * s, g.height * s), 0, 0, cv::INTER_CUBIC);
+    for (const TargetDetection& d : detect_targets(targets, big.ptr<std::uint8_t>(), big.cols, big.rows)) {
+      const std::string name = target_name(options.naming, d.id);
+      if (name.empty() || !surveyed.count(name)) {
+        if (std::find(out.unknown_ids.begin(), out.unknown_ids.end(), d.id) == out.unknown_ids.end())
+          out.unknown_ids.push_back(d.id);
+        continue;
+      }
+      const Eigen::Vector2d p(g.x_min + (d.centre.x() + 0.5) / s * g.cell, g.y_max - (d.centre.y() + 0.5) / s * g.cell);
+      std::vector<Target>& found = by_name[name];
+      auto same = std::find_if(found.begin(), found.end(),
+                               [&](const Target& t) { return (t.centre() - p).norm() < same_target_m; });
+      if (same == found.end()) same = found.insert(found.end(), Target{});
+      same->sum += p;
+      ++same->scales;
     }
-    by_name[name].emplace_back(g.x_min + (d.centre.x() + 0.5) / s * g.cell,
-                               g.y_max - (d.centre.y() + 0.5) / s * g.cell);
   }
+  std::sort(out.unknown_ids.begin(), out.unknown_ids.end());
 
   double sum_sq_m = 0;
   for (const SurveyedMarker& m : markers) {
@@ -132,11 +148,12 @@ OrthoMarkerCheck check_ortho_markers(const RgbaRaster& ortho, const std::vector<
       o.status = OrthoMarkerStatus::detected;
       o.detections = int(it->second.size());
       double best = std::numeric_limits<double>::infinity();
-      for (const Eigen::Vector2d& p : it->second) {
-        const double dist = (p - o.surveyed).norm();
+      for (const Target& t : it->second) {
+        const double dist = (t.centre() - o.surveyed).norm();
         if (dist < best) {
           best = dist;
-          o.detected = p;
+          o.detected = t.centre();
+          o.scales = t.scales;
         }
       }
       o.de_m = o.detected.x() - o.surveyed.x();

@@ -25,10 +25,13 @@ struct OrthoMarkerCheckOptions {
   TargetOptions targets;   // dictionary and corner refinement, as for the photos
   TargetNaming naming;     // target id -> marker name, as for the photos
   double tolerance_px = 2; // orthophoto pixels: a marker further off is flagged (issue 6)
-  // The orthophoto is enlarged by this integer factor (bicubic) before detection:
-  // at the usual 5-10 mm cell a 15 cm target is only 15-30 pixels wide, 2.5-5
-  // pixels per code cell, too few for the ArUco contour and bit tests. [1, 8].
-  int upsample = 3;
+  // The orthophoto is enlarged by these integer factors (bicubic) and searched at
+  // each: at the usual 5-10 mm cell a 15 cm target is only 15-30 pixels wide, 2.5-5
+  // pixels per code cell, too few for the ArUco contour and bit tests, and whether
+  // ArUco's thresholds and bit sampling accept a blurred target changes from one
+  // enlargement to the next. A target found at several factors is placed at the
+  // mean of its centres. Each in [1, 8], at least one.
+  std::vector<int> upsample = {2, 3, 4};
   // Radius (metres) around a missed marker's survey in which the orthophoto must be
   // coloured (>= 90 % of cells) for the miss to count as not_detected rather than
   // partly_seen: a 15 cm target and its margin.
@@ -61,6 +64,7 @@ struct OrthoMarkerOffset {
   double offset_m = 0;        // horizontal distance, metres
   double offset_px = 0;       //   in orthophoto pixels
   int detections = 0;         // targets of this name found (more than 1: a doubled target, e.g. at a seam)
+  int scales = 0;             // enlargement factors at which the reported target was found
 };
 
 struct OrthoMarkerCheck {

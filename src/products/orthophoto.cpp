@@ -36,6 +36,9 @@ void OrthoOptions::validate() const {
   if (smoothing_iterations < 0) bad("smoothing_iterations", smoothing_iterations, ">= 0");
   if (!(feather_m >= 0)) bad("feather_m", feather_m, ">= 0 metres");
   if (!(normal_radius_m >= 0)) bad("normal_radius_m", normal_radius_m, ">= 0 metres");
+  if (!(rectify_median_radius_m >= 0 && rectify_median_radius_m <= 0.5)) {
+    bad("rectify_median_radius_m", rectify_median_radius_m, "in [0, 0.5] metres");
+  }
   if (threads < 1) bad("threads", threads, ">= 1");
 }
 
@@ -43,23 +46,64 @@ namespace {
 
 constexpr float kNoDepth = std::numeric_limits<float>::infinity();
 
-// A photo's pixels, interleaved RGB.
+// A photo's pixels, interleaved RGB, as a pyramid of 2 x 2 box averages
+// (level 0 = the photo). An orthophoto cell usually covers several photo pixels
+// (5 mm cells from 1 mm pixels): sampling the photo itself at the cell centre
+// would alias (stair-stepped, speckled target edges); sampling the level whose
+// pixel matches the cell's footprint averages the pixels the cell covers.
 struct PhotoPixels {
-  int width = 0, height = 0;
-  cv::Mat owned;                      // when read from disk
-  const std::uint8_t* data = nullptr;
+  std::vector<cv::Mat> levels;  // CV_8UC3, level l pixel j averages level l-1 pixels 2j, 2j+1
 
-  // Bilinear colour at pixel (x, y) ((0, 0) = centre of the top-left pixel).
-  void sample(double x, double y, std::uint8_t out[3]) const {
-    const int x0 = std::clamp(int(std::floor(x)), 0, width - 2), y0 = std::clamp(int(std::floor(y)), 0, height - 2);
-    const double ax = std::clamp(x - x0, 0.0, 1.0), ay = std::clamp(y - y0, 0.0, 1.0);
-    const std::uint8_t* p00 = data + (std::size_t(y0) * width + x0) * 3;
+  int width() const { return levels.front().cols; }
+  int height() const { return levels.front().rows; }
+
+  // Adds coarser levels until a pixel covers `max_footprint_px` photo pixels or the
+  // image is a few pixels wide.
+  void build_pyramid(double max_footprint_px) {
+    while (double(1 << (levels.size() - 1)) < max_footprint_px && levels.back().cols >= 8 &&
+           levels.back().rows >= 8) {
+      const cv::Mat& src = levels.back();
+      // Even size first (the odd last row/column dropped), so that INTER_AREA is an
+      // exact 2 x 2 mean and level pixel j is centred on level-0 pixel 2^l j + (2^l - 1) / 2.
+      const cv::Mat even = src(cv::Rect(0, 0, src.cols & ~1, src.rows & ~1));
+      cv::Mat half;
+      cv::resize(even, half, cv::Size(even.cols / 2, even.rows / 2), 0, 0, cv::INTER_AREA);
+      levels.push_back(half);
+    }
+  }
+
+  // Colour at photo pixel (x, y) ((0, 0) = centre of the top-left pixel) averaged
+  // over about `footprint_px` photo pixels: bilinear in the two levels around
+  // log2(footprint / 2), blended between them (trilinear, as in mipmapping). The
+  // level whose pixels are half the footprint, because its 2 x 2 box and the
+  // bilinear tent over two of its pixels together already span about one
+  // footprint; the level of the whole footprint blurs over two cells (measured on
+  // the example: blurred code cells, fewer targets found in the orthophotos).
+  void sample(double x, double y, double footprint_px, std::uint8_t out[3]) const {
+    const double lod = std::clamp(std::log2(std::max(footprint_px, 1.0)) - 1.0, 0.0, double(levels.size() - 1));
+    const int l0 = int(std::floor(lod));
+    const int l1 = std::min(l0 + 1, int(levels.size()) - 1);
+    const double t = lod - l0;
+    double a[3], b[3] = {0, 0, 0};
+    bilinear(l0, x, y, a);
+    if (t > 0 && l1 != l0) bilinear(l1, x, y, b);
+    for (int k = 0; k < 3; ++k) out[k] = std::uint8_t(std::clamp(std::lround((1 - t) * a[k] + t * b[k]), 0L, 255L));
+  }
+
+ private:
+  void bilinear(int level, double x0, double y0, double out[3]) const {
+    const cv::Mat& m = levels[std::size_t(level)];
+    const double scale = 1.0 / double(1 << level);
+    const double x = (x0 + 0.5) * scale - 0.5, y = (y0 + 0.5) * scale - 0.5;
+    const int w = m.cols, h = m.rows;
+    const int xi = std::clamp(int(std::floor(x)), 0, w - 2), yi = std::clamp(int(std::floor(y)), 0, h - 2);
+    const double ax = std::clamp(x - xi, 0.0, 1.0), ay = std::clamp(y - yi, 0.0, 1.0);
+    const std::uint8_t* p00 = m.ptr<std::uint8_t>(yi) + std::size_t(xi) * 3;
     const std::uint8_t* p10 = p00 + 3;
-    const std::uint8_t* p01 = p00 + std::size_t(width) * 3;
+    const std::uint8_t* p01 = m.ptr<std::uint8_t>(yi + 1) + std::size_t(xi) * 3;
     const std::uint8_t* p11 = p01 + 3;
     for (int k = 0; k < 3; ++k) {
-      const double v = (1 - ay) * ((1 - ax) * p00[k] + ax * p10[k]) + ay * ((1 - ax) * p01[k] + ax * p11[k]);
-      out[k] = std::uint8_t(std::clamp(std::lround(v), 0L, 255L));
+      out[k] = (1 - ay) * ((1 - ax) * p00[k] + ax * p10[k]) + ay * ((1 - ax) * p01[k] + ax * p11[k]);
     }
   }
 };
@@ -69,9 +113,8 @@ PhotoPixels load_photo(const OrthoView& v) {
   const Intrinsics& K = v.camera.intrinsics;
   if (!v.rgb.empty()) {
     STRATA_CHECK(v.rgb.size() == std::size_t(K.width) * K.height * 3, "in-memory photo size mismatch");
-    p.width = K.width;
-    p.height = K.height;
-    p.data = v.rgb.data();
+    // A header over the caller's pixels; the pyramid levels are owned.
+    p.levels.push_back(cv::Mat(K.height, K.width, CV_8UC3, const_cast<std::uint8_t*>(v.rgb.data())));
     return p;
   }
   // The camera model describes the sensor as stored: EXIF orientation is ignored,
@@ -82,11 +125,9 @@ PhotoPixels load_photo(const OrthoView& v) {
     throw InputError(fmt::format("products.ortho: {}: photo is {} x {} px but its camera is {} x {}",
                                  v.photo.string(), bgr.cols, bgr.rows, K.width, K.height));
   }
-  cv::cvtColor(bgr, p.owned, cv::COLOR_BGR2RGB);
-  STRATA_CHECK(p.owned.isContinuous(), "cvtColor output not continuous");
-  p.width = p.owned.cols;
-  p.height = p.owned.rows;
-  p.data = p.owned.ptr<std::uint8_t>();
+  cv::Mat rgb;
+  cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
+  p.levels.push_back(rgb);
   return p;
 }
 
@@ -203,7 +244,11 @@ std::vector<ViewSample> sample_view(const Dtm& dtm, const std::vector<Eigen::Vec
 
   const double cos_max = std::cos(o.max_view_angle_deg * M_PI / 180.0);
   const double border_scale = 0.1 * std::min(K.width, K.height);  // pixels over which the score ramps
-  const PhotoPixels photo = load_photo(view);
+  PhotoPixels photo = load_photo(view);
+  // Photo pixels one cell covers: its side seen square-on at depth d is
+  // cell f / d pixels; tilted by the incidence angle its area grows by 1 / cos.
+  auto footprint_px = [&](double d, double cos_t) { return g.cell * K.fx / d / std::sqrt(std::max(cos_t, 0.05)); };
+  if (o.antialias) photo.build_pyramid(footprint_px(*std::min_element(depths.begin(), depths.end()), cos_max));
   std::vector<ViewSample> out;
   out.reserve(depths.size());
   for (int r = 0; r < g.height; ++r) {
@@ -232,7 +277,7 @@ std::vector<ViewSample> sample_view(const Dtm& dtm, const std::vector<Eigen::Vec
       ViewSample sm;
       sm.cell = std::uint32_t(i);
       sm.score = float(cos_t * K.fx / d * border_w);
-      photo.sample(x, y, sm.rgb);
+      photo.sample(x, y, o.antialias ? footprint_px(d, cos_t) : 1.0, sm.rgb);
       out.push_back(sm);
     }
   }
@@ -393,6 +438,35 @@ Dtm smoothed_for_normals(const Dtm& dtm, double radius_m) {
   return out;
 }
 
+// The DTM with every height replaced by the median of the valid heights within
+// `radius` cells (a square window); holes stay holes. Used to rectify: the fused
+// surface's centimetre noise and small floaters, seen from an oblique photo,
+// would otherwise shift neighbouring cells by different amounts and warp straight
+// edges (a target's code cells), while a median keeps real steps (stones, sides).
+Dtm median_heights(const Dtm& dtm, int radius) {
+  if (radius <= 0) return dtm;
+  const RasterGrid& g = dtm.grid;
+  Dtm out = dtm;
+  std::vector<float> window;
+  window.reserve(std::size_t(2 * radius + 1) * (2 * radius + 1));
+  for (int r = 0; r < g.height; ++r) {
+    for (int c = 0; c < g.width; ++c) {
+      if (!std::isfinite(dtm.z[g.index(c, r)])) continue;
+      window.clear();
+      for (int rr = std::max(0, r - radius); rr <= std::min(g.height - 1, r + radius); ++rr) {
+        for (int cc = std::max(0, c - radius); cc <= std::min(g.width - 1, c + radius); ++cc) {
+          const float z = dtm.z[g.index(cc, rr)];
+          if (std::isfinite(z)) window.push_back(z);
+        }
+      }
+      const auto mid = window.begin() + std::ptrdiff_t(window.size() / 2);
+      std::nth_element(window.begin(), mid, window.end());
+      out.z[g.index(c, r)] = *mid;
+    }
+  }
+  return out;
+}
+
 }  // namespace
 
 RgbaRaster build_orthophoto(const Dtm& dtm, const std::vector<OrthoView>& views, const OrthoOptions& o,
@@ -407,7 +481,8 @@ RgbaRaster build_orthophoto(const Dtm& dtm, const std::vector<OrthoView>& views,
   for (const auto& v : views) s.view_names.push_back(v.name);
   for (float z : dtm.z) s.dtm_cells += std::isfinite(z) ? 1 : 0;
 
-  const std::vector<Eigen::Vector3f> normals = dtm_normals(smoothed_for_normals(dtm, o.normal_radius_m));
+  const Dtm rect = median_heights(dtm, int(std::lround(o.rectify_median_radius_m / g.cell)));
+  const std::vector<Eigen::Vector3f> normals = dtm_normals(smoothed_for_normals(rect, o.normal_radius_m));
   Candidates cand(g.cells(), o.candidates);
 
   // 1. Visibility, scores and colours, one photo per worker at a time.
@@ -426,7 +501,7 @@ RgbaRaster build_orthophoto(const Dtm& dtm, const std::vector<OrthoView>& views,
             if (failure) return;
           }
           check_cancelled();
-          const std::vector<ViewSample> samples = sample_view(dtm, normals, views[v], o);
+          const std::vector<ViewSample> samples = sample_view(rect, normals, views[v], o);
           std::lock_guard<std::mutex> lock(merge);
           for (const ViewSample& sm : samples) cand.insert(sm.cell, int(v), sm.score, sm.rgb);
           progress.step();

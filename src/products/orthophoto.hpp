@@ -1,7 +1,9 @@
 #pragma once
 // True orthophoto of a layer (issue 6).
 //
-// Every DTM cell is coloured from photos that actually see it:
+// Every DTM cell is coloured from photos that actually see it, at the height of
+// the DTM's local median (`rectify_median_radius_m`), with the colour averaged
+// over the photo pixels the cell covers (a mipmap of the photo, `antialias`):
 //  1. visibility: each photo gets a z-buffer of the DTM surface (the DTM drawn as
 //     triangles at a reduced resolution); a cell is visible when its depth along
 //     the view matches the buffer, so trench sides and stones do not smear onto
@@ -53,7 +55,19 @@ struct OrthoOptions {
   // jump from cell to cell (fragmented regions, seams through the markers).
   // 0 = one-cell central differences.
   double normal_radius_m = 0.02;
+  // Heights used to rectify: the median of the DTM within this radius (metres, a
+  // square window of 2 round(radius / cell) + 1 cells). Seen from an oblique photo,
+  // the fused surface's centimetre noise shifts neighbouring cells by different
+  // amounts (noise x tan of the incidence) and warps straight edges: code cells of
+  // targets no longer decode, a target's centre moves. A median removes the noise
+  // and small spikes and keeps real steps. The DTM product itself is not changed.
+  // 0 = rectify on the DTM as it is.
+  double rectify_median_radius_m = 0.015;
   bool radiometric_balance = true;   // per-photo gains from the overlaps
+  // Colours averaged over the photo pixels each cell covers (a mipmap pyramid of
+  // the photo) instead of one bilinear sample at the cell centre, which aliases
+  // when a cell spans several photo pixels.
+  bool antialias = true;
   int threads = 2;                   // photos processed in parallel
   // Throws InputError naming the first invalid field.
   void validate() const;

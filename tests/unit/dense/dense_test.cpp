@@ -12,6 +12,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <numbers>
 
@@ -482,6 +483,82 @@ TEST(Dense, CoarseToFineNeedsFewerFullResolutionSweeps) {
                            100 * a_c2f, full.iterations, 100 * a_full, short_full.iterations, 100 * a_short);
   EXPECT_GT(a_c2f, a_full - kMaxLoss);
   EXPECT_GT(a_c2f, a_short);
+}
+
+// ---- free-space test of the consistency filter ----------------------------------
+// A floater: a wrong depth patch 20 cm over flat ground that one neighbour happens
+// to confirm, while three others see the ground through it.
+constexpr double kFloaterHeight = 0.2;   // metres above the ground plane z = 0
+constexpr double kFloaterHalf = 0.05;    // metres, half side of the floater square
+
+// Depth map of flat ground, with the floater square when `with_floater`.
+dense::DepthMap render_plane(const dense::PinholeCamera& cam, bool with_floater) {
+  dense::DepthMap m;
+  m.resize(cam.width, cam.height);
+  const Eigen::Vector3d C = cam.pose.centre();
+  for (int v = 0; v < cam.height; ++v) {
+    for (int u = 0; u < cam.width; ++u) {
+      // World direction of the pixel's ray, scaled so that its camera z is 1: the
+      // parameter t of a hit is its depth.
+      const Eigen::Vector3d d = cam.pose.R.transpose() * cam.ray_point(u, v, 1.0);
+      double t = -C.z() / d.z();
+      const Eigen::Vector3d top = C + (kFloaterHeight - C.z()) / d.z() * d;
+      if (with_floater && std::abs(top.x()) <= kFloaterHalf && std::abs(top.y()) <= kFloaterHalf) {
+        t = (kFloaterHeight - C.z()) / d.z();
+      }
+      const std::size_t i = static_cast<std::size_t>(v) * cam.width + u;
+      m.depth[i] = static_cast<float>(t);
+      m.normal[3 * i + 2] = -1.f;
+      m.confidence[i] = 1.f;
+    }
+  }
+  return m;
+}
+
+TEST(Dense, FreeSpaceTestDropsFloatersThatNeighboursSeeThrough) {
+  auto camera = [](const Eigen::Vector3d& centre) {
+    dense::PinholeCamera c;
+    c.width = 120;
+    c.height = 100;
+    c.fx = c.fy = 110;
+    c.cx = 59.5;
+    c.cy = 49.5;
+    c.pose = Pose::look_at(centre, Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitY());
+    return c;
+  };
+  const dense::PinholeCamera ref = camera({0.01, 0.02, 1.0});
+  const std::vector<dense::PinholeCamera> cams = {camera({0.3, 0, 1.0}), camera({-0.3, 0, 1.0}),
+                                                  camera({0, 0.3, 1.0}), camera({0, -0.3, 1.0})};
+  const dense::DepthMap ref_depth = render_plane(ref, true);
+  std::vector<dense::DepthMap> maps;
+  for (std::size_t k = 0; k < cams.size(); ++k) maps.push_back(render_plane(cams[k], k == 0));
+  std::vector<dense::DepthNeighbour> neighbours;
+  for (std::size_t k = 0; k < cams.size(); ++k) neighbours.push_back({&maps[k], &cams[k]});
+
+  // Kept share of the floater's pixels and of the ground's pixels.
+  auto kept = [&](const ConsistencyOptions& opt) {
+    const dense::DepthMap out = dense::filter_consistent(ref_depth, ref, neighbours, opt);
+    std::array<double, 2> n{}, k{};  // [floater, ground]
+    for (std::size_t i = 0; i < ref_depth.depth.size(); ++i) {
+      const int which = ref_depth.depth[i] < 0.9f ? 0 : 1;
+      ++n[which];
+      k[which] += out.depth[i] > 0 ? 1 : 0;
+    }
+    EXPECT_GT(n[0], 50) << "the floater covers too few reference pixels for the test";
+    return std::array<double, 2>{k[0] / n[0], k[1] / n[1]};
+  };
+  ConsistencyOptions off;
+  off.max_free_space_violations = 0;
+  const auto without = kept(off);
+  const auto with = kept(ConsistencyOptions{});
+  // One agreeing neighbour is enough without the test: the floater survives.
+  EXPECT_GT(without[0], 0.9);
+  // With it, three neighbours see the ground through the floater: it is dropped.
+  EXPECT_LT(with[0], 0.05);
+  // Ground next to the floater is occluded in one neighbour, never seen through: it
+  // stays (edge pixels may fall to the 1-pixel reprojection rounding either way).
+  EXPECT_GT(with[1], 0.95);
+  EXPECT_NEAR(with[1], without[1], 0.01);
 }
 
 }  // namespace

@@ -195,7 +195,9 @@ TEST(OrthoMarkerOptions, RejectsBadValues) {
   o.tolerance_px = 0;
   EXPECT_THROW(o.validate(), InputError);
   o = {};
-  o.upsample = 0;
+  o.upsample = {};
+  EXPECT_THROW(o.validate(), InputError);
+  o.upsample = {2, 9};
   EXPECT_THROW(o.validate(), InputError);
   o = {};
   o.coverage_radius_m = -0.1;

@@ -27,6 +27,14 @@ constexpr double kMaxSmearFraction = 0.02;
 constexpr double kNoiseM = 0.01;
 constexpr double kNoisyMinCoverage = 0.97;
 constexpr double kNoisyMaxSeams = 0.15;
+// Median rectification must remove most of the warp the noise causes: grey error
+// against the exact-surface orthophoto at most this share of the noisy one's.
+constexpr double kMedianShareOfNoisyError = 0.6;
+// Antialiasing test (grey levels of 255, squares 40 and 220): point samples of a
+// checkerboard finer than the cell spread over the two greys; cell averages of
+// 2.5 x 2.5 periods vary only by the partial period at the cell edges.
+constexpr double kAliasedMinSpread = 40;
+constexpr double kAveragedMaxSpread = 20;
 
 bool in_block(double x, double y) { return std::abs(x - kBlockX) < kBlockHalf && std::abs(y - kBlockY) < kBlockHalf; }
 double height(double x, double y) { return in_block(x, y) ? kBlockH : 0.002 * std::sin(8 * x) * std::cos(6 * y); }
@@ -229,13 +237,95 @@ TEST_F(OrthoScene, CentimetreNoiseInTheDtmLeavesNoHolesAndFewSeams) {
   const double true_col = (kSpotX - g.x_min) / g.cell - 0.5, true_row = (g.y_max - kSpotY) / g.cell - 0.5;
   EXPECT_LT(std::hypot(sx / n - true_col, sy / n - true_row), kPositionTolerancePx);
 
-  // Sanity of the measure: one-cell normals on the same DTM fragment the regions.
+  // Sanity of the measure: one-cell normals on the same DTM fragment the regions
+  // (rectified on the noisy heights themselves: the median would remove the noise).
   OrthoOptions raw;
   raw.normal_radius_m = 0;
+  raw.rectify_median_radius_m = 0;
   OrthoSummary sr;
   build_orthophoto(dtm, *views_, raw, &sr);
   std::printf("noisy DTM, one-cell normals: coverage %.4f, seams %.4f\n", sr.coverage, sr.seam_fraction);
   EXPECT_GT(sr.seam_fraction, kNoisyMaxSeams);
+}
+
+// Mean absolute grey difference between two orthophotos over the cells both coloured.
+double mean_grey_difference(const RgbaRaster& a, const RgbaRaster& b) {
+  double sum = 0;
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < a.grid.cells(); ++i) {
+    const std::uint8_t* p = &a.rgba[4 * i];
+    const std::uint8_t* q = &b.rgba[4 * i];
+    if (!p[3] || !q[3]) continue;
+    sum += std::abs((p[0] + p[1] + p[2]) - (q[0] + q[1] + q[2])) / 3.0;
+    ++n;
+  }
+  EXPECT_GT(n, a.grid.cells() / 2);
+  return sum / double(n);
+}
+
+TEST_F(OrthoScene, MedianRectificationUndoesTheWarpOfANoisyDtm) {
+  // Oblique views move each cell by its height error x tan(incidence): with
+  // +-1 cm of noise the checkerboard's straight edges come out ragged. Rectified
+  // on the DTM's local median, the orthophoto is close to the one rectified on the
+  // exact surface.
+  OrthoOptions exact_options;
+  exact_options.rectify_median_radius_m = 0;
+  const RgbaRaster exact = build_orthophoto(analytic_dtm(), *views_, exact_options);
+  const Dtm noisy = noisy_dtm();
+  const RgbaRaster ragged = build_orthophoto(noisy, *views_, exact_options);
+  const RgbaRaster median = build_orthophoto(noisy, *views_, OrthoOptions{});
+  const double e_ragged = mean_grey_difference(ragged, exact), e_median = mean_grey_difference(median, exact);
+  std::printf("grey difference to the exact-surface orthophoto: noisy heights %.2f, median %.2f\n", e_ragged,
+              e_median);
+  EXPECT_LT(e_median, kMedianShareOfNoisyError * e_ragged);
+}
+
+// A flat floor with a 2 mm checkerboard, photographed from straight above at
+// 0.5 mm per pixel: a 5 mm cell covers 10 x 10 photo pixels and 2.5 x 2.5 periods,
+// so its true mean colour is the same everywhere. One bilinear sample per cell
+// picks single squares (a speckled, aliased orthophoto); the averaged colour is
+// nearly uniform.
+TEST(OrthoAntialias, CellsAverageThePixelsTheyCover) {
+  OrthoView v;
+  v.name = "fine";
+  Intrinsics& K = v.camera.intrinsics;
+  K.width = K.height = 400;
+  K.fx = K.fy = 1000;
+  K.cx = K.cy = 199.5;
+  v.camera.pose = Pose::look_at({0.0, 0.0, 0.5}, Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitY());
+  v.rgb.resize(std::size_t(K.width) * K.height * 3);
+  const Eigen::Vector3d C = v.camera.pose.centre();
+  for (int y = 0; y < K.height; ++y)
+    for (int x = 0; x < K.width; ++x) {
+      const Eigen::Vector3d d = v.camera.ray(Eigen::Vector2d(x, y));
+      const Eigen::Vector3d p = C - C.z() / d.z() * d;  // on the floor z = 0
+      const bool white = (int(std::floor(p.x() / 0.002)) + int(std::floor(p.y() / 0.002))) % 2 == 0;
+      for (int k = 0; k < 3; ++k) v.rgb[(std::size_t(y) * K.width + x) * 3 + k] = white ? 220 : 40;
+    }
+  Dtm flat;
+  flat.grid = {-0.06, 0.06, kCell, 24, 24};
+  flat.z.assign(flat.grid.cells(), 0.f);
+  auto grey_spread = [&](bool antialias) {
+    OrthoOptions o;
+    o.antialias = antialias;
+    o.radiometric_balance = false;
+    const RgbaRaster img = build_orthophoto(flat, {v}, o);
+    double sum = 0, sum2 = 0, n = 0;
+    for (std::size_t i = 0; i < img.grid.cells(); ++i) {
+      if (!img.rgba[4 * i + 3]) continue;
+      const double g = img.rgba[4 * i + 1];
+      sum += g;
+      sum2 += g * g;
+      ++n;
+    }
+    EXPECT_GT(n, 0.9 * double(img.grid.cells()));
+    return std::sqrt(std::max(0.0, sum2 / n - (sum / n) * (sum / n)));
+  };
+  const double aliased = grey_spread(false), averaged = grey_spread(true);
+  std::printf("grey standard deviation over a 2 mm checkerboard: point samples %.1f, averaged %.1f\n", aliased,
+              averaged);
+  EXPECT_GT(aliased, kAliasedMinSpread);
+  EXPECT_LT(averaged, kAveragedMaxSpread);
 }
 
 TEST(OrthoOptions, RejectsInvalidFields) {
@@ -247,6 +337,9 @@ TEST(OrthoOptions, RejectsInvalidFields) {
   EXPECT_THROW(o.validate(), InputError);
   o = {};
   o.normal_radius_m = -0.01;
+  EXPECT_THROW(o.validate(), InputError);
+  o = {};
+  o.rectify_median_radius_m = -0.01;
   EXPECT_THROW(o.validate(), InputError);
 }
 
