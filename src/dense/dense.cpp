@@ -305,9 +305,11 @@ DenseSummary run_dense(const DenseOptions& options, const Reconstruction& rec,
     }
   }
   volume.finalise(fo.min_weight);
+  summary.floating_voxels_removed = volume.remove_small_components(fo.min_component_fraction);
   summary.active_voxels = volume.active_voxels();
   summary.fusion = figures(sw);
-  log::info("dense: voxel {:.1f} mm, {} active voxels", voxel * 1e3, summary.active_voxels);
+  log::info("dense: voxel {:.1f} mm, {} active voxels ({} in small floating pieces removed)", voxel * 1e3,
+            summary.active_voxels, summary.floating_voxels_removed);
   if (summary.active_voxels == 0) throw ProcessingError("dense: fusion left no observed voxel");
 
   // ---- 6. mesh and points -----------------------------------------------------------

@@ -15,15 +15,18 @@
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/Interpolation.h>
 #include <openvdb/tools/LevelSetMeasure.h>
+#include <openvdb/tools/LevelSetUtil.h>
 #include <openvdb/tools/Prune.h>
 #include <openvdb/tools/VolumeToMesh.h>
 #include <openvdb/tree/LeafManager.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <mutex>
+#include <optional>
 #include <unordered_map>
 
 namespace strata::dense {
@@ -179,6 +182,39 @@ void TsdfVolume::finalise(double min_weight) {
   openvdb::tools::pruneInactive(I.tsdf->tree());
   openvdb::tools::pruneInactive(I.weight->tree());
   openvdb::tools::pruneInactive(I.colour->tree());
+}
+
+std::size_t TsdfVolume::remove_small_components(double min_fraction) {
+  auto& I = *impl_;
+  if (!(min_fraction > 0)) return 0;
+  std::vector<openvdb::BoolTree::Ptr> parts;
+  openvdb::tools::extractActiveVoxelSegmentMasks(I.tsdf->tree(), parts);
+  if (parts.size() < 2) return 0;
+  std::vector<openvdb::Index64> counts;
+  openvdb::Index64 total = 0;
+  for (const auto& p : parts) {
+    counts.push_back(p->activeVoxelCount());
+    total += counts.back();
+  }
+  const double min_voxels = min_fraction * double(total);
+  std::size_t removed = 0;
+  auto tsdf = I.tsdf->getAccessor();
+  auto weight = I.weight ? std::optional(I.weight->getAccessor()) : std::nullopt;
+  auto colour = I.colour ? std::optional(I.colour->getAccessor()) : std::nullopt;
+  for (std::size_t k = 0; k < parts.size(); ++k) {
+    if (double(counts[k]) >= min_voxels) continue;
+    for (auto it = parts[k]->cbeginValueOn(); it; ++it) {
+      const openvdb::Coord c = it.getCoord();
+      tsdf.setValueOff(c, I.tsdf->background());
+      if (weight) weight->setValueOff(c, 0.f);
+      if (colour) colour->setValueOff(c, openvdb::Vec3s(0.f));
+    }
+    removed += counts[k];
+  }
+  openvdb::tools::pruneInactive(I.tsdf->tree());
+  if (I.weight) openvdb::tools::pruneInactive(I.weight->tree());
+  if (I.colour) openvdb::tools::pruneInactive(I.colour->tree());
+  return removed;
 }
 
 DenseMesh TsdfVolume::extract_mesh(double adaptivity) const {

@@ -118,6 +118,10 @@ class TsdfVolume {
                  const std::vector<std::uint8_t>& rgb);
   // Drops voxels seen with less than min_weight; call once after integration.
   void finalise(double min_weight);
+  // Drops the connected pieces of the narrow band (6-connected active voxels) with
+  // fewer than `min_fraction` of all active voxels: floaters of wrong depths that
+  // survived the consistency tests, away from the surface. Returns the voxels removed.
+  std::size_t remove_small_components(double min_fraction);
 
   double voxel_size() const;
   std::size_t active_voxels() const;

@@ -78,6 +78,8 @@ void DenseOptions::validate() const {
   require(fusion.truncation_voxels >= 2 && fusion.truncation_voxels <= 20,
           "fusion.truncation_voxels", "must be in [2, 20] voxels");
   require(fusion.min_weight >= 0, "fusion.min_weight", "must be >= 0");
+  require(fusion.min_component_fraction >= 0 && fusion.min_component_fraction < 1,
+          "fusion.min_component_fraction", "must be in [0, 1)");
 
   require(mesh.adaptivity >= 0 && mesh.adaptivity <= 1, "mesh.adaptivity", "must be in [0, 1]");
   require(quality.cell_size_m > 0, "quality.cell_size_m", "must be positive metres");

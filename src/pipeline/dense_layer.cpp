@@ -55,11 +55,11 @@ DenseLayerResult dense_layer(Project& project, const std::string& layer_name, co
   // recomputes; the depth-map cache below still reuses what did not change).
   const std::string inputs_key = sha256_hex(
       alignment->inputs_key +
-      fmt::format("|views {} {} {} {}|{}|{}|fusion {} {} {} {} {} {}", o.views.max_neighbours,
+      fmt::format("|views {} {} {} {}|{}|{}|fusion {} {} {} {} {} {} {}", o.views.max_neighbours,
                   o.views.min_shared_points, o.views.min_angle_deg, o.views.max_angle_deg, o.patch_match.fingerprint(),
                   o.consistency.fingerprint(), o.fusion.voxel_size_m, o.fusion.voxel_gsd_factor,
                   o.fusion.min_voxel_size_m, o.fusion.max_voxel_size_m, o.fusion.truncation_voxels,
-                  o.fusion.min_weight));
+                  o.fusion.min_weight, o.fusion.min_component_fraction));
   if (!force) {
     auto st = db.prepare("SELECT inputs_key, quality_json FROM reconstructions WHERE layer_id = ? AND stage = 'dense'");
     st.bind(1, layer.id);
@@ -97,6 +97,7 @@ DenseLayerResult dense_layer(Project& project, const std::string& layer_name, co
   q["gsd_m"] = s.gsd_m;
   q["voxel_size_m"] = s.voxel_size_m;
   q["active_voxels"] = s.active_voxels;
+  q["floating_voxels_removed"] = s.floating_voxels_removed;
   q["mesh_faces"] = s.mesh_faces;
   q["points"] = s.points;
   q["completeness"] = s.completeness;

@@ -490,6 +490,8 @@ TEST(Dense, CoarseToFineNeedsFewerFullResolutionSweeps) {
 // to confirm, while three others see the ground through it.
 constexpr double kFloaterHeight = 0.2;   // metres above the ground plane z = 0
 constexpr double kFloaterHalf = 0.05;    // metres, half side of the floater square
+constexpr double kFloaterVoxel = 0.012;         // metres, fusion test voxel
+constexpr double kFloaterPieceFraction = 0.1;  // share of the band below which a piece is removed (test)
 
 // Depth map of flat ground, with the floater square when `with_floater`.
 dense::DepthMap render_plane(const dense::PinholeCamera& cam, bool with_floater) {
@@ -515,20 +517,27 @@ dense::DepthMap render_plane(const dense::PinholeCamera& cam, bool with_floater)
   return m;
 }
 
+// A small depth-map camera 1 m over the floor, looking at the origin.
+dense::PinholeCamera looking_at_origin(const Eigen::Vector3d& centre) {
+  dense::PinholeCamera c;
+  c.width = 120;
+  c.height = 100;
+  c.fx = c.fy = 110;
+  c.cx = 59.5;
+  c.cy = 49.5;
+  c.pose = Pose::look_at(centre, Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitY());
+  return c;
+}
+
+// The reference view (which sees the floater) and four neighbours around it.
+const dense::PinholeCamera kFloaterRef = looking_at_origin({0.01, 0.02, 1.0});
+const std::vector<dense::PinholeCamera> kFloaterNeighbours = {
+    looking_at_origin({0.3, 0, 1.0}), looking_at_origin({-0.3, 0, 1.0}), looking_at_origin({0, 0.3, 1.0}),
+    looking_at_origin({0, -0.3, 1.0})};
+
 TEST(Dense, FreeSpaceTestDropsFloatersThatNeighboursSeeThrough) {
-  auto camera = [](const Eigen::Vector3d& centre) {
-    dense::PinholeCamera c;
-    c.width = 120;
-    c.height = 100;
-    c.fx = c.fy = 110;
-    c.cx = 59.5;
-    c.cy = 49.5;
-    c.pose = Pose::look_at(centre, Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitY());
-    return c;
-  };
-  const dense::PinholeCamera ref = camera({0.01, 0.02, 1.0});
-  const std::vector<dense::PinholeCamera> cams = {camera({0.3, 0, 1.0}), camera({-0.3, 0, 1.0}),
-                                                  camera({0, 0.3, 1.0}), camera({0, -0.3, 1.0})};
+  const dense::PinholeCamera& ref = kFloaterRef;
+  const std::vector<dense::PinholeCamera>& cams = kFloaterNeighbours;
   const dense::DepthMap ref_depth = render_plane(ref, true);
   std::vector<dense::DepthMap> maps;
   for (std::size_t k = 0; k < cams.size(); ++k) maps.push_back(render_plane(cams[k], k == 0));
@@ -559,6 +568,28 @@ TEST(Dense, FreeSpaceTestDropsFloatersThatNeighboursSeeThrough) {
   // stays (edge pixels may fall to the 1-pixel reprojection rounding either way).
   EXPECT_GT(with[1], 0.95);
   EXPECT_NEAR(with[1], without[1], 0.01);
+}
+
+TEST(Dense, SmallFloatingPiecesOfTheFusedBandAreRemoved) {
+  // The reference depth map with the floater fused with four that see the floor
+  // under it: the floater's band is a piece of its own, 20 cm over the floor's.
+  // Voxels a little coarser than the depth maps' 9 mm pixels on the floor, so that
+  // one depth map leaves no gaps in the band.
+  dense::TsdfVolume volume(kFloaterVoxel, 4 * kFloaterVoxel);
+  const std::vector<std::uint8_t> grey(std::size_t(kFloaterRef.width) * kFloaterRef.height * 3, 128);
+  volume.integrate(kFloaterRef, render_plane(kFloaterRef, true), grey);
+  for (const auto& cam : kFloaterNeighbours) volume.integrate(cam, render_plane(cam, false), grey);
+  volume.finalise(0.2);
+  auto top_at_origin = [&] { return volume.top_surface(0.0, 0.0, kFloaterVoxel, 1, 1).z.at(0); };
+  ASSERT_NEAR(top_at_origin(), kFloaterHeight, kFloaterVoxel) << "the floater should be the uppermost surface first";
+  EXPECT_EQ(volume.remove_small_components(0), 0u);
+  const std::size_t before = volume.active_voxels();
+  // The floater's piece is a few percent of the band; 10 % removes it and nothing else.
+  const std::size_t removed = volume.remove_small_components(kFloaterPieceFraction);
+  EXPECT_GT(removed, 0u);
+  EXPECT_LT(double(removed), kFloaterPieceFraction * double(before));
+  EXPECT_NEAR(top_at_origin(), 0.0, kFloaterVoxel) << "the floor under the floater should be the top surface now";
+  EXPECT_NEAR(volume.top_surface(0.2, 0.1, kFloaterVoxel, 1, 1).z.at(0), 0.0, kFloaterVoxel);
 }
 
 }  // namespace
