@@ -95,10 +95,13 @@ void print_products(const nlohmann::json& q, bool skipped) {
     for (const auto& k : m["markers"]) {
       const std::string status = k["status"].get<std::string>();
       if (status != "detected") {
-        const char* why = status == "outside"    ? "outside the orthophoto"
-                          : status == "not_seen" ? "not seen (no photo covers it)"
-                          : status == "partly_seen" ? "holes in the orthophoto around it"
-                                                    : "not detected (fully covered)";
+        const std::string pixel =
+            k.contains("source_pixel_mm") ? fmt::format(", photo pixel {:.1f} mm", k["source_pixel_mm"].get<double>()) : "";
+        const std::string why = status == "outside"      ? "outside the orthophoto"
+                                : status == "not_seen"    ? "not seen (no photo covers it)"
+                                : status == "partly_seen" ? "holes in the orthophoto around it"
+                                : status == "coarse"      ? "photos too coarse there" + pixel
+                                                          : "NOT DETECTED (fully covered" + pixel + ")";
         fmt::print("      {:<10} {:<9} {:>34}\n", k["marker"].get<std::string>(), k["role"].get<std::string>(), why);
         continue;
       }

@@ -15,7 +15,6 @@
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/Interpolation.h>
 #include <openvdb/tools/LevelSetMeasure.h>
-#include <openvdb/tools/LevelSetUtil.h>
 #include <openvdb/tools/Prune.h>
 #include <openvdb/tools/VolumeToMesh.h>
 #include <openvdb/tree/LeafManager.h>
@@ -187,30 +186,54 @@ void TsdfVolume::finalise(double min_weight) {
 std::size_t TsdfVolume::remove_small_components(double min_fraction) {
   auto& I = *impl_;
   if (!(min_fraction > 0)) return 0;
-  std::vector<openvdb::BoolTree::Ptr> parts;
-  openvdb::tools::extractActiveVoxelSegmentMasks(I.tsdf->tree(), parts);
-  if (parts.size() < 2) return 0;
-  std::vector<openvdb::Index64> counts;
-  openvdb::Index64 total = 0;
-  for (const auto& p : parts) {
-    counts.push_back(p->activeVoxelCount());
-    total += counts.back();
+  // Union-find over the active voxels, numbered in tree order in an Int32 grid of
+  // the same topology (a few bytes per voxel; OpenVDB's segmentation builds a tree
+  // per piece, gigabytes for the tens of thousands of specks of a real band).
+  openvdb::Int32Grid::Ptr ids = openvdb::Int32Grid::create(-1);
+  ids->tree().topologyUnion(I.tsdf->tree());
+  std::int32_t n = 0;
+  for (auto it = ids->tree().beginValueOn(); it; ++it) {
+    if (it.isVoxelValue()) it.setValue(n++);
   }
-  const double min_voxels = min_fraction * double(total);
+  if (n == 0) return 0;
+  std::vector<std::int32_t> parent(static_cast<std::size_t>(n));
+  for (std::int32_t k = 0; k < n; ++k) parent[static_cast<std::size_t>(k)] = k;
+  auto find = [&](std::int32_t x) {
+    while (parent[static_cast<std::size_t>(x)] != x) {
+      parent[static_cast<std::size_t>(x)] = parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(x)])];
+      x = parent[static_cast<std::size_t>(x)];
+    }
+    return x;
+  };
+  {
+    auto acc = ids->getConstAccessor();
+    for (auto it = ids->tree().cbeginValueOn(); it; ++it) {
+      if (!it.isVoxelValue()) continue;
+      const openvdb::Coord c = it.getCoord();
+      for (const openvdb::Coord& d : {openvdb::Coord(1, 0, 0), openvdb::Coord(0, 1, 0), openvdb::Coord(0, 0, 1)}) {
+        std::int32_t other = -1;
+        if (!acc.probeValue(c + d, other) || other < 0) continue;
+        const std::int32_t ra = find(*it), rb = find(other);
+        if (ra != rb) parent[static_cast<std::size_t>(std::max(ra, rb))] = std::min(ra, rb);
+      }
+    }
+  }
+  std::vector<std::int32_t> size(static_cast<std::size_t>(n), 0);
+  for (std::int32_t k = 0; k < n; ++k) ++size[static_cast<std::size_t>(find(k))];
+  const double min_voxels = min_fraction * double(n);
   std::size_t removed = 0;
   auto tsdf = I.tsdf->getAccessor();
   auto weight = I.weight ? std::optional(I.weight->getAccessor()) : std::nullopt;
   auto colour = I.colour ? std::optional(I.colour->getAccessor()) : std::nullopt;
-  for (std::size_t k = 0; k < parts.size(); ++k) {
-    if (double(counts[k]) >= min_voxels) continue;
-    for (auto it = parts[k]->cbeginValueOn(); it; ++it) {
-      const openvdb::Coord c = it.getCoord();
-      tsdf.setValueOff(c, I.tsdf->background());
-      if (weight) weight->setValueOff(c, 0.f);
-      if (colour) colour->setValueOff(c, openvdb::Vec3s(0.f));
-    }
-    removed += counts[k];
+  for (auto it = ids->tree().cbeginValueOn(); it; ++it) {
+    if (!it.isVoxelValue() || double(size[static_cast<std::size_t>(find(*it))]) >= min_voxels) continue;
+    const openvdb::Coord c = it.getCoord();
+    tsdf.setValueOff(c, I.tsdf->background());
+    if (weight) weight->setValueOff(c, 0.f);
+    if (colour) colour->setValueOff(c, openvdb::Vec3s(0.f));
+    ++removed;
   }
+  if (removed == 0) return 0;
   openvdb::tools::pruneInactive(I.tsdf->tree());
   if (I.weight) openvdb::tools::pruneInactive(I.weight->tree());
   if (I.colour) openvdb::tools::pruneInactive(I.colour->tree());

@@ -98,6 +98,7 @@ nlohmann::json marker_check_json(const OrthoMarkerCheck& c, const Eigen::Vector3
   nlohmann::json markers = nlohmann::json::array();
   for (const OrthoMarkerOffset& m : c.markers) {
     nlohmann::json j = {{"marker", m.name}, {"role", m.kind}, {"status", to_string(m.status)}};
+    if (std::isfinite(m.source_pixel_m)) j["source_pixel_mm"] = 1000 * m.source_pixel_m;
     if (m.status == OrthoMarkerStatus::detected) {
       j["E"] = m.detected.x() + origin.x();  // metres, site CRS: where the orthophoto shows it
       j["N"] = m.detected.y() + origin.y();
@@ -143,13 +144,13 @@ ProductsLayerResult products_layer(Project& project, const std::string& layer_na
   const auto [surveyed, markers_digest] = surveyed_markers(db, site.origin);
 
   const std::string inputs_key = sha256_hex(fmt::format(
-      "{}|{}|{}|{}|{}|{}|{}|{}|ortho-v3|{}|{}|{}|{}|markers-v4|{}|{}|{}|{}|{}", surface->sha256, alignment->inputs_key,
+      "{}|{}|{}|{}|{}|{}|{}|{}|ortho-v3|{}|{}|{}|{}|markers-v5|{}|{}|{}|{}|{}|{}", surface->sha256, alignment->inputs_key,
       options.dtm.cell_m, options.ortho_cell_m, options.contours.interval_m, options.ortho.radiometric_balance,
       options.ortho.antialias, options.ortho.rectify_median_radius_m,
       options.ortho.smoothness, options.ortho.feather_m, options.ortho.normal_radius_m, options.geotiff.cog,
       options.check_ortho_markers,
       markers_digest, options.ortho_markers.targets.dictionary, options.ortho_markers.naming.rule,
-      options.ortho_markers.tolerance_px));
+      options.ortho_markers.tolerance_px, options.ortho_markers.max_source_pixel_cells));
   ProductsLayerResult result;
   if (!force) {
     auto st = db.prepare("SELECT inputs_key, quality_json FROM reconstructions WHERE layer_id = ? AND stage = 'products'");
@@ -197,7 +198,7 @@ ProductsLayerResult products_layer(Project& project, const std::string& layer_na
   std::optional<OrthoMarkerCheck> marker_check;
   if (options.check_ortho_markers) {
     w = Stopwatch();
-    marker_check = check_ortho_markers(ortho, surveyed, options.ortho_markers);
+    marker_check = check_ortho_markers(ortho, surveyed, options.ortho_markers, &os.source_pixel_m);
     steps["ortho_markers"] = step_json(w);
     for (const OrthoMarkerOffset& m : marker_check->markers) {
       if (m.status == OrthoMarkerStatus::detected && m.offset_px > options.ortho_markers.tolerance_px) {

@@ -30,6 +30,10 @@ void OrthoMarkerCheckOptions::validate() const {
     throw InputError(
         fmt::format("products.ortho_markers: coverage_radius_m must be >= 0 metres, got {}", coverage_radius_m));
   }
+  if (!(max_source_pixel_cells > 0)) {
+    throw InputError(fmt::format("products.ortho_markers: max_source_pixel_cells must be > 0, got {}",
+                                 max_source_pixel_cells));
+  }
   if (fill_holes_max_cells < 0) {
     throw InputError(
         fmt::format("products.ortho_markers: fill_holes_max_cells must be >= 0 cells, got {}", fill_holes_max_cells));
@@ -50,6 +54,8 @@ const char* to_string(OrthoMarkerStatus s) {
       return "not_seen";
     case OrthoMarkerStatus::partly_seen:
       return "partly_seen";
+    case OrthoMarkerStatus::coarse:
+      return "coarse";
     case OrthoMarkerStatus::not_detected:
       return "not_detected";
   }
@@ -57,10 +63,12 @@ const char* to_string(OrthoMarkerStatus s) {
 }
 
 OrthoMarkerCheck check_ortho_markers(const RgbaRaster& ortho, const std::vector<SurveyedMarker>& markers,
-                                     const OrthoMarkerCheckOptions& options) {
+                                     const OrthoMarkerCheckOptions& options,
+                                     const std::vector<float>* source_pixel_m) {
   options.validate();
   const RasterGrid& g = ortho.grid;
   STRATA_CHECK(g.width > 0 && g.height > 0 && ortho.rgba.size() == 4 * g.cells());
+  STRATA_CHECK(!source_pixel_m || source_pixel_m->size() == g.cells(), "source pixel sizes do not match the grid");
   Stopwatch clock;
 
   // Grey detection image. Cells no photo coloured become mid-grey rather than
@@ -139,11 +147,36 @@ OrthoMarkerCheck check_ortho_markers(const RgbaRaster& ortho, const std::vector<
   std::sort(out.unknown_ids.begin(), out.unknown_ids.end());
 
   double sum_sq_m = 0;
+  const int k = int(std::ceil(options.coverage_radius_m / g.cell));
   for (const SurveyedMarker& m : markers) {
     OrthoMarkerOffset o;
     o.name = m.name;
     o.kind = m.kind;
     o.surveyed = m.position.head<2>();
+    // Cells within coverage_radius_m of the survey: how many are coloured (cells off
+    // the grid count as not coloured), and the photos' pixel size there.
+    const double col = std::floor((o.surveyed.x() - g.x_min) / g.cell);
+    const double row = std::floor((g.y_max - o.surveyed.y()) / g.cell);
+    const bool on_grid = col >= 0 && row >= 0 && col < g.width && row < g.height;
+    std::size_t inside = 0, coloured = 0;
+    std::vector<float> pixel_sizes;
+    for (int dr = -k; dr <= k; ++dr) {
+      for (int dc = -k; dc <= k; ++dc) {
+        if (dr * dr + dc * dc > k * k) continue;
+        ++inside;
+        const int cc = int(col) + dc, rr = int(row) + dr;
+        if (!on_grid || cc < 0 || rr < 0 || cc >= g.width || rr >= g.height) continue;
+        const std::size_t i = g.index(cc, rr);
+        if (ortho.rgba[4 * i + 3] == 0) continue;
+        ++coloured;
+        if (source_pixel_m && std::isfinite((*source_pixel_m)[i])) pixel_sizes.push_back((*source_pixel_m)[i]);
+      }
+    }
+    if (!pixel_sizes.empty()) {
+      const auto mid = pixel_sizes.begin() + std::ptrdiff_t(pixel_sizes.size() / 2);
+      std::nth_element(pixel_sizes.begin(), mid, pixel_sizes.end());
+      o.source_pixel_m = *mid;
+    }
     if (const auto it = by_name.find(m.name); it != by_name.end()) {
       o.status = OrthoMarkerStatus::detected;
       o.detections = int(it->second.size());
@@ -164,29 +197,16 @@ OrthoMarkerCheck check_ortho_markers(const RgbaRaster& ortho, const std::vector<
       if (o.offset_px > options.tolerance_px) ++out.over_tolerance;
       out.max_m = std::max(out.max_m, o.offset_m);
       sum_sq_m += o.offset_m * o.offset_m;
+    } else if (!on_grid) {
+      o.status = OrthoMarkerStatus::outside;
+    } else if (ortho.rgba[4 * g.index(int(col), int(row)) + 3] == 0) {
+      o.status = OrthoMarkerStatus::not_seen;
+    } else if (double(coloured) < kMinCoveredShare * double(inside)) {
+      o.status = OrthoMarkerStatus::partly_seen;
+    } else if (o.source_pixel_m > options.max_source_pixel_cells * g.cell) {
+      o.status = OrthoMarkerStatus::coarse;
     } else {
-      const double col = std::floor((o.surveyed.x() - g.x_min) / g.cell);
-      const double row = std::floor((g.y_max - o.surveyed.y()) / g.cell);
-      if (col < 0 || row < 0 || col >= g.width || row >= g.height) {
-        o.status = OrthoMarkerStatus::outside;
-      } else if (ortho.rgba[4 * g.index(int(col), int(row)) + 3] == 0) {
-        o.status = OrthoMarkerStatus::not_seen;
-      } else {
-        // Share of coloured cells within coverage_radius_m (cells off the grid count as not coloured).
-        const int k = int(std::ceil(options.coverage_radius_m / g.cell));
-        std::size_t inside = 0, coloured = 0;
-        for (int dr = -k; dr <= k; ++dr) {
-          for (int dc = -k; dc <= k; ++dc) {
-            if (dr * dr + dc * dc > k * k) continue;
-            ++inside;
-            const int cc = int(col) + dc, rr = int(row) + dr;
-            if (cc >= 0 && rr >= 0 && cc < g.width && rr < g.height && ortho.rgba[4 * g.index(cc, rr) + 3] != 0)
-              ++coloured;
-          }
-        }
-        o.status = double(coloured) >= kMinCoveredShare * double(inside) ? OrthoMarkerStatus::not_detected
-                                                                         : OrthoMarkerStatus::partly_seen;
-      }
+      o.status = OrthoMarkerStatus::not_detected;
     }
     out.markers.push_back(std::move(o));
   }

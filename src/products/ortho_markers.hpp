@@ -9,6 +9,7 @@
 
 #include <Eigen/Core>
 
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -41,6 +42,12 @@ struct OrthoMarkerCheckOptions {
   // image only: single unseen cells on a target's white margin or code would
   // otherwise break its outline. Larger unseen areas become mid-grey. 0 = none.
   int fill_holes_max_cells = 16;
+  // A missed marker whose surroundings were coloured only from photos whose pixels,
+  // on the ground along the slope, are larger than this many orthophoto cells is
+  // `coarse`, not `not_detected`: the photos do not resolve the orthophoto's cell
+  // there (seen only from afar at grazing angles), so the orthophoto shows a smear of
+  // the target, not the target. Needs the orthophoto's source pixel sizes.
+  double max_source_pixel_cells = 1.0;
   // Throws InputError naming the first invalid field.
   void validate() const;
 };
@@ -50,7 +57,8 @@ enum class OrthoMarkerStatus {
   outside,       // its surveyed position is off the orthophoto grid
   not_seen,      // on the grid, but no photo coloured the cells there (alpha 0)
   partly_seen,   // its centre is coloured, but holes in the orthophoto around it
-  not_detected,  // coloured all around, but the detector found no target of that name
+  coarse,        // coloured all around, but only from photos coarser there than the cell
+  not_detected,  // coloured all around at the cell's resolution, but no target of that name found
 };
 const char* to_string(OrthoMarkerStatus s);
 
@@ -65,6 +73,9 @@ struct OrthoMarkerOffset {
   double offset_px = 0;       //   in orthophoto pixels
   int detections = 0;         // targets of this name found (more than 1: a doubled target, e.g. at a seam)
   int scales = 0;             // enlargement factors at which the reported target was found
+  // Median ground size (metres, along the slope) of the pixels of the photos that
+  // coloured the orthophoto within coverage_radius_m of the survey; NaN when unknown.
+  double source_pixel_m = std::numeric_limits<double>::quiet_NaN();
 };
 
 struct OrthoMarkerCheck {
@@ -80,9 +91,11 @@ struct OrthoMarkerCheck {
 };
 
 // Detects the targets in `ortho` and compares them with `markers`. A target seen
-// more than once keeps the detection nearest its survey. Throws InputError for
-// bad options.
+// more than once keeps the detection nearest its survey. `source_pixel_m` (optional,
+// OrthoSummary::source_pixel_m of the same grid) tells `coarse` from `not_detected`.
+// Throws InputError for bad options.
 OrthoMarkerCheck check_ortho_markers(const RgbaRaster& ortho, const std::vector<SurveyedMarker>& markers,
-                                     const OrthoMarkerCheckOptions& options);
+                                     const OrthoMarkerCheckOptions& options,
+                                     const std::vector<float>* source_pixel_m = nullptr);
 
 }  // namespace strata

@@ -161,6 +161,7 @@ struct Projector {
 struct ViewSample {
   std::uint32_t cell;
   float score;
+  float pixel_m;  // ground size of a photo pixel along the slope seen from this view, metres
   std::uint8_t rgb[3];
 };
 
@@ -277,6 +278,7 @@ std::vector<ViewSample> sample_view(const Dtm& dtm, const std::vector<Eigen::Vec
       ViewSample sm;
       sm.cell = std::uint32_t(i);
       sm.score = float(cos_t * K.fx / d * border_w);
+      sm.pixel_m = float(d / (K.fx * cos_t));
       photo.sample(x, y, o.antialias ? footprint_px(d, cos_t) : 1.0, sm.rgb);
       out.push_back(sm);
     }
@@ -289,11 +291,13 @@ struct Candidates {
   int k = 0;
   std::vector<std::int16_t> view;  // -1 = empty slot
   std::vector<float> score;
+  std::vector<float> pixel_m;
   std::vector<std::uint8_t> rgb;
 
-  Candidates(std::size_t cells, int k_) : k(k_), view(cells * k_, -1), score(cells * k_, 0.f), rgb(cells * k_ * 3, 0) {}
+  Candidates(std::size_t cells, int k_)
+      : k(k_), view(cells * k_, -1), score(cells * k_, 0.f), pixel_m(cells * k_, 0.f), rgb(cells * k_ * 3, 0) {}
 
-  void insert(std::size_t cell, int v, float s, const std::uint8_t c[3]) {
+  void insert(std::size_t cell, int v, float s, float px_m, const std::uint8_t c[3]) {
     const std::size_t base = cell * k;
     int pos = k;
     while (pos > 0 && (view[base + pos - 1] < 0 || score[base + pos - 1] < s)) --pos;
@@ -301,10 +305,12 @@ struct Candidates {
     for (int j = k - 1; j > pos; --j) {
       view[base + j] = view[base + j - 1];
       score[base + j] = score[base + j - 1];
+      pixel_m[base + j] = pixel_m[base + j - 1];
       std::copy_n(&rgb[(base + j - 1) * 3], 3, &rgb[(base + j) * 3]);
     }
     view[base + pos] = std::int16_t(v);
     score[base + pos] = s;
+    pixel_m[base + pos] = px_m;
     std::copy_n(c, 3, &rgb[(base + pos) * 3]);
   }
 };
@@ -503,7 +509,7 @@ RgbaRaster build_orthophoto(const Dtm& dtm, const std::vector<OrthoView>& views,
           check_cancelled();
           const std::vector<ViewSample> samples = sample_view(rect, normals, views[v], o);
           std::lock_guard<std::mutex> lock(merge);
-          for (const ViewSample& sm : samples) cand.insert(sm.cell, int(v), sm.score, sm.rgb);
+          for (const ViewSample& sm : samples) cand.insert(sm.cell, int(v), sm.score, sm.pixel_m, sm.rgb);
           progress.step();
         } catch (...) {
           std::lock_guard<std::mutex> lock(merge);
@@ -630,15 +636,18 @@ RgbaRaster build_orthophoto(const Dtm& dtm, const std::vector<OrthoView>& views,
   RgbaRaster out;
   out.grid = g;
   out.rgba.assign(g.cells() * 4, 0);
+  s.source_pixel_m.assign(g.cells(), std::numeric_limits<float>::quiet_NaN());
   std::size_t seams = 0;
   for (int r = 0; r < g.height; ++r) {
     for (int c = 0; c < g.width; ++c) {
       const std::size_t i = g.index(c, r);
       if (label[i] < 0) continue;
       const std::uint8_t* own = &cand.rgb[(i * cand.k) * 3];
+      s.source_pixel_m[i] = cand.pixel_m[i * cand.k];
       for (int p = 0; p < cand.k; ++p) {
         if (cand.view[i * cand.k + p] == label[i]) {
           own = &cand.rgb[(i * cand.k + p) * 3];
+          s.source_pixel_m[i] = cand.pixel_m[i * cand.k + p];
           break;
         }
       }

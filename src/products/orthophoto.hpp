@@ -85,6 +85,11 @@ struct OrthoSummary {
   std::vector<std::size_t> cells_per_view;   // cells whose region is that view
   double balance_rms_before = 0; // RMS of log colour ratios over overlaps, before gains
   double balance_rms_after = 0;  //   and after
+  // Per cell of the grid (NaN where not coloured): the ground size, in metres, of a
+  // pixel of the photo that coloured it, along the slope (depth / (f cos incidence)):
+  // how finely the photos resolve the surface there, in the worst direction. Cells
+  // seen only from afar at grazing angles have pixels much larger than the cell.
+  std::vector<float> source_pixel_m;
   double seconds = 0;
 };
 

@@ -151,6 +151,29 @@ TEST_F(OrthoMarkers, FindsTargetsAndFlagsTheShiftedOne) {
   EXPECT_NEAR(check.rmse_m, check.rmse_px * kCell, 1e-12);
 }
 
+TEST_F(OrthoMarkers, AMissedMarkerWherePhotosAreCoarserThanTheCellIsCoarse) {
+  // No target anywhere; the west half was coloured from photos with 2-cell pixels
+  // (seen from afar at a grazing angle), the east half from 0.5-cell pixels.
+  const RgbaRaster ortho = finish(kWidth);
+  std::vector<float> pixel(ortho.grid.cells());
+  for (int r = 0; r < ortho.grid.height; ++r)
+    for (int c = 0; c < ortho.grid.width; ++c)
+      pixel[ortho.grid.index(c, r)] = float((c < ortho.grid.width / 2 ? 2.0 : 0.5) * kCell);
+  const double west = 0.25 * kWidth, east = 0.75 * kWidth, middle = 0.5 * kHeight;
+  const std::vector<SurveyedMarker> survey{
+      {"GCP1", Eigen::Vector3d(map_of(west, middle).x(), map_of(west, middle).y(), 0), "control"},
+      {"GCP2", Eigen::Vector3d(map_of(east, middle).x(), map_of(east, middle).y(), 0), "control"}};
+  const OrthoMarkerCheck with = check_ortho_markers(ortho, survey, OrthoMarkerCheckOptions{}, &pixel);
+  EXPECT_EQ(with.markers[0].status, OrthoMarkerStatus::coarse);
+  EXPECT_NEAR(with.markers[0].source_pixel_m, 2 * kCell, 1e-9);
+  EXPECT_EQ(with.markers[1].status, OrthoMarkerStatus::not_detected);
+  EXPECT_NEAR(with.markers[1].source_pixel_m, 0.5 * kCell, 1e-9);
+  // Without the pixel sizes a miss is never excused.
+  const OrthoMarkerCheck without = check_ortho_markers(ortho, survey, OrthoMarkerCheckOptions{});
+  EXPECT_EQ(without.markers[0].status, OrthoMarkerStatus::not_detected);
+  EXPECT_TRUE(std::isnan(without.markers[0].source_pixel_m));
+}
+
 TEST_F(OrthoMarkers, ANamingRuleMapsIdsToMarkers) {
   render(4, 80.4, 90.1);
   const RgbaRaster ortho = finish(kWidth);
@@ -204,6 +227,9 @@ TEST(OrthoMarkerOptions, RejectsBadValues) {
   EXPECT_THROW(o.validate(), InputError);
   o = {};
   o.fill_holes_max_cells = -1;
+  EXPECT_THROW(o.validate(), InputError);
+  o = {};
+  o.max_source_pixel_cells = 0;
   EXPECT_THROW(o.validate(), InputError);
   o = {};
   o.targets.dictionary = "DICT_9X9";

@@ -322,6 +322,11 @@ TEST(OrthoAntialias, CellsAverageThePixelsTheyCover) {
     return std::sqrt(std::max(0.0, sum2 / n - (sum / n) * (sum / n)));
   };
   const double aliased = grey_spread(false), averaged = grey_spread(true);
+  // The photo's pixel on the floor straight below the camera: depth / f = 0.5 mm.
+  OrthoSummary s;
+  build_orthophoto(flat, {v}, OrthoOptions{}, &s);
+  ASSERT_EQ(s.source_pixel_m.size(), flat.grid.cells());
+  EXPECT_NEAR(s.source_pixel_m[flat.grid.index(12, 12)], 0.0005, 0.00001);
   std::printf("grey standard deviation over a 2 mm checkerboard: point samples %.1f, averaged %.1f\n", aliased,
               averaged);
   EXPECT_GT(aliased, kAliasedMinSpread);
