@@ -144,7 +144,7 @@ ProductsLayerResult products_layer(Project& project, const std::string& layer_na
   const auto [surveyed, markers_digest] = surveyed_markers(db, site.origin);
 
   const std::string inputs_key = sha256_hex(fmt::format(
-      "{}|{}|{}|{}|{}|{}|{}|{}|ortho-v3|{}|{}|{}|{}|markers-v5|{}|{}|{}|{}|{}|{}", surface->sha256, alignment->inputs_key,
+      "{}|{}|{}|{}|{}|{}|{}|{}|ortho-v3|{}|{}|{}|{}|markers-v6|{}|{}|{}|{}|{}|{}", surface->sha256, alignment->inputs_key,
       options.dtm.cell_m, options.ortho_cell_m, options.contours.interval_m, options.ortho.radiometric_balance,
       options.ortho.antialias, options.ortho.rectify_median_radius_m,
       options.ortho.smoothness, options.ortho.feather_m, options.ortho.normal_radius_m, options.geotiff.cog,

@@ -34,6 +34,10 @@ void OrthoMarkerCheckOptions::validate() const {
     throw InputError(fmt::format("products.ortho_markers: max_source_pixel_cells must be > 0, got {}",
                                  max_source_pixel_cells));
   }
+  if (tile_cells < 64) throw InputError(fmt::format("products.ortho_markers: tile_cells must be >= 64, got {}", tile_cells));
+  if (!(tile_margin_m > 0)) {
+    throw InputError(fmt::format("products.ortho_markers: tile_margin_m must be > 0 metres, got {}", tile_margin_m));
+  }
   if (fill_holes_max_cells < 0) {
     throw InputError(
         fmt::format("products.ortho_markers: fill_holes_max_cells must be >= 0 cells, got {}", fill_holes_max_cells));
@@ -114,8 +118,9 @@ OrthoMarkerCheck check_ortho_markers(const RgbaRaster& ortho, const std::vector<
   std::map<std::string, bool> surveyed;
   for (const SurveyedMarker& m : markers) surveyed[m.name] = true;
   // Targets by marker name, centres in the site frame. With the pixel-centre
-  // convention, detection pixel u at enlargement s is orthophoto column
-  // (u + 0.5) / s - 0.5, whose centre lies at x_min + (column + 0.5) * cell.
+  // convention, detection pixel u at enlargement s of a tile read from column x0 is
+  // orthophoto column x0 + (u + 0.5) / s - 0.5, whose centre lies at
+  // x_min + (column + 0.5) * cell.
   // Detections of one name within `same_target_m` of each other (found at several
   // enlargements) are one target, placed at their mean.
   const double same_target_m = 0.05;
@@ -125,23 +130,43 @@ OrthoMarkerCheck check_ortho_markers(const RgbaRaster& ortho, const std::vector<
     Eigen::Vector2d centre() const { return sum / scales; }
   };
   std::map<std::string, std::vector<Target>> by_name;
+  // The orthophoto is searched in tiles of tile_cells x tile_cells cells, each read
+  // with a margin of tile_margin_m around it and enlarged on its own, so memory stays
+  // bounded whatever the orthophoto's size; a target counts in the tile that holds
+  // its centre (the margin lets a target across a tile edge be seen whole).
+  const int tile = options.tile_cells;
+  const int margin = int(std::ceil(options.tile_margin_m / g.cell));
   for (int s : options.upsample) {
-    cv::Mat big = grey;
-    if (s > 1) cv::resize(grey, big, cv::Size(g.width * s, g.height * s), 0, 0, cv::INTER_CUBIC);
-    for (const TargetDetection& d : detect_targets(targets, big.ptr<std::uint8_t>(), big.cols, big.rows)) {
-      const std::string name = target_name(options.naming, d.id);
-      if (name.empty() || !surveyed.count(name)) {
-        if (std::find(out.unknown_ids.begin(), out.unknown_ids.end(), d.id) == out.unknown_ids.end())
-          out.unknown_ids.push_back(d.id);
-        continue;
+    for (int r0 = 0; r0 < g.height; r0 += tile) {
+      for (int c0 = 0; c0 < g.width; c0 += tile) {
+        const int r1 = std::min(g.height, r0 + tile), c1 = std::min(g.width, c0 + tile);
+        const cv::Rect read(cv::Point(std::max(0, c0 - margin), std::max(0, r0 - margin)),
+                            cv::Point(std::min(g.width, c1 + margin), std::min(g.height, r1 + margin)));
+        cv::Mat big;  // continuous, as detect_targets needs
+        if (s > 1) {
+          cv::resize(grey(read), big, cv::Size(read.width * s, read.height * s), 0, 0, cv::INTER_CUBIC);
+        } else {
+          big = grey(read).clone();
+        }
+        for (const TargetDetection& d : detect_targets(targets, big.ptr<std::uint8_t>(), big.cols, big.rows)) {
+          // Orthophoto column and row of the centre (pixel-centre convention).
+          const double col = read.x + (d.centre.x() + 0.5) / s - 0.5, row = read.y + (d.centre.y() + 0.5) / s - 0.5;
+          if (col < c0 - 0.5 || col >= c1 - 0.5 || row < r0 - 0.5 || row >= r1 - 0.5) continue;  // another tile's
+          const std::string name = target_name(options.naming, d.id);
+          if (name.empty() || !surveyed.count(name)) {
+            if (std::find(out.unknown_ids.begin(), out.unknown_ids.end(), d.id) == out.unknown_ids.end())
+              out.unknown_ids.push_back(d.id);
+            continue;
+          }
+          const Eigen::Vector2d p(g.x_min + (col + 0.5) * g.cell, g.y_max - (row + 0.5) * g.cell);
+          std::vector<Target>& found = by_name[name];
+          auto same = std::find_if(found.begin(), found.end(),
+                                   [&](const Target& t) { return (t.centre() - p).norm() < same_target_m; });
+          if (same == found.end()) same = found.insert(found.end(), Target{});
+          same->sum += p;
+          ++same->scales;
+        }
       }
-      const Eigen::Vector2d p(g.x_min + (d.centre.x() + 0.5) / s * g.cell, g.y_max - (d.centre.y() + 0.5) / s * g.cell);
-      std::vector<Target>& found = by_name[name];
-      auto same = std::find_if(found.begin(), found.end(),
-                               [&](const Target& t) { return (t.centre() - p).norm() < same_target_m; });
-      if (same == found.end()) same = found.insert(found.end(), Target{});
-      same->sum += p;
-      ++same->scales;
     }
   }
   std::sort(out.unknown_ids.begin(), out.unknown_ids.end());

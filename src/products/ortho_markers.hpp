@@ -33,6 +33,12 @@ struct OrthoMarkerCheckOptions {
   // enlargement to the next. A target found at several factors is placed at the
   // mean of its centres. Each in [1, 8], at least one.
   std::vector<int> upsample = {2, 3, 4};
+  // The search runs tile by tile (this many cells square, >= 64), each tile read
+  // with a margin of tile_margin_m and enlarged on its own: a whole orthophoto of a
+  // large site at a fine cell, enlarged 4 x, would need gigabytes. The margin must
+  // exceed the targets' size (15-30 cm usually).
+  int tile_cells = 1024;
+  double tile_margin_m = 0.4;
   // Radius (metres) around a missed marker's survey in which the orthophoto must be
   // coloured (>= 90 % of cells) for the miss to count as not_detected rather than
   // partly_seen: a 15 cm target and its margin.

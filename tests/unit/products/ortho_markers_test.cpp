@@ -30,6 +30,9 @@ constexpr double kOffsetEastPx = 3.0, kOffsetNorthPx = -2.0;
 // tolerance there (filled cells approximate the lost ones).
 constexpr double kSpeckleShare = 0.12;
 constexpr double kSpeckleCentreTolerancePx = 0.25;
+// A target found in a tile is placed where the whole-image search places it, up to
+// the bicubic enlargement's edge effects of the crop: well under a tenth of a pixel.
+constexpr double kTileAgreementPx = 0.05;
 
 // Site-frame E, N of orthophoto pixel (u, v), pixel-centre convention.
 Eigen::Vector2d map_of(double u, double v) { return {kXMin + (u + 0.5) * kCell, kYMax - (v + 0.5) * kCell}; }
@@ -174,6 +177,35 @@ TEST_F(OrthoMarkers, AMissedMarkerWherePhotosAreCoarserThanTheCellIsCoarse) {
   EXPECT_TRUE(std::isnan(without.markers[0].source_pixel_m));
 }
 
+TEST_F(OrthoMarkers, TilesFindTargetsAcrossTheirEdgesOnce) {
+  // Tiles of 64 cells with a 20 cm (40-cell) margin: GCP1 straddles the edge at
+  // column 64, GCP2 the corner at (128, 128), GCP3 lies inside one tile. Each must be
+  // found once, where the whole-image search finds it.
+  const std::vector<std::pair<int, Eigen::Vector2d>> targets = {
+      {1, {63.6, 40.2}}, {2, {127.8, 128.3}}, {3, {190.4, 60.7}}};
+  std::vector<SurveyedMarker> survey;
+  for (const auto& [id, uv] : targets) {
+    render(id, uv.x(), uv.y());
+    const Eigen::Vector2d en = map_of(uv.x(), uv.y());
+    survey.push_back({"GCP" + std::to_string(id), Eigen::Vector3d(en.x(), en.y(), 0), "control"});
+  }
+  const RgbaRaster ortho = finish(kWidth);
+  const OrthoMarkerCheck whole = check_ortho_markers(ortho, survey, OrthoMarkerCheckOptions{});
+  OrthoMarkerCheckOptions tiled_options;
+  tiled_options.tile_cells = 64;
+  tiled_options.tile_margin_m = 0.2;
+  const OrthoMarkerCheck tiled = check_ortho_markers(ortho, survey, tiled_options);
+  for (std::size_t k = 0; k < targets.size(); ++k) {
+    ASSERT_EQ(whole.markers[k].status, OrthoMarkerStatus::detected) << whole.markers[k].name;
+    ASSERT_EQ(tiled.markers[k].status, OrthoMarkerStatus::detected) << tiled.markers[k].name;
+    EXPECT_EQ(tiled.markers[k].detections, 1) << tiled.markers[k].name;
+    EXPECT_EQ(tiled.markers[k].scales, whole.markers[k].scales) << tiled.markers[k].name;
+    EXPECT_LT(tiled.markers[k].offset_px, kCentreTolerancePx) << tiled.markers[k].name;
+    EXPECT_NEAR(tiled.markers[k].detected.x(), whole.markers[k].detected.x(), kTileAgreementPx * kCell);
+    EXPECT_NEAR(tiled.markers[k].detected.y(), whole.markers[k].detected.y(), kTileAgreementPx * kCell);
+  }
+}
+
 TEST_F(OrthoMarkers, ANamingRuleMapsIdsToMarkers) {
   render(4, 80.4, 90.1);
   const RgbaRaster ortho = finish(kWidth);
@@ -230,6 +262,9 @@ TEST(OrthoMarkerOptions, RejectsBadValues) {
   EXPECT_THROW(o.validate(), InputError);
   o = {};
   o.max_source_pixel_cells = 0;
+  EXPECT_THROW(o.validate(), InputError);
+  o = {};
+  o.tile_cells = 10;
   EXPECT_THROW(o.validate(), InputError);
   o = {};
   o.targets.dictionary = "DICT_9X9";
