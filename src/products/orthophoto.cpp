@@ -54,9 +54,6 @@ constexpr float kNoDepth = std::numeric_limits<float>::infinity();
 struct PhotoPixels {
   std::vector<cv::Mat> levels;  // CV_8UC3, level l pixel j averages level l-1 pixels 2j, 2j+1
 
-  int width() const { return levels.front().cols; }
-  int height() const { return levels.front().rows; }
-
   // Adds coarser levels until a pixel covers `max_footprint_px` photo pixels or the
   // image is a few pixels wide.
   void build_pyramid(double max_footprint_px) {

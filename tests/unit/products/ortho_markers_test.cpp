@@ -267,6 +267,9 @@ TEST(OrthoMarkerOptions, RejectsBadValues) {
   o.tile_cells = 10;
   EXPECT_THROW(o.validate(), InputError);
   o = {};
+  o.tile_margin_m = 0;
+  EXPECT_THROW(o.validate(), InputError);
+  o = {};
   o.targets.dictionary = "DICT_9X9";
   EXPECT_THROW(o.validate(), InputError);
   EXPECT_NO_THROW(OrthoMarkerCheckOptions{}.validate());
