@@ -9,15 +9,26 @@
 //    the image, y_cam down the image (OpenCV / COLMAP convention).
 //  - pixels: (0, 0) is the centre of the top-left pixel (OpenCV convention);
 //    COLMAP's convention puts the corner there, so its principal point is ours + 0.5.
-//  - intrinsics: focal lengths fx, fy and principal point cx, cy in pixels; radial
-//    distortion x_d = x (1 + k1 r^2 + k2 r^4) on normalised coordinates (Brown 1966,
-//    the 'RADIAL' model of COLMAP with separate fx, fy).
+//  - intrinsics: focal lengths fx, fy and principal point cx, cy in pixels, and a lens
+//    model on normalised coordinates x = X_c.xy / X_c.z (docs/cameras.md):
+//      radial   x_d = x (1 + k1 r^2 + k2 r^4)  (Brown 1966; COLMAP's 'RADIAL' with fx, fy)
+//      brown    x_d = x (1 + k1 r^2 + k2 r^4 + k3 r^6) + tangential(p1, p2)
+//               (Brown 1971 / OpenCV's 5-coefficient model; COLMAP 'FULL_OPENCV' subset)
+//      fisheye  equidistant: theta = atan(r), theta_d = theta (1 + k1 theta^2 + k2 theta^4
+//               + k3 theta^6 + k4 theta^8), x_d = x theta_d / r (Kannala & Brandt 2006;
+//               OpenCV's cv::fisheye, COLMAP 'OPENCV_FISHEYE')
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
 #include <optional>
+#include <string>
 
 namespace strata {
+
+enum class CameraModel { radial, brown, fisheye };
+const char* to_string(CameraModel model);
+// "radial" | "brown" | "fisheye"; empty when the name is unknown.
+std::optional<CameraModel> camera_model_from_string(const std::string& name);
 
 struct Intrinsics {
   int width = 0;   // pixels
@@ -26,12 +37,18 @@ struct Intrinsics {
   double fy = 0;   // pixels
   double cx = 0;   // pixels
   double cy = 0;   // pixels
-  double k1 = 0;   // radial distortion, unitless
+  CameraModel model = CameraModel::radial;
+  double k1 = 0;   // radial distortion coefficients, unitless (meaning per model, above)
   double k2 = 0;
+  double k3 = 0;   // brown, fisheye
+  double k4 = 0;   // fisheye only
+  double p1 = 0;   // tangential (decentring) distortion, brown only, unitless
+  double p2 = 0;
 
-  // Applies the radial distortion to normalised coordinates.
+  // Applies the lens model to normalised coordinates.
   Eigen::Vector2d distort(const Eigen::Vector2d& xn) const;
-  // Inverse of distort() by fixed-point iteration (converges for |k r^2| << 1).
+  // Inverse of distort() by Newton's method on the model's Jacobian (fisheye: on
+  // theta); exact to 1e-12 wherever the model is monotonic.
   Eigen::Vector2d undistort(const Eigen::Vector2d& xd) const;
 
   // Normalised (undistorted) coordinates to pixels and back.

@@ -149,7 +149,9 @@ BundleSummary solve_bundle(const BundleOptions& options, BaProblem& problem) {
   for (const auto& obs : problem.observations) {
     auto& cam = problem.cameras[obs.camera];
     if (!cam.variable && !problem.point_variable[obs.point]) continue;
-    const double sigma = obs.marker ? options.marker_sigma_px : options.keypoint_sigma_px;
+    const double sigma = obs.sigma_px > 0 ? obs.sigma_px
+                         : obs.marker     ? options.marker_sigma_px
+                                          : options.keypoint_sigma_px;
     auto* cost = new ceres::AutoDiffCostFunction<ReprojectionCost, 2, kPoseSize, kIntrinsicsSize, 3>(
         new ReprojectionCost(obs.pixel, sigma));
     ceres_problem.AddResidualBlock(cost, obs.marker ? marker_loss.get() : keypoint_loss.get(),
@@ -201,7 +203,8 @@ BundleSummary solve_bundle(const BundleOptions& options, BaProblem& problem) {
   for (std::size_t g = 0; g < problem.intrinsics.size(); ++g) {
     if (!group_used[g]) continue;
     double* block = problem.intrinsics[g].data();
-    if (!problem.refine_intrinsics || !any_variable_camera ||
+    const bool fixed = g < problem.intrinsics_fixed.size() && problem.intrinsics_fixed[g];
+    if (fixed || !problem.refine_intrinsics || !any_variable_camera ||
         fixed_intrinsics.size() == std::size_t(kIntrinsicsSize)) {
       ceres_problem.SetParameterBlockConstant(block);
     } else if (!fixed_intrinsics.empty()) {
@@ -278,7 +281,10 @@ BundleSummary bundle_adjust(const BundleOptions& options, Reconstruction& rec,
                keypoints.size(), rec.images.size());
 
   BaProblem problem;
-  for (const auto& g : rec.groups) problem.intrinsics.push_back(to_block(g.intrinsics));
+  for (const auto& g : rec.groups) {
+    problem.intrinsics.push_back(to_block(g.intrinsics));
+    problem.intrinsics_fixed.push_back(g.calibration_fixed ? 1 : 0);
+  }
   std::vector<int> camera_of_image(rec.images.size(), -1);
   for (std::size_t i = 0; i < rec.images.size(); ++i) {
     const auto& im = rec.images[i];
@@ -334,7 +340,7 @@ BundleSummary bundle_adjust(const BundleOptions& options, Reconstruction& rec,
     problem.points.push_back(start);
     problem.point_variable.push_back(1);
     for (const auto* o : it->second) {
-      problem.observations.push_back({camera_of_image[o->image], point, o->pixel, true});
+      problem.observations.push_back({camera_of_image[o->image], point, o->pixel, true, o->sigma_px});
     }
     problem.priors.push_back({point, m.position, m.sigma});
   }

@@ -25,6 +25,7 @@ struct BaObservation {
   int point = -1;
   Eigen::Vector2d pixel;
   bool marker = false;  // weighed with marker_sigma_px instead of keypoint_sigma_px
+  double sigma_px = 0;  // pixels, > 0: this observation's own sigma (markers)
 };
 
 struct BaPrior {
@@ -35,6 +36,7 @@ struct BaPrior {
 
 struct BaProblem {
   std::vector<IntrinsicsBlock> intrinsics;  // per camera group
+  std::vector<char> intrinsics_fixed;       // per camera group: a known, fixed calibration
   std::vector<BaCamera> cameras;
   std::vector<Eigen::Vector3d> points;
   std::vector<char> point_variable;  // per point

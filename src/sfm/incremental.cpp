@@ -592,6 +592,7 @@ std::pair<std::size_t, std::size_t> IncrementalMapper::pair_agreement(int image,
 void IncrementalMapper::adjust(const std::vector<int>& variable_images, bool global) {
   BaProblem problem;
   for (const auto& k : intr_) problem.intrinsics.push_back(to_block(k));
+  for (const auto& g : groups_) problem.intrinsics_fixed.push_back(g.calibration_fixed ? 1 : 0);
   std::vector<int> camera_of(images_.size(), -1);
   std::vector<int> image_of_camera;
   std::vector<char> variable(images_.size(), 0);

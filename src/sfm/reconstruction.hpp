@@ -18,6 +18,14 @@ namespace strata {
 struct CameraGroup {
   Intrinsics intrinsics;
   bool focal_from_exif = false;  // prior focal known from EXIF + sensor width
+  // A known calibration (strata camera set, an imported calibration file, or another
+  // layer's): the intrinsics start from it; `calibration_fixed` holds them constant in
+  // every adjustment.
+  bool calibration_known = false;
+  bool calibration_fixed = false;
+  // Where the lens model and the starting intrinsics came from, for the quality report
+  // (e.g. "default", "exif", "option", "calibration").
+  std::string calibration_source = "default";
 };
 
 struct ImageInput {
@@ -57,6 +65,9 @@ struct MarkerObservation {
   std::string marker;
   int image = -1;               // index into images
   Eigen::Vector2d pixel;        // original photo pixels
+  // pixels: this observation's own standard deviation in the adjustment (a marker's
+  // dispersion seen from this photo); 0 = BundleOptions::marker_sigma_px.
+  double sigma_px = 0;
 };
 
 struct Reconstruction {
