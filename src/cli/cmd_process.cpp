@@ -41,16 +41,29 @@ void print_quality(const nlohmann::json& q, bool skipped) {
   };
   fmt::print("  control RMSE        {}\n", rmse(q["control_rmse"]));
   fmt::print("  check RMSE          {}\n", rmse(q["check_rmse"]));
-  fmt::print("  {:<10} {:<9} {:>8} {:>8} {:>8} {:>8} {:>6}\n", "marker", "role", "dE mm", "dN mm", "dZ mm", "px", "photos");
+  // Photos: agreeing of observed; spread: the marker's own dispersion (a marker object
+  // clicked from different sides scatters; its observations are weighed by it).
+  fmt::print("  {:<10} {:<9} {:>8} {:>8} {:>8} {:>8} {:>7} {:>9}\n", "marker", "role", "dE mm", "dN mm", "dZ mm",
+             "px", "photos", "spread mm");
+  std::vector<std::string> notes;
   for (const auto& m : q["markers"]) {
+    const int observed = m.value("observed", m["images"].get<int>());
+    const std::string photos = fmt::format("{}/{}", m["images"].get<int>(), observed);
+    const std::string diagnosis = m.value("diagnosis", std::string());
+    if (!diagnosis.empty()) notes.push_back(fmt::format("{}: {}", m["marker"].get<std::string>(), diagnosis));
     if (!m["triangulated"].get<bool>()) {
-      fmt::print("  {:<10} {:<9} {:>35} {:>6}\n", m["marker"].get<std::string>(), m["role"].get<std::string>(),
-                 "not triangulated", m["images"].get<int>());
+      fmt::print("  {:<10} {:<9} {:>35} {:>7}\n", m["marker"].get<std::string>(), m["role"].get<std::string>(),
+                 "not triangulated", photos);
       continue;
     }
-    fmt::print("  {:<10} {:<9} {:>8.1f} {:>8.1f} {:>8.1f} {:>8.2f} {:>6}\n", m["marker"].get<std::string>(),
+    fmt::print("  {:<10} {:<9} {:>8.1f} {:>8.1f} {:>8.1f} {:>8.2f} {:>7} {:>9.1f}\n", m["marker"].get<std::string>(),
                m["role"].get<std::string>(), 1000 * m["dE"].get<double>(), 1000 * m["dN"].get<double>(),
-               1000 * m["dZ"].get<double>(), m["reprojection_px"].get<double>(), m["images"].get<int>());
+               1000 * m["dZ"].get<double>(), m["reprojection_px"].get<double>(), photos,
+               1000 * m.value("dispersion_m", 0.0));
+  }
+  for (const auto& n : notes) fmt::print("    {}\n", n);
+  if (q.contains("georeference_diagnosis")) {
+    for (const auto& d : q["georeference_diagnosis"]) fmt::print("  note: {}\n", d.get<std::string>());
   }
 }
 

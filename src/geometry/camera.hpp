@@ -37,13 +37,14 @@ struct Intrinsics {
   double fy = 0;   // pixels
   double cx = 0;   // pixels
   double cy = 0;   // pixels
-  CameraModel model = CameraModel::radial;
   double k1 = 0;   // radial distortion coefficients, unitless (meaning per model, above)
   double k2 = 0;
   double k3 = 0;   // brown, fisheye
   double k4 = 0;   // fisheye only
   double p1 = 0;   // tangential (decentring) distortion, brown only, unitless
   double p2 = 0;
+  // Last, so that brace initialisers {w, h, fx, fy, cx, cy, k1, k2} keep their meaning.
+  CameraModel model = CameraModel::radial;
 
   // Applies the lens model to normalised coordinates.
   Eigen::Vector2d distort(const Eigen::Vector2d& xn) const;

@@ -13,6 +13,7 @@
 #include <iterator>
 #include <map>
 #include <numeric>
+#include <optional>
 #include <set>
 #include <tuple>
 
@@ -29,7 +30,6 @@ void GeoreferenceOptions::validate() const {
   if (!(min_spread_ratio >= 0 && min_spread_ratio < 1)) fail("min_spread_ratio", min_spread_ratio, "in [0, 1)");
   if (!(outlier_threshold_m > 0)) fail("outlier_threshold_m", outlier_threshold_m, "> 0");
   if (!(outlier_sigma_factor > 0)) fail("outlier_sigma_factor", outlier_sigma_factor, "> 0");
-  if (!(observation_outlier_px > 0)) fail("observation_outlier_px", observation_outlier_px, "> 0");
   if (!(duplicate_px >= 0)) fail("duplicate_px", duplicate_px, ">= 0");
   if (!(horizontal_only_sigma_m > 0)) fail("horizontal_only_sigma_m", horizontal_only_sigma_m, "> 0");
   if (!(unknown_height_sigma_m >= horizontal_only_sigma_m))
@@ -37,6 +37,7 @@ void GeoreferenceOptions::validate() const {
   if (!(min_observation_sigma_px > 0)) fail("min_observation_sigma_px", min_observation_sigma_px, "> 0");
   if (max_rejection_rounds < 0) fail("max_rejection_rounds", max_rejection_rounds, ">= 0");
   bundle.validate();
+  rays.validate();
 }
 
 const char* to_string(MarkerRole role) {
@@ -73,16 +74,23 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 struct Ray {
   int image = -1;  // index into rec.images
   Eigen::Vector2d pixel;
-  bool kept = true;
+  bool kept = true;        // agrees with the marker's other rays (and is not excluded)
+  std::string excluded;    // non-empty: left out for this reason (a duplicate click)
+  double error_px = 0;     // to the marker's fitted point
+  double sigma_px = 0;     // what this photo is expected to achieve on the marker
 };
 using RaysByMarker = std::map<std::string, std::vector<Ray>>;
+using FitsByMarker = std::map<std::string, MarkerRayFit>;
 
 RaysByMarker collect_rays(const std::vector<MarkerObservation>& observations, const Reconstruction& rec) {
   RaysByMarker rays;
   for (const auto& o : observations) {
     if (o.image < 0 || std::size_t(o.image) >= rec.images.size()) continue;
     if (!rec.images[o.image].registered) continue;
-    rays[o.marker].push_back({o.image, o.pixel, true});
+    Ray r;
+    r.image = o.image;
+    r.pixel = o.pixel;
+    rays[o.marker].push_back(r);
   }
   return rays;
 }
@@ -96,22 +104,29 @@ std::size_t kept_count(const std::vector<Ray>& rays) {
   return std::size_t(std::count_if(rays.begin(), rays.end(), [](const Ray& r) { return r.kept; }));
 }
 
-// Triangulates from the kept rays except `skip`. `valid` below tells whether a point
-// came out at all (in front of every camera); the gates of `o` are left to the caller.
-TriangulationResult triangulate(const Reconstruction& rec, const std::vector<Ray>& rays,
-                                const TriangulationOptions& o, int skip = -1) {
+// Fits one marker from its rays that are not excluded (marker_rays.hpp) with the
+// current cameras, and marks which agree.
+MarkerRayFit fit_rays(const Reconstruction& rec, std::vector<Ray>& rays, const MarkerRayOptions& o) {
   std::vector<Camera> cams;
   std::vector<Eigen::Vector2d> px;
+  std::vector<std::size_t> index;
   for (std::size_t j = 0; j < rays.size(); ++j) {
-    if (!rays[j].kept || int(j) == skip) continue;
+    rays[j].kept = false;
+    rays[j].error_px = kNaN;
+    rays[j].sigma_px = 0;
+    if (!rays[j].excluded.empty()) continue;
     cams.push_back(camera_of(rec, rays[j].image));
     px.push_back(rays[j].pixel);
+    index.push_back(j);
   }
-  return triangulate_views(cams, px, o);
-}
-
-bool valid(const TriangulationResult& t) {
-  return t.views >= 2 && t.max_angle_deg > 0 && std::isfinite(t.max_error_px) && t.X.allFinite();
+  MarkerRayFit fit = fit_marker_rays(cams, px, o);
+  for (std::size_t k = 0; k < index.size(); ++k) {
+    auto& r = rays[index[k]];
+    r.kept = fit.rays[k].agrees && fit.agreeing >= 2;
+    r.error_px = fit.rays[k].error_px;
+    r.sigma_px = fit.rays[k].sigma_px;
+  }
+  return fit;
 }
 
 double pixel_distance(const Reconstruction& rec, int image, const Eigen::Vector3d& X,
@@ -119,53 +134,6 @@ double pixel_distance(const Reconstruction& rec, int image, const Eigen::Vector3
   if (!X.allFinite()) return kNaN;
   const auto p = camera_of(rec, image).project(X);
   return p ? (*p - pixel).norm() : kInf;
-}
-
-// Ground size of one pixel at the marker, mean over its kept rays (depth / focal), in
-// the units of the current frame.
-double pixel_footprint(const Reconstruction& rec, const std::vector<Ray>& rays, const Eigen::Vector3d& X) {
-  double sum = 0;
-  int n = 0;
-  for (const auto& r : rays) {
-    if (!r.kept) continue;
-    const Camera c = camera_of(rec, r.image);
-    const double depth = c.pose.to_camera(X).z();
-    if (depth > 0 && c.intrinsics.fx > 0) {
-      sum += depth / c.intrinsics.fx;
-      ++n;
-    }
-  }
-  return n ? sum / n : 0.0;
-}
-
-// Wrong clicks among the rays of one marker: while the kept rays miss their common
-// intersection by more than `limit_px` and at least 3 remain, drop the ray whose removal
-// lets the others meet best (a robust leave-one-out, as in data snooping; Baarda 1968).
-// With 2 rays a wrong click cannot be told from a right one. Returns each dropped ray
-// with its distance, pixels, from the intersection of the others.
-std::vector<std::pair<int, double>> screen_rays(const Reconstruction& rec, std::vector<Ray>& rays,
-                                                const TriangulationOptions& tri, double limit_px) {
-  std::vector<std::pair<int, double>> dropped;
-  while (kept_count(rays) >= 3) {
-    const auto all = triangulate(rec, rays, tri);
-    if (valid(all) && all.max_error_px <= limit_px) break;
-    int best = -1;
-    double best_score = kInf, best_px = 0;
-    for (std::size_t j = 0; j < rays.size(); ++j) {
-      if (!rays[j].kept) continue;
-      const auto t = triangulate(rec, rays, tri, int(j));
-      if (!valid(t) || t.max_angle_deg < tri.min_angle_deg) continue;
-      if (t.max_error_px < best_score) {
-        best_score = t.max_error_px;
-        best = int(j);
-        best_px = pixel_distance(rec, rays[j].image, t.X, rays[j].pixel);
-      }
-    }
-    if (best < 0 || best_score > limit_px) break;  // no single wrong click explains it
-    rays[best].kept = false;
-    dropped.emplace_back(best, best_px);
-  }
-  return dropped;
 }
 
 std::string names(const std::vector<std::string>& v) {
@@ -216,6 +184,76 @@ double median(std::vector<double> v) {
   return v[mid];
 }
 
+// The marker's rays in words, when they do not meet as one point.
+std::string diagnose_marker(const MarkerRayFit& fit, const std::vector<Ray>& rays, const Reconstruction& rec,
+                            double click_sigma_px) {
+  const std::size_t fitted = std::size_t(std::count_if(rays.begin(), rays.end(), [](const Ray& r) {
+    return r.excluded.empty();
+  }));
+  if (fitted < 2) return "";
+  if (fit.too_dispersed) {
+    return fmt::format("its {} rays scatter by {:.0f} % of the viewing distance: not one point (clicks on "
+                       "different objects, or a wrong name)", fitted, 100 * fit.dispersion / fit.mean_depth);
+  }
+  if (fit.agreeing < 2) return fmt::format("no two of its {} rays meet: check its name and clicks", fitted);
+  std::string text;
+  const double dispersion_px = fit.mean_footprint > 0 ? fit.dispersion / fit.mean_footprint : 0;
+  if (dispersion_px > 2 * click_sigma_px) {
+    text = fmt::format("its clicks scatter by {:.1f} px ({:.1f} mm at {:.2f} m) about one point: an object "
+                       "seen from different sides, or positions placed by another program; weighted by that "
+                       "dispersion",
+                       dispersion_px, 1000 * fit.dispersion, fit.mean_depth);
+  }
+  const std::size_t disagree = fitted - std::size_t(fit.agreeing);
+  if (disagree == 1) {
+    for (const auto& r : rays) {
+      if (r.excluded.empty() && !r.kept) {
+        text += fmt::format("{}one click disagrees ({}, {:.1f} px off)", text.empty() ? "" : "; ",
+                            rec.images[r.image].name, r.error_px);
+      }
+    }
+  } else if (disagree > 1) {
+    text += fmt::format("{}{} of its {} clicks disagree with the others (listed as dropped)",
+                        text.empty() ? "" : "; ", disagree, fitted);
+  }
+  return text;
+}
+
+// Residuals that grow toward the photo edges over all markers point at the lens model
+// rather than at the markers: compare the normalised misfit (error / expected) of the
+// agreeing rays in the outer part of the photos with the inner part.
+std::optional<std::string> diagnose_lens(const RaysByMarker& rays, const Reconstruction& rec) {
+  double inner = 0, outer = 0;
+  int n_inner = 0, n_outer = 0;
+  std::set<std::string> outer_markers;
+  for (const auto& [name, list] : rays) {
+    for (const auto& r : list) {
+      if (!r.kept || !(r.sigma_px > 0)) continue;
+      const auto& k = rec.groups[rec.images[r.image].group].intrinsics;
+      const double half_diagonal = 0.5 * std::hypot(k.width, k.height);
+      const double radius = std::hypot(r.pixel.x() - k.cx, r.pixel.y() - k.cy) / half_diagonal;
+      const double z2 = (r.error_px * r.error_px) / (r.sigma_px * r.sigma_px);
+      if (radius < 0.5) {
+        inner += z2;
+        ++n_inner;
+      } else if (radius > 0.75) {
+        outer += z2;
+        ++n_outer;
+        outer_markers.insert(name);
+      }
+    }
+  }
+  // Enough rays on both sides, from more than one marker, and a clear contrast (the
+  // normalised misfit is 1 on average when the model holds).
+  if (n_inner < 5 || n_outer < 5 || outer_markers.size() < 2) return std::nullopt;
+  const double ratio = (outer / n_outer) / std::max(inner / n_inner, 1e-12);
+  if (ratio < 4 || outer / n_outer < 2) return std::nullopt;
+  return fmt::format("marker rays near the photo edges miss {:.1f} x more than near the centre ({} and {} rays): "
+                     "the lens model may be too simple for this camera (try process --camera-model brown, or a "
+                     "known calibration: strata camera set)",
+                     std::sqrt(ratio), n_outer, n_inner);
+}
+
 }  // namespace
 
 GeoreferenceSummary keep_arbitrary_frame(Reconstruction& rec) {
@@ -258,35 +296,35 @@ GeoreferenceSummary georeference(const GeoreferenceOptions& options,
     }
   }
 
-  // 1. Screen the observations in the reconstruction frame (pixels do not depend on it).
+  // 1. Fit every marker from its rays in the reconstruction frame (pixels do not depend
+  // on the frame, and the dispersion is relative to the viewing distance).
   RaysByMarker rays = collect_rays(observations, rec);
   for (auto it = rays.begin(); it != rays.end();) {  // observations of unknown markers
     it = by_name.count(it->first) ? std::next(it) : rays.erase(it);
   }
-  std::vector<Blunder> blunders;
+  std::vector<Blunder> duplicate_blunders;  // clicks left out as another marker's target
   auto image_name = [&](int image) { return rec.images[image].name; };
-  // Screens the rays of every marker (see screen_rays), then resolves two markers seen
-  // at one pixel of one photo: the one whose other photos agree keeps it. `final`: the
-  // cameras are adjusted, so an unconfirmed pair is dropped as a whole too (before the
-  // adjustment, the SfM cameras may not confirm anything yet).
+  BundleOptions bundle = options.bundle;
+  MarkerRayOptions ray_options = options.rays;
+  ray_options.min_angle_deg = options.triangulation.min_angle_deg;
+  ray_options.click_sigma_px = bundle.marker_sigma_px;
+  FitsByMarker fits;
+  auto fit_all = [&] {
+    for (auto& [name, list] : rays) fits[name] = fit_rays(rec, list, ray_options);
+  };
+  // Fits every marker, then resolves two markers seen at one pixel of one photo: the
+  // one whose other photos agree keeps it. `final`: the cameras are adjusted, so an
+  // unconfirmed pair is dropped as a whole too (before the adjustment, the SfM cameras
+  // may not confirm anything yet).
   auto screen = [&](bool final) {
-    for (auto& [name, list] : rays) {
-      for (const auto& [j, px] : screen_rays(rec, list, options.triangulation, options.observation_outlier_px)) {
-        blunders.push_back({name, image_name(list[j].image), px, "px",
-                            fmt::format("{:.1f} px from the intersection of its other {} rays: a wrong click",
-                                        px, kept_count(list))});
-      }
-    }
+    fit_all();
     auto confirmed = [&](const std::string& name, std::size_t j) {
-      const auto& list = rays.at(name);
-      if (!list[j].kept || kept_count(list) < 3) return false;
-      const auto t = triangulate(rec, list, options.triangulation);
-      return valid(t) && t.max_error_px <= options.observation_outlier_px;
+      return rays.at(name)[j].kept && fits.at(name).ok && fits.at(name).agreeing >= 3;
     };
     std::map<int, std::vector<std::pair<std::string, std::size_t>>> by_image;
     for (const auto& [name, list] : rays) {
       for (std::size_t j = 0; j < list.size(); ++j) {
-        if (list[j].kept) by_image[list[j].image].emplace_back(name, j);
+        if (list[j].excluded.empty()) by_image[list[j].image].emplace_back(name, j);
       }
     }
     std::vector<std::tuple<std::string, std::size_t, std::string>> to_drop;  // marker, ray, reason
@@ -315,59 +353,62 @@ GeoreferenceSummary georeference(const GeoreferenceOptions& options,
         }
       }
     }
+    std::set<std::string> refit;
     for (const auto& [name, j, reason] : to_drop) {
       auto& ray = rays.at(name)[j];
-      if (!ray.kept) continue;
-      ray.kept = false;
-      blunders.push_back({name, image_name(ray.image), 0.0, "px", reason});
+      if (!ray.excluded.empty()) continue;
+      ray.excluded = reason;
+      duplicate_blunders.push_back({name, image_name(ray.image), 0.0, "px", reason});
+      refit.insert(name);
     }
+    for (const auto& name : refit) fits[name] = fit_rays(rec, rays.at(name), ray_options);
   };
   auto kept_observations = [&] {
     std::vector<MarkerObservation> kept;
     for (const auto& [name, list] : rays) {
       for (const auto& r : list) {
-        if (r.kept) kept.push_back({name, r.image, r.pixel});
+        if (r.kept) kept.push_back({name, r.image, r.pixel, r.sigma_px});
       }
     }
     return kept;
   };
   screen(false);
-  BundleOptions bundle = options.bundle;
 
-  // 2. Triangulate every control marker in the reconstruction frame.
+  // 2. The usable control markers, in the reconstruction frame.
   struct Control {
     const MarkerConstraint* m;
     Eigen::Vector3d local;
-    double footprint;  // ground size of a pixel at the marker, reconstruction units
+    double footprint;   // ground size of a pixel at the marker, reconstruction units
+    double dispersion;  // the marker's scatter about its point, reconstruction units
     bool plan;
   };
   std::vector<Control> usable;
   std::vector<std::string> usable_names, control_names, unusable_why;
+  std::vector<Blunder> marker_blunders;
   for (const auto& m : markers) {
     if (!m.control) continue;
     control_names.push_back(m.name);
     const auto it = rays.find(m.name);
-    const std::size_t views = it == rays.end() ? 0 : kept_count(it->second);
+    const std::size_t views = it == rays.end() ? 0 : it->second.size();
     if (views < 2) {
       summary.unusable.push_back(m.name);
       unusable_why.push_back(fmt::format("{} (seen in {} registered image{})", m.name, views,
                                          views == 1 ? "" : "s"));
       continue;
     }
-    const auto tri = triangulate(rec, it->second, options.triangulation);
-    if (!tri.ok) {
+    const MarkerRayFit& fit = fits.at(m.name);
+    if (!fit.ok) {
+      const std::string why = diagnose_marker(fit, it->second, rec, ray_options.click_sigma_px);
       summary.unusable.push_back(m.name);
-      unusable_why.push_back(fmt::format("{} (rays {:.1f} deg apart, reprojection up to {:.1f} px)",
-                                         m.name, tri.max_angle_deg, tri.max_error_px));
-      if (valid(tri) && tri.max_error_px > options.triangulation.max_error_px) {
-        blunders.push_back({m.name, "", tri.max_error_px, "px",
-                            fmt::format("its {} rays miss each other by up to {:.1f} px and no single "
-                                        "click explains it: marker not used",
-                                        views, tri.max_error_px)});
-      }
+      unusable_why.push_back(fmt::format("{} ({} of {} rays agree, {:.1f} deg apart{}{})", m.name, fit.agreeing,
+                                         views, fit.max_angle_deg, why.empty() ? "" : ": ", why));
+      marker_blunders.push_back({m.name, "", kNaN, "px",
+                                 fmt::format("marker not used: {}", why.empty() ? "its rays are too close to "
+                                                                                  "parallel"
+                                                                                : why)});
       continue;
     }
-    usable.push_back({&m, tri.X, pixel_footprint(rec, it->second, tri.X), plan_only(m, options)});
+    usable.push_back({&m, fit.X, fit.mean_footprint, fit.dispersion, plan_only(m, options)});
     usable_names.push_back(m.name);
   }
   if (usable.size() < 3) {
@@ -395,14 +436,15 @@ GeoreferenceSummary georeference(const GeoreferenceOptions& options,
   }
 
   // 3. Robust similarity. The limit of a marker: its survey sigma and its photo
-  // precision (marker_sigma_px pixels on the ground), times outlier_sigma_factor, at
-  // least outlier_threshold_m.
+  // precision (the click sigma in pixels on the ground, and the marker's own
+  // dispersion), times outlier_sigma_factor, at least outlier_threshold_m.
   const std::size_t n_usable = usable.size();
   auto limit_of = [&](const Control& c, double scale) {
-    const double photo = bundle.marker_sigma_px * c.footprint * scale;
+    const double photo = std::hypot(ray_options.click_sigma_px * c.footprint, c.dispersion) * scale;
     return std::max(options.outlier_threshold_m,
                     options.outlier_sigma_factor * std::hypot(survey_sigma(*c.m, c.plan), photo));
   };
+  std::vector<Blunder> blunders;  // control markers rejected against the survey
   auto residual_of = [&](const Similarity3& s, std::size_t i) {
     return residual_norm(s.apply(usable[i].local) - usable[i].m->position, usable[i].plan);
   };
@@ -518,9 +560,9 @@ GeoreferenceSummary georeference(const GeoreferenceOptions& options,
                summary.bundle.rmse_px);
   };
   adjust();
-  // Once adjusted: screen again, at the precision the cameras now have, weigh the
-  // observations by what they achieved (see estimate_observation_sigmas) and adjust again.
-  const std::size_t blunders_before = blunders.size();
+  // Once adjusted: fit the markers again at the precision the cameras now have, weigh
+  // the observations by what they achieved (see estimate_observation_sigmas) and adjust
+  // again.
   screen(true);
   if (options.adjust && options.estimate_observation_sigmas) {
     // Keypoints: a posteriori sigma per axis, sum |e|^2 / (2 obs - 3 points - 6 cameras).
@@ -533,29 +575,34 @@ GeoreferenceSummary georeference(const GeoreferenceOptions& options,
       bundle.keypoint_sigma_px =
           std::max(options.min_observation_sigma_px, std::sqrt(b.rmse_px * b.rmse_px * n_obs / dof));
     }
-    // Markers: rays about their photo-only intersections, sum e^2 / sum (2 n - 3).
+    // Click precision: the agreeing rays about their points, sum e^2 / sum (2 n - 3), over
+    // the markers whose rays meet within the clicks alone (no dispersion of their own);
+    // a dispersed marker would inflate it for every sharp one.
     double sum2 = 0;
     int redundancy = 0;
     for (const auto& [name, list] : rays) {
-      const auto t = triangulate(rec, list, options.triangulation);
-      if (!valid(t)) continue;
-      sum2 += t.rmse_px * t.rmse_px * t.views;
-      redundancy += 2 * t.views - 3;
+      const auto& fit = fits.at(name);
+      if (!fit.ok || fit.dispersion > 0) continue;
+      sum2 += fit.rmse_px * fit.rmse_px * fit.agreeing;
+      redundancy += 2 * fit.agreeing - 3;
     }
     bundle.marker_sigma_px = bundle.keypoint_sigma_px;
     if (redundancy > 0) bundle.marker_sigma_px = std::max(bundle.marker_sigma_px, std::sqrt(sum2 / redundancy));
-    log::info("georeference: observation sigmas a posteriori: keypoints {:.3f} px, markers {:.3f} px "
-              "(marker redundancy {})", bundle.keypoint_sigma_px, bundle.marker_sigma_px, redundancy);
+    ray_options.click_sigma_px = bundle.marker_sigma_px;
+    log::info("georeference: observation sigmas a posteriori: keypoints {:.3f} px, marker clicks {:.3f} px "
+              "(redundancy {} of the sharp markers)", bundle.keypoint_sigma_px, bundle.marker_sigma_px, redundancy);
+    fit_all();
     adjust();
-  } else if (blunders.size() > blunders_before) {
+  } else {
     adjust();
   }
   summary.keypoint_sigma_px = bundle.keypoint_sigma_px;
   summary.marker_sigma_px = bundle.marker_sigma_px;
 
   // 6. Residuals from the final cameras, photos only.
-  std::map<std::string, Eigen::Vector3d> photo_position;  // site frame, triangulated markers
+  std::map<std::string, Eigen::Vector3d> photo_position;  // site frame, usable markers
   auto residual_rows = [&] {
+    fit_all();
     photo_position.clear();
     const std::set<std::string> rejected(summary.rejected.begin(), summary.rejected.end());
     std::vector<MarkerResidual> rows;
@@ -568,27 +615,31 @@ GeoreferenceSummary georeference(const GeoreferenceOptions& options,
       row.distance_misfit_m = kNaN;
       const auto it = rays.find(m.name);
       if (it != rays.end()) {
+        const MarkerRayFit& fit = fits.at(m.name);
+        row.observed = int(it->second.size());
         row.images = int(kept_count(it->second));
-        const auto tri = triangulate(rec, it->second, options.triangulation);
-        // The reprojection gate is not applied here: a large error is what this row reports.
-        if (valid(tri) && tri.max_angle_deg >= options.triangulation.min_angle_deg) {
+        row.diagnosis = diagnose_marker(fit, it->second, rec, ray_options.click_sigma_px);
+        if (fit.ok) {
           row.triangulated = true;
-          const Eigen::Vector3d d = tri.X - m.position;
+          const Eigen::Vector3d d = fit.X - m.position;
           row.dE = d.x();
           row.dN = d.y();
           row.dZ = d.z();
-          row.reprojection_px = tri.rmse_px;
-          photo_position[m.name] = tri.X;
+          row.reprojection_px = fit.rmse_px;
+          row.dispersion_m = fit.dispersion;
+          row.dispersion_px = fit.mean_footprint > 0 ? fit.dispersion / fit.mean_footprint : 0;
+          photo_position[m.name] = fit.X;
         }
         // The survey seen from each photo; in plan only, at the photo height.
         Eigen::Vector3d survey = m.position;
-        if (!row.height_known && row.triangulated) survey.z() = tri.X.z();
+        if (!row.height_known && row.triangulated) survey.z() = fit.X.z();
         for (const auto& r : it->second) {
           ObservationResidual o;
           o.image = r.image;
           o.image_name = image_name(r.image);
           o.dropped = !r.kept;
-          o.to_rays_px = row.triangulated ? pixel_distance(rec, r.image, tri.X, r.pixel) : kNaN;
+          o.sigma_px = r.sigma_px;
+          o.to_rays_px = row.triangulated ? pixel_distance(rec, r.image, fit.X, r.pixel) : kNaN;
           o.to_survey_px = pixel_distance(rec, r.image, survey, r.pixel);
           row.observations.push_back(o);
         }
@@ -634,9 +685,8 @@ GeoreferenceSummary georeference(const GeoreferenceOptions& options,
     for (const auto& row : rows) {
       if (row.role != MarkerRole::control || !row.loo) continue;
       const auto& m = *by_name.at(row.name);
-      const auto it = rays.find(row.name);
-      Control c{&m, photo_position.at(row.name), pixel_footprint(rec, it->second, photo_position.at(row.name)),
-                !row.height_known};
+      const auto& fit = fits.at(row.name);
+      Control c{&m, photo_position.at(row.name), fit.mean_footprint, fit.dispersion, !row.height_known};
       const double r = residual_norm({row.loo_dE, row.loo_dN, row.loo_dZ}, c.plan);
       const double limit = limit_of(c, 1.0);
       if (r / limit > worst_ratio) {
@@ -681,22 +731,47 @@ GeoreferenceSummary georeference(const GeoreferenceOptions& options,
     }
     row.distance_misfit_m = median(misfit);
   }
-  for (const auto& b : blunders) {
-    log::warn("georeference: dropped {}{}: {}", b.marker, b.image.empty() ? "" : " in " + b.image, b.reason);
+  // Every observation left out, named: those that disagree with their marker's other
+  // rays in the final fit, and clicks on another marker's target.
+  std::vector<Blunder> all_blunders = duplicate_blunders;
+  for (const auto& [name, list] : rays) {
+    const auto& fit = fits.at(name);
+    if (fit.agreeing < 2) continue;  // the marker as a whole is named below
+    for (const auto& r : list) {
+      if (r.kept || !r.excluded.empty()) continue;
+      all_blunders.push_back({name, image_name(r.image), r.error_px, "px",
+                              fmt::format("{:.1f} px from where its {} agreeing rays meet (this photo is "
+                                          "expected within {:.1f} px): a wrong click or a different point",
+                                          r.error_px, fit.agreeing,
+                                          std::max(ray_options.agree_factor * r.sigma_px, ray_options.min_gate_px))});
+    }
+  }
+  all_blunders.insert(all_blunders.end(), marker_blunders.begin(), marker_blunders.end());
+  all_blunders.insert(all_blunders.end(), blunders.begin(), blunders.end());
+  for (const auto& b : all_blunders) {
+    log::debug("georeference: dropped {}{}: {}", b.marker, b.image.empty() ? "" : " in " + b.image, b.reason);
+  }
+  for (const auto& row : rows) {
+    if (!row.diagnosis.empty()) log::warn("georeference: marker {}: {}", row.name, row.diagnosis);
+  }
+  if (auto lens = diagnose_lens(rays, rec)) {
+    summary.diagnosis.push_back(*lens);
+    log::warn("georeference: {}", *lens);
   }
   summary.residuals = std::move(rows);
-  summary.blunders = std::move(blunders);
+  summary.blunders = std::move(all_blunders);
   summary.control = rmse_of(summary.residuals, MarkerRole::control, false);
   summary.check = rmse_of(summary.residuals, MarkerRole::check, false);
   summary.leave_one_out = rmse_of(summary.residuals, MarkerRole::control, true);
   summary.georeferenced = true;
   summary.seconds = clock.seconds();
+  const auto dropped_observations =
+      std::count_if(summary.blunders.begin(), summary.blunders.end(), [](const Blunder& b) { return !b.image.empty(); });
   summary.message = fmt::format(
-      "georeferenced on {} control markers ({} rejected, {} observations dropped); control RMSE "
+      "georeferenced on {} control markers ({} rejected, {} observations left out); control RMSE "
       "{:.4f} m (leave-one-out {:.4f} m), check RMSE {:.4f} m over {} check marker(s){}",
-      summary.control_used.size(), summary.rejected.size(),
-      std::count_if(summary.blunders.begin(), summary.blunders.end(), [](const Blunder& b) { return !b.image.empty(); }),
-      summary.control.xyz, summary.leave_one_out.xyz, summary.check.xyz, summary.check.markers,
+      summary.control_used.size(), summary.rejected.size(), dropped_observations, summary.control.xyz,
+      summary.leave_one_out.xyz, summary.check.xyz, summary.check.markers,
       summary.control.markers_z < summary.control.markers ? " (heights unknown for some: plan figures only for them)" : "");
   return summary;
 }

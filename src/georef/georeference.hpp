@@ -1,10 +1,12 @@
 #pragma once
 // Georeferencing a layer's reconstruction onto surveyed markers, the way a surveyor
 // adjusts a photo block on ground control:
-//  1. screen the image observations: each marker's rays must meet; an observation
-//     far from the intersection of its marker's other rays is dropped, and two markers
-//     clicked at the same pixel of one photo are resolved by their other photos;
-//  2. triangulate every marker from its remaining observations (>= 2 rays, angle check);
+//  1. fit every marker from its rays robustly (marker_rays.hpp): the point, the marker's
+//     own dispersion in object space (an object clicked from every side scatters), and
+//     which observations agree; those that do not are named and left out, and two
+//     markers clicked at the same pixel of one photo are resolved by their other photos;
+//  2. a marker is usable from >= 2 agreeing rays wide enough apart; its observations
+//     are weighed by what each photo can achieve on it (click precision and dispersion);
 //  3. a robust similarity from >= 3 non-collinear control markers: a consensus over
 //     marker triples (>= 4 markers), then a fit weighted by the survey sigmas per axis;
 //     a marker surveyed in plan only (height sigma >= horizontal_only_sigma_m) is
@@ -19,6 +21,7 @@
 // Check markers never enter 3 or 5. Every drop is named, with its size, in `blunders`.
 #include "features/types.hpp"
 #include "geometry/similarity.hpp"
+#include "georef/marker_rays.hpp"
 #include "sfm/bundle_adjustment.hpp"
 #include "sfm/reconstruction.hpp"
 #include "sfm/triangulation.hpp"
@@ -44,9 +47,10 @@ struct GeoreferenceOptions {
   // is not held to a survey sigma of 1 cm.
   double outlier_threshold_m = 0.05;  // metres
   double outlier_sigma_factor = 5.0;  // unitless
-  // An observation farther than this from the intersection of its marker's other rays
-  // (needs >= 3 rays) is dropped as a wrong click, pixels.
-  double observation_outlier_px = 5.0;
+  // The robust fit of each marker from its rays: agreement gate (sigma multiples),
+  // widest-pair angle, dispersion limit. Its click_sigma_px is set from
+  // bundle.marker_sigma_px (and the a posteriori estimate) by georeference().
+  MarkerRayOptions rays;
   // Two different markers observed within this distance in one photo: one of them is
   // clicked on the other's target, pixels.
   double duplicate_px = 3.0;
@@ -89,7 +93,8 @@ struct ObservationResidual {
   double to_rays_px = 0;       // pixels: to the marker triangulated from its kept rays
   double to_survey_px = 0;     // pixels: to the surveyed position (height from the photos
                                // when the marker is horizontal control); NaN if not seen
-  bool dropped = false;        // screened out as a wrong click (see blunders)
+  double sigma_px = 0;         // pixels: what this photo was expected to achieve on it
+  bool dropped = false;        // disagrees with the marker's other rays (see blunders)
 };
 
 struct MarkerResidual {
@@ -98,8 +103,15 @@ struct MarkerResidual {
   bool height_known = true;    // false: horizontal control (height sigma large)
   bool triangulated = false;   // false: fewer than 2 usable rays or too small an angle
   double dE = 0, dN = 0, dZ = 0;  // metres: photo triangulation minus survey
-  double reprojection_px = 0;  // RMS reprojection of the triangulated marker, pixels
-  int images = 0;              // registered images observing it (kept observations)
+  double reprojection_px = 0;  // RMS reprojection over the agreeing rays, pixels
+  int images = 0;              // registered images whose observation agrees (kept)
+  int observed = 0;            // registered images observing it (all observations)
+  // The marker's own scatter about its point, metres (1 sigma per axis), and the same
+  // in pixels of a typical photo of it (dispersion / mean ground size of a pixel).
+  double dispersion_m = 0;
+  double dispersion_px = 0;
+  // Why its rays do not meet as one point, in words, when they do not (empty: fine).
+  std::string diagnosis;
   // Leave-one-out (control and rejected markers): photo triangulation minus the
   // survey, through the similarity fitted on the other control markers, metres.
   bool loo = false;
@@ -145,6 +157,9 @@ struct GeoreferenceSummary {
   double marker_sigma_px = 0;
   double seconds = 0;
   std::string message;
+  // Findings about the block as a whole from the marker rays (e.g. residuals that grow
+  // toward the photo edges: the lens model), each a sentence with what to do.
+  std::vector<std::string> diagnosis;
 };
 
 // Georeferences `rec` in place (cameras and points move to the site frame, intrinsics

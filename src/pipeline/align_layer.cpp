@@ -5,6 +5,7 @@
 #include "core/log.hpp"
 #include "core/progress.hpp"
 #include "core/resources.hpp"
+#include "georef/survey.hpp"
 #include "pipeline/alignment_store.hpp"
 #include "project/records.hpp"
 #include "sfm/quality.hpp"
@@ -58,12 +59,12 @@ std::string AlignOptions::fingerprint() const {
   // g[...]: the georeference's screening and rejection rules (2: blunder screening).
   // s[...]: the structure-from-motion options that change its result, the final
   // adjustments' tolerances included (a stored alignment from other ones is stale).
-  return fmt::format("f[{}] m[{}] t[{},{},{}] s[{},{},{},{},{},{}] g[2,{},{},{},{},{}]", features.fingerprint(),
+  return fmt::format("f[{}] m[{}] t[{},{},{}] s[{},{},{},{},{},{}] g[3,{},{},{},{},{},{},{}]", features.fingerprint(),
                      matching.fingerprint(), detect_targets, targets.dictionary, naming.rule,
                      sfm.min_triangulation_angle_deg, sfm.max_reprojection_px, sfm.final_max_reprojection_px,
                      sfm.final_refinement_passes, sfm.bundle.function_tolerance, sfm.bundle.parameter_tolerance,
-                     georef.outlier_threshold_m, georef.outlier_sigma_factor, georef.observation_outlier_px,
-                     georef.horizontal_only_sigma_m, georef.unknown_height_sigma_m);
+                     georef.outlier_threshold_m, georef.outlier_sigma_factor, georef.rays.agree_factor,
+                     georef.rays.max_relative_dispersion, georef.rays.min_gate_px, georef.horizontal_only_sigma_m, georef.unknown_height_sigma_m);
 }
 
 AlignResult align_layer(Project& project, const std::string& layer_name, const AlignOptions& options) {
@@ -213,21 +214,36 @@ AlignResult align_layer(Project& project, const std::string& layer_name, const A
   for (const auto& o : detected) {
     if (!manual.count({o.marker_id, o.image_id})) add_observation(o);
   }
-  // A survey whose every height is exactly 0.0 carries no heights (ODM gcp files from a
-  // plan survey write 0): the heights are unknown, not sea level. Such markers become
-  // horizontal control with a weak height prior (see GeoreferenceOptions).
-  const bool heights_unknown =
-      !markers.empty() && std::all_of(markers.begin(), markers.end(),
-                                      [](const MarkerRecord& m) { return m.position.z() == 0.0; });
+  // What the survey's coordinates alone say (georef/survey.hpp): heights that are all
+  // equal are unknown (ODM gcp files from a plan survey write 0.0), not level ground:
+  // such markers become horizontal control with a weak height prior. Coordinates rounded
+  // to a coarse step carry that rounding whatever sigma the file states: the sigma is
+  // raised to it. Both are a warning and a weight, not a failure.
+  std::vector<Eigen::Vector3d> surveyed;
+  for (const auto& m : markers) surveyed.push_back(m.position);
+  const SurveyAssessment survey = assess_survey(surveyed);
+  const bool heights_unknown = survey.heights_equal;
   if (heights_unknown && !observed_markers.empty()) {
-    log::warn("layer {}: every surveyed marker height is 0.0, taken as unknown: horizontal control "
+    log::warn("layer {}: every surveyed marker height is {:.3f} m, taken as unknown: horizontal control "
               "only (height sigma {} m); heights and volumes of this layer are not tied to the survey",
-              layer.name, options.georef.unknown_height_sigma_m);
+              layer.name, markers.front().position.z(), options.georef.unknown_height_sigma_m);
+  }
+  if (survey.plan_step_m >= 0.02 && !observed_markers.empty()) {
+    log::warn("layer {}: every surveyed E, N is a multiple of {} m: rounded coordinates, weighed with at "
+              "least {:.3f} m per axis (the rounding's own sigma, step / sqrt(12))",
+              layer.name, survey.plan_step_m, survey.plan_rounding_sigma_m());
+  }
+  if (survey.height_step_m >= 0.02 && !observed_markers.empty()) {
+    log::warn("layer {}: every surveyed height is a multiple of {} m: rounded heights, weighed with at "
+              "least {:.3f} m", layer.name, survey.height_step_m, survey.height_rounding_sigma_m());
   }
   std::vector<MarkerConstraint> constraints;
   for (std::int64_t id : observed_markers) {
     const MarkerRecord& m = *marker_by_id.at(id);
     Eigen::Vector3d sigma = m.sigma;
+    sigma.x() = std::max(sigma.x(), survey.plan_rounding_sigma_m());
+    sigma.y() = std::max(sigma.y(), survey.plan_rounding_sigma_m());
+    sigma.z() = std::max(sigma.z(), survey.height_rounding_sigma_m());
     if (heights_unknown) sigma.z() = std::max(sigma.z(), options.georef.unknown_height_sigma_m);
     constraints.push_back({m.name, m.position - site.origin, sigma, m.kind == "control"});
   }
@@ -279,13 +295,16 @@ AlignResult align_layer(Project& project, const std::string& layer_name, const A
     nlohmann::json row = {{"marker", r.name}, {"role", to_string(r.role)}, {"triangulated", r.triangulated},
                           {"height_known", r.height_known}, {"dE", r.dE}, {"dN", r.dN}, {"dZ", r.dZ},
                           {"reprojection_px", r.reprojection_px}, {"images", r.images},
+                          {"observed", r.observed}, {"dispersion_m", r.dispersion_m},
+                          {"dispersion_px", r.dispersion_px}, {"diagnosis", r.diagnosis},
                           {"distance_misfit_m", number_or_null(r.distance_misfit_m)}};
     row["leave_one_out"] = r.loo ? nlohmann::json{{"dE", r.loo_dE}, {"dN", r.loo_dN}, {"dZ", r.loo_dZ}}
                                  : nlohmann::json(nullptr);
     nlohmann::json obs = nlohmann::json::array();
     for (const auto& o : r.observations) {
       obs.push_back({{"image", o.image_name}, {"to_rays_px", number_or_null(o.to_rays_px)},
-                     {"to_survey_px", number_or_null(o.to_survey_px)}, {"dropped", o.dropped}});
+                     {"to_survey_px", number_or_null(o.to_survey_px)}, {"sigma_px", o.sigma_px},
+                     {"dropped", o.dropped}});
     }
     row["observations"] = obs;
     rows.push_back(row);
@@ -293,6 +312,10 @@ AlignResult align_layer(Project& project, const std::string& layer_name, const A
   }
   quality["markers"] = rows;
   if (!gs.message.empty()) quality["georeference_message"] = gs.message;
+  quality["georeference_diagnosis"] = gs.diagnosis;
+  quality["survey"] = {{"plan_step_m", survey.plan_step_m},
+                       {"height_step_m", survey.height_step_m},
+                       {"heights_equal", survey.heights_equal}};
   timings["total_s"] = total.seconds();
   quality["timings"] = timings;
   quality["peak_memory_mb"] = double(peak_memory_bytes()) / (1024.0 * 1024.0);

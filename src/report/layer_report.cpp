@@ -408,6 +408,26 @@ std::string residual_plot(const LayerData& d, const ReportOptions& o) {
   return s;
 }
 
+// Why a marker's rays do not meet as one point (its own dispersion, clicks that
+// disagree), and findings about the block as a whole, from the alignment's figures.
+std::string marker_diagnosis(const nlohmann::json& q) {
+  std::string items;
+  if (q.contains("markers")) {
+    for (const auto& m : q["markers"]) {
+      const std::string text = m.value("diagnosis", std::string());
+      if (text.empty()) continue;
+      items += fmt::format("<li><b>{}</b> ({} of {} photos agree, spread {}): {}</li>", escape(m.value("marker", std::string())),
+                           m.value("images", 0), m.value("observed", 0), format_mm(m.value("dispersion_m", 0.0)),
+                           escape(text));
+    }
+  }
+  if (q.contains("georeference_diagnosis")) {
+    for (const auto& d : q["georeference_diagnosis"]) items += fmt::format("<li>{}</li>", escape(d.get<std::string>()));
+  }
+  if (items.empty()) return "";
+  return "<p>Where the marker rays do not meet as one point:</p><ul class=\"notes\">" + items + "</ul>\n";
+}
+
 std::string markers_section(const LayerData& d, const ReportOptions& o) {
   std::string s = "<section><h2>Marker residuals</h2>\n";
   if (!d.alignment) return s + missing("No marker residuals yet: the layer has not been aligned.") + "</section>\n";
@@ -445,6 +465,7 @@ std::string markers_section(const LayerData& d, const ReportOptions& o) {
     }
   }
   s += "</table>\n";
+  s += marker_diagnosis(q);
   s += residual_plot(d, o);
   s += "<p class=\"caption\">Residuals are photogrammetric minus surveyed positions. Control markers drive the "
        "georeference; check markers measure it independently.</p>\n";
