@@ -69,6 +69,8 @@ namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kInf = std::numeric_limits<double>::infinity();
+// metres: the smallest dome or bowl of the height residuals named as a bent block.
+constexpr double kMinBendingM = 0.01;
 
 // One observation of a marker in a registered image.
 struct Ray {
@@ -252,6 +254,49 @@ std::optional<std::string> diagnose_lens(const RaysByMarker& rays, const Reconst
                      "the lens model may be too simple for this camera (try process --camera-model brown, or a "
                      "known calibration: strata camera set)",
                      std::sqrt(ratio), n_outer, n_inner);
+}
+
+// A block bent by an unmodelled lens or weak geometry shows as a dome or bowl: the
+// markers' height residuals grow with the square of their plan distance from the
+// block's centre. Fitted as dZ = a + b r^2 over the markers with a known height; named
+// when it explains at least half their scatter and reaches `limit_m` at the farthest
+// marker (the control markers are pulled onto the survey by the adjustment, so the
+// pattern shows mostly on the others: a strict fit would never fire).
+std::optional<std::string> diagnose_bending(const std::vector<MarkerResidual>& rows,
+                                            const std::map<std::string, const MarkerConstraint*>& by_name,
+                                            double limit_m) {
+  std::vector<Eigen::Vector2d> plan;
+  std::vector<double> dz;
+  for (const auto& r : rows) {
+    if (!r.triangulated || !r.height_known) continue;
+    plan.push_back(by_name.at(r.name)->position.head<2>());
+    dz.push_back(r.dZ);
+  }
+  if (plan.size() < 5) return std::nullopt;
+  Eigen::Vector2d centre = Eigen::Vector2d::Zero();
+  for (const auto& p : plan) centre += p;
+  centre /= double(plan.size());
+  Eigen::MatrixXd A(plan.size(), 2);
+  Eigen::VectorXd b(plan.size());
+  double r2_max = 0;
+  for (std::size_t i = 0; i < plan.size(); ++i) {
+    const double r2 = (plan[i] - centre).squaredNorm();
+    A(Eigen::Index(i), 0) = 1;
+    A(Eigen::Index(i), 1) = r2;
+    b(Eigen::Index(i)) = dz[i];
+    r2_max = std::max(r2_max, r2);
+  }
+  const Eigen::Vector2d x = A.colPivHouseholderQr().solve(b);
+  const double mean = b.mean();
+  const double total = (b.array() - mean).square().sum();
+  const double left = (A * x - b).squaredNorm();
+  const double edge = std::abs(x(1)) * r2_max;  // metres, at the farthest marker
+  if (!(total > 0) || left > 0.5 * total || edge < limit_m) return std::nullopt;
+  return fmt::format("the markers' height residuals follow a {} ({:.0f} mm at {:.1f} m from the centre, {:.0f} % of "
+                     "their scatter): the reconstruction is bent, typically by lens distortion the model misses or "
+                     "photos taken too nearly parallel; add oblique photos from around the site, or use a known "
+                     "calibration (strata camera set)",
+                     x(1) > 0 ? "bowl" : "dome", 1000 * edge, std::sqrt(r2_max), 100 * (1 - left / total));
 }
 
 }  // namespace
@@ -753,6 +798,19 @@ GeoreferenceSummary georeference(const GeoreferenceOptions& options,
   }
   for (const auto& row : rows) {
     if (!row.diagnosis.empty()) log::warn("georeference: marker {}: {}", row.name, row.diagnosis);
+  }
+  {
+    // "Reaches the limit": three times the markers' median photo precision (the block's
+    // own, not the survey's), and at least a centimetre so survey noise is not taken
+    // for a dome.
+    std::vector<double> precision;
+    for (const auto& c : usable) {
+      precision.push_back(std::hypot(ray_options.click_sigma_px * c.footprint, c.dispersion) * summary.similarity.scale);
+    }
+    if (auto bent = diagnose_bending(rows, by_name, std::max(kMinBendingM, 3 * median(precision)))) {
+      summary.diagnosis.push_back(*bent);
+      log::warn("georeference: {}", *bent);
+    }
   }
   if (auto lens = diagnose_lens(rays, rec)) {
     summary.diagnosis.push_back(*lens);

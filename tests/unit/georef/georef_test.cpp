@@ -470,9 +470,9 @@ TEST(Georeference, MarkersClickedAsObjectsFromEverySideStillGeoreference) {
   for (const auto& b : s.blunders) named += gross_clicks.count({b.marker, b.image});
   n = int(observations.size());
   std::printf("[ figures  ] object markers: %d of %d clicks gross, %d named, %zu left out in all; "
-              "control %.1f mm, check %.1f mm (3D), loo %.1f mm\n",
+              "control %.1f mm, check %.1f mm (3D), loo %.1f mm, camera centres max %.1f mm\n",
               gross, n, named, s.blunders.size(), s.control.xyz * 1e3, s.check.xyz * 1e3,
-              s.leave_one_out.xyz * 1e3);
+              s.leave_one_out.xyz * 1e3, max_centre_error(rec, sc) * 1e3);
   for (const auto& r : s.residuals) {
     std::printf("[ figures  ]   %s: %d of %d rays agree, dispersion %.1f mm (%.1f px), error %.1f mm; %s\n",
                 r.name.c_str(), r.images, r.observed, r.dispersion_m * 1e3, r.dispersion_px,
@@ -489,6 +489,34 @@ TEST(Georeference, MarkersClickedAsObjectsFromEverySideStillGeoreference) {
   // scatter 2 cm per axis is good to about 1 cm per axis.
   EXPECT_LT(s.check.xyz, 3 * kSpreadM);
   EXPECT_LT(max_centre_error(rec, sc), 3 * kSpreadM);
+}
+
+// A dome in the residuals is named as a bent block, with its size. The dome is put in
+// the survey here (photos flat, survey heights a bowl of 6 cm at the edge, sigma 5 cm so
+// that the photos decide): the residual pattern is what the diagnosis reads.
+TEST(Georeference, ADomeInTheHeightResidualsIsNamedAsBending) {
+  Reconstruction rec = arbitrary_frame(scene());
+  auto markers = only(scene(), {"C1", "C2", "C3", "C4", "K1", "K2"});
+  Eigen::Vector2d centre = Eigen::Vector2d::Zero();
+  for (const auto& m : markers) centre += m.position.head<2>();
+  centre /= double(markers.size());
+  double r2_max = 0;
+  for (const auto& m : markers) r2_max = std::max(r2_max, (m.position.head<2>() - centre).squaredNorm());
+  for (auto& m : markers) {
+    m.position.z() += 0.06 * (m.position.head<2>() - centre).squaredNorm() / r2_max;
+    m.sigma = Eigen::Vector3d(0.002, 0.002, 0.05);
+  }
+  const auto s = georeference({}, markers, scene().marker_observations, scene().keypoints, rec);
+  ASSERT_TRUE(s.georeferenced);
+  std::string said;
+  for (const auto& d : s.diagnosis) said += d + " ";
+  std::printf("[ figures  ] dome: %s\n", said.c_str());
+  EXPECT_NE(said.find("dome"), std::string::npos) << "survey a bowl, photos flat: the residuals are a dome";
+  // And a flat survey says nothing of the kind.
+  Reconstruction flat = arbitrary_frame(scene());
+  const auto t = georeference({}, only(scene(), {"C1", "C2", "C3", "C4", "K1", "K2"}), scene().marker_observations,
+                              scene().keypoints, flat);
+  EXPECT_TRUE(t.diagnosis.empty());
 }
 
 }  // namespace
