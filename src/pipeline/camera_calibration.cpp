@@ -1,6 +1,7 @@
 #include "pipeline/camera_calibration.hpp"
 
 #include "core/error.hpp"
+#include "core/log.hpp"
 #include "pipeline/alignment_store.hpp"
 
 #include <fmt/format.h>
@@ -173,6 +174,9 @@ bool apply_known_calibration(Database& db, std::int64_t camera_id, CameraGroup& 
   group.calibration_known = true;
   group.calibration_fixed = c->fixed;
   group.calibration_source = "calibration: " + c->source;
+  log::info("camera {}: known calibration ({}), {}: {} f {:.2f},{:.2f} px", camera_id, c->source,
+            c->fixed ? "held fixed" : "refined from it", to_string(c->intrinsics.model), c->intrinsics.fx,
+            c->intrinsics.fy);
   return true;
 }
 
