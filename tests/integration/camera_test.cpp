@@ -1,5 +1,5 @@
-// Known calibrations through the real `strata` executable: `camera set --fixed` is
-// honoured bit for bit by the alignment, a free calibration is refined, another
+// Known calibrations through the real `strata` executable: `camera set --fixed` and an
+// imported calibration with --fixed are honoured bit for bit by the alignment, a free calibration is refined, another
 // layer's solved intrinsics can be reused, and refused values leave project.gpkg
 // byte for byte unchanged.
 #include "core/hash.hpp"
@@ -159,6 +159,25 @@ TEST(CameraCalibration, FixedIsHonouredFreeIsRefinedBadValuesChangeNothing) {
   ok(r);
   EXPECT_NE(r.out.find("calibration removed"), std::string::npos) << r.out;
   EXPECT_TRUE(camera_list(site)[0]["calibration"].is_null());
+
+  // ---- an imported Metashape calibration, fixed, is honoured too (its principal point
+  // is an offset from the image centre in corner-origin pixels)
+  const fs::path xml = dir / "lens.xml";
+  test::write_text(xml, fmt::format("<?xml version=\"1.0\"?>\n<calibration>\n<projection>frame</projection>\n"
+                                    "<width>640</width>\n<height>428</height>\n<f>{}</f>\n<cx>{}</cx>\n<cy>{}</cy>\n"
+                                    "<k1>{}</k1>\n<k2>{}</k2>\n</calibration>\n",
+                                    g17(truth.fx), g17(truth.cx + 0.5 - 320), g17(truth.cy + 0.5 - 214),
+                                    g17(truth.k1), g17(truth.k2)));
+  ok(run_strata({"-q", "import", "calibration", site, xml.string(), "--camera", "L1_0001.jpg", "--fixed"}));
+  const auto imported = camera_list(site)[0]["calibration"];
+  EXPECT_EQ(imported["source"], "file lens.xml (metashape)");
+  EXPECT_NEAR(imported["cx"].get<double>(), truth.cx, 1e-9);
+  r = run_strata({"-q", "process", site, "--layer", "L1", "--until", "sparse"});
+  ok(r);
+  solved = camera_list(site)[0]["solved"]["L1"];
+  for (const char* field : {"fx", "fy", "cx", "cy", "k1", "k2"}) {
+    EXPECT_EQ(solved[field].get<double>(), imported[field].get<double>()) << field;  // exactly
+  }
 }
 
 }  // namespace
