@@ -145,7 +145,7 @@ void register_set(CLI::App* camera) {
   auto* focal_opt = cmd->add_option("--focal-px", *focal, "focal length in pixels (fx, and fy unless --fy)");
   auto* fy_opt = cmd->add_option("--fy", *fy, "vertical focal length in pixels (default: --focal-px)");
   cmd->add_option("--pp", *pp, "principal point X,Y in pixels (default: the image centre)");
-  cmd->add_option("--model", *model, "radial (k1,k2), brown (k1-k3, p1,p2) or fisheye (k1-k4)");
+  auto* model_opt = cmd->add_option("--model", *model, "radial (k1,k2), brown (k1-k3, p1,p2) or fisheye (k1-k4)");
   cmd->add_option("--k", *k, "radial coefficients K1,K2[,K3[,K4]] (radial: 2; brown: 2-3; fisheye: 2-4)");
   cmd->add_option("--p", *tangential, "tangential coefficients P1,P2 (brown; OpenCV's order)");
   cmd->add_option("--from-layer", options->from_layer, "reuse the intrinsics solved by this layer's alignment");
@@ -162,6 +162,9 @@ void register_set(CLI::App* camera) {
     if (!pp->empty()) {
       const auto v = parse_numbers(*pp, 2, "--pp");
       o.principal_point = Eigen::Vector2d(v[0], v[1]);
+    }
+    if (*model_opt && !o.from_layer.empty()) {
+      throw InputError("--model: --from-layer takes the layer's solved model too; give one of them");
     }
     const auto m = camera_model_from_string(*model);
     if (!m) throw InputError(fmt::format("--model: '{}' is not one of radial, brown, fisheye", *model));

@@ -95,6 +95,8 @@ TEST(CameraCalibration, FixedIsHonouredFreeIsRefinedBadValuesChangeNothing) {
       {{"camera", "set", site, id, "--focal-px", "800", "--p", "0.1,0.2"}, "--p: the radial model has no tangential"},
       {{"camera", "set", site, id, "--focal-px", "800", "--model", "pinhole"}, "--model: 'pinhole'"},
       {{"camera", "set", site, id, "--from-layer", "L1"}, "--from-layer: layer L1 has no alignment yet"},
+      {{"camera", "set", site, id, "--from-layer", "L1", "--model", "brown"}, "--model: --from-layer takes"},
+      {{"camera", "set", site, id, "--from-layer", "L1", "--focal-px", "800"}, "--from-layer: takes the layer's"},
       {{"camera", "set", site, "nosuch.png", "--focal-px", "800"}, "camera 'nosuch.png': no camera"},
       {{"import", "calibration", site, (dir / "bad.yml").string(), "--camera", id},
        "importer.calibration.opencv: " + (dir / "bad.yml").string() + ": <camera_matrix> is missing"},
