@@ -10,6 +10,8 @@ namespace strata::cli {
 void register_project_commands(CLI::App& app);   // init, info
 void register_stratigraphy_commands(CLI::App& app);  // unit, relation, matrix, layer
 void register_import_commands(CLI::App& app);    // import photos|markers, markers
+// camera list|set|clear, import calibration (after register_import_commands)
+void register_camera_commands(CLI::App& app);
 void register_synth_command(CLI::App& app);      // synth
 void register_process_commands(CLI::App& app);   // process, (later) volume, check
 void register_export_commands(CLI::App& app);    // export ...

@@ -37,6 +37,7 @@ int main(int argc, char** argv) {
   strata::cli::register_project_commands(app);
   strata::cli::register_stratigraphy_commands(app);
   strata::cli::register_import_commands(app);
+  strata::cli::register_camera_commands(app);
   strata::cli::register_synth_command(app);
   strata::cli::register_process_commands(app);
   strata::cli::register_export_commands(app);

@@ -7,6 +7,7 @@
 #include "core/resources.hpp"
 #include "georef/survey.hpp"
 #include "pipeline/alignment_store.hpp"
+#include "pipeline/camera_calibration.hpp"
 #include "project/records.hpp"
 #include "sfm/quality.hpp"
 
@@ -91,6 +92,7 @@ AlignResult align_layer(Project& project, const std::string& layer_name, const A
   for (const auto& o : list_observations(db, layer.id)) {
     if (o.source == "manual") key.update(fmt::format("{} {} {:.3f} {:.3f}", o.marker_id, o.image_id, o.pixel.x(), o.pixel.y()));
   }
+  key.update(known_calibrations_key(db, records));
   const std::string inputs_key = key.hex_digest();
   if (!options.force) {
     if (auto stored = load_alignment(db, layer); stored && stored->inputs_key == inputs_key) {
@@ -125,13 +127,15 @@ AlignResult align_layer(Project& project, const std::string& layer_name, const A
       k.fx = k.fy = g.focal_from_exif ? *cam->focal_px : kDefaultFocalFactor * std::max(r.width, r.height);
       k.cx = (r.width - 1) / 2.0;
       k.cy = (r.height - 1) / 2.0;
+      if (r.camera_id) apply_known_calibration(db, *r.camera_id, g);
       groups.push_back(g);
       camera_ids.push_back(cam_id);
     }
     inputs.push_back({r.name, it->second});
     feature_images.push_back({r.name, project.dir() / r.media_path, r.sha256});
-    priors.push_back(groups[it->second].focal_from_exif ? std::optional<Intrinsics>(groups[it->second].intrinsics)
-                                                        : std::nullopt);
+    const CameraGroup& group = groups[it->second];
+    priors.push_back(group.focal_from_exif || group.calibration_known ? std::optional<Intrinsics>(group.intrinsics)
+                                                                      : std::nullopt);
     times.push_back(to_epoch_seconds(r.captured_at));
   }
 

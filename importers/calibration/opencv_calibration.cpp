@@ -1,0 +1,183 @@
+// importer.calibration.opencv: the YAML or XML file that OpenCV's calibration
+// (cv::calibrateCamera, cv::fisheye::calibrate, and the camera_calibration sample)
+// writes through cv::FileStorage:
+//   camera_matrix            3x3 [fx 0 cx; 0 fy cy; 0 0 1], pixels, (0,0) = centre of the
+//                            top-left pixel (the same convention as strata's)
+//   distortion_coefficients  (k1, k2, p1, p2[, k3[, k4, k5, k6[, s1..s4[, tx, ty]]]]), or
+//                            for the fisheye model (k1, k2, k3, k4)
+//   image_width, image_height
+//   fisheye_model: 1, or camera_model / distortion_model: "fisheye" ("equidistant")
+#include "importers/calibration/calibration_formats.hpp"
+
+#include "core/error.hpp"
+
+#include <fmt/format.h>
+#include <opencv2/core.hpp>
+
+#include <algorithm>
+#include <cctype>
+
+namespace fs = std::filesystem;
+
+namespace strata::calibration_formats {
+namespace {
+
+std::string where(const fs::path& file) { return fmt::format("{}: {}", kOpenCvStage, file.string()); }
+
+std::string lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  return s;
+}
+
+cv::Mat read_matrix(const cv::FileStorage& storage, const char* key, const fs::path& file, bool required) {
+  const cv::FileNode node = storage[key];
+  if (node.empty() || node.isNone()) {
+    if (required) throw InputError(fmt::format("{}: <{}> is missing", where(file), key));
+    return {};
+  }
+  cv::Mat m;
+  try {
+    node >> m;
+  } catch (const cv::Exception& e) {
+    throw InputError(fmt::format("{}: <{}> is not a matrix ({})", where(file), key, e.err));
+  }
+  if (m.empty() || m.channels() != 1) {
+    throw InputError(fmt::format("{}: <{}> is not a matrix of numbers", where(file), key));
+  }
+  m.convertTo(m, CV_64F);
+  return m;
+}
+
+int read_size(const cv::FileStorage& storage, const char* key, const fs::path& file) {
+  const cv::FileNode node = storage[key];
+  if (node.empty() || node.isNone()) throw InputError(fmt::format("{}: <{}> is missing", where(file), key));
+  if (!node.isInt() || int(node) <= 0) {
+    throw InputError(fmt::format("{}: <{}> must be a positive whole number of pixels", where(file), key));
+  }
+  return int(node);
+}
+
+// fisheye_model: 1 (the OpenCV sample), or a model name under one of the usual keys.
+bool says_fisheye(const cv::FileStorage& storage) {
+  const cv::FileNode flag = storage["fisheye_model"];
+  if (flag.isInt() || flag.isReal()) return double(flag) != 0.0;
+  for (const char* key : {"camera_model", "distortion_model", "model"}) {
+    const cv::FileNode n = storage[key];
+    if (n.isString()) {
+      const std::string name = lower(std::string(n));
+      if (name == "fisheye" || name == "equidistant" || name == "kannala_brandt") return true;
+    }
+  }
+  return false;
+}
+
+void read_camera_matrix(const cv::Mat& K, const fs::path& file, Intrinsics& k) {
+  if (K.rows != 3 || K.cols != 3) {
+    throw InputError(fmt::format("{}: <camera_matrix> is {}x{}; expected 3x3", where(file), K.rows, K.cols));
+  }
+  if (K.at<double>(0, 1) != 0.0) {
+    throw InputError(fmt::format("{}: <camera_matrix> has skew {} (row 1, column 2); strata's camera model "
+                                 "has none: recalibrate with zero skew",
+                                 where(file), K.at<double>(0, 1)));
+  }
+  if (K.at<double>(1, 0) != 0.0 || K.at<double>(2, 0) != 0.0 || K.at<double>(2, 1) != 0.0 ||
+      K.at<double>(2, 2) != 1.0) {
+    throw InputError(fmt::format("{}: <camera_matrix> is not of the form [fx 0 cx; 0 fy cy; 0 0 1]",
+                                 where(file)));
+  }
+  k.fx = K.at<double>(0, 0);
+  k.fy = K.at<double>(1, 1);
+  k.cx = K.at<double>(0, 2);
+  k.cy = K.at<double>(1, 2);
+}
+
+void read_distortion(const cv::Mat& D, bool fisheye, const fs::path& file, CalibrationFile& out) {
+  Intrinsics& k = out.intrinsics;
+  if (D.empty()) {
+    k.model = fisheye ? CameraModel::fisheye : CameraModel::radial;
+    out.notes.push_back("no <distortion_coefficients>: a lens without distortion");
+    return;
+  }
+  if (D.rows != 1 && D.cols != 1) {
+    throw InputError(fmt::format("{}: <distortion_coefficients> is {}x{}; expected one row or column",
+                                 where(file), D.rows, D.cols));
+  }
+  const std::vector<double> d(D.begin<double>(), D.end<double>());
+  if (fisheye) {
+    if (d.size() != 4) {
+      throw InputError(fmt::format("{}: <distortion_coefficients> has {} values; the fisheye model has 4 "
+                                   "(k1, k2, k3, k4)",
+                                   where(file), d.size()));
+    }
+    k.model = CameraModel::fisheye;
+    k.k1 = d[0];
+    k.k2 = d[1];
+    k.k3 = d[2];
+    k.k4 = d[3];
+    return;
+  }
+  // OpenCV's order: k1 k2 p1 p2 [k3 [k4 k5 k6 [s1 s2 s3 s4 [tx ty]]]].
+  if (d.size() != 4 && d.size() != 5 && d.size() != 8 && d.size() != 12 && d.size() != 14) {
+    throw InputError(fmt::format("{}: <distortion_coefficients> has {} values; OpenCV writes 4, 5, 8, 12 or "
+                                 "14 (or 4 with fisheye_model: 1)",
+                                 where(file), d.size()));
+  }
+  static const char* const kExtra[] = {"k4", "k5", "k6", "s1", "s2", "s3", "s4", "tx", "ty"};
+  for (std::size_t i = 5; i < d.size(); ++i) {
+    if (d[i] != 0.0) {
+      throw InputError(fmt::format("{}: <distortion_coefficients> {} = {} (OpenCV's rational, thin-prism or "
+                                   "tilt terms) is not in strata's camera models; recalibrate with k1-k3, p1, "
+                                   "p2 only",
+                                   where(file), kExtra[i - 5], d[i]));
+    }
+  }
+  k.k1 = d[0];
+  k.k2 = d[1];
+  k.p1 = d[2];
+  k.p2 = d[3];
+  k.k3 = d.size() >= 5 ? d[4] : 0.0;
+  k.model = frame_model_for(k);
+}
+
+// OpenCV 4.6's parser puts "<file>(<line>): <what>" in the exception's `func` (and
+// only the parser function's name in `err`): made into "stage: file:line: what".
+std::string parse_error_message(const fs::path& file, const cv::Exception& e) {
+  if (e.code == cv::Error::StsParseError) {
+    const std::string& f = e.func;
+    const auto open = f.rfind('(', f.find("): "));
+    const auto close = f.find("): ");
+    if (open != std::string::npos && close != std::string::npos && close > open + 1) {
+      return fmt::format("{}:{}: {}", where(file), f.substr(open + 1, close - open - 1), f.substr(close + 3));
+    }
+    return fmt::format("{}: not a valid OpenCV YAML or XML file: {}", where(file), f);
+  }
+  return fmt::format("{}: not a valid OpenCV YAML or XML file ({}; OpenCV's YAML starts with '%YAML:1.0')",
+                     where(file), e.err);
+}
+
+}  // namespace
+
+CalibrationFile read_opencv(const fs::path& file) {
+  cv::FileStorage storage;
+  try {
+    if (!storage.open(file.string(), cv::FileStorage::READ)) {
+      throw InputError(fmt::format("{}: cannot be opened as an OpenCV YAML or XML file", where(file)));
+    }
+  } catch (const cv::Exception& e) {
+    throw InputError(parse_error_message(file, e));
+  }
+  CalibrationFile out;
+  out.format = "opencv";
+  Intrinsics& k = out.intrinsics;
+  k.width = read_size(storage, "image_width", file);
+  k.height = read_size(storage, "image_height", file);
+  read_camera_matrix(read_matrix(storage, "camera_matrix", file, true), file, k);
+  read_distortion(read_matrix(storage, "distortion_coefficients", file, false), says_fisheye(storage), file, out);
+  return out;
+}
+
+CameraModel frame_model_for(const Intrinsics& k) {
+  return (k.k3 == 0.0 && k.p1 == 0.0 && k.p2 == 0.0) ? CameraModel::radial : CameraModel::brown;
+}
+
+}  // namespace strata::calibration_formats
