@@ -65,6 +65,11 @@ void print_quality(const nlohmann::json& q, bool skipped) {
   if (q.contains("georeference_diagnosis")) {
     for (const auto& d : q["georeference_diagnosis"]) fmt::print("  note: {}\n", d.get<std::string>());
   }
+  if (q.contains("calibration_check")) {
+    for (const auto& c : q["calibration_check"]) {
+      if (!c.value("finding", std::string()).empty()) fmt::print("  note: camera {}: {}\n", c.value("group", 0), c["finding"].get<std::string>());
+    }
+  }
 }
 
 void print_dense(const nlohmann::json& q, bool skipped) {

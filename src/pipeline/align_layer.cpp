@@ -317,6 +317,15 @@ AlignResult align_layer(Project& project, const std::string& layer_name, const A
   quality["markers"] = rows;
   if (!gs.message.empty()) quality["georeference_message"] = gs.message;
   quality["georeference_diagnosis"] = gs.diagnosis;
+  // Self-calibration against what was known of each camera (EXIF, a known calibration).
+  nlohmann::json checks = nlohmann::json::array();
+  for (const auto& c : check_self_calibration(groups, rec.groups)) {
+    checks.push_back({{"group", c.group}, {"source", c.source}, {"focal_px", c.focal_px},
+                      {"prior_focal_px", c.prior_focal_px}, {"focal_change", c.focal_change},
+                      {"corner_shift_px", c.corner_shift_px}, {"finding", c.finding}});
+    if (!c.finding.empty()) log::warn("layer {}: camera {}: {}", layer.name, c.group, c.finding);
+  }
+  quality["calibration_check"] = checks;
   quality["survey"] = {{"plan_step_m", survey.plan_step_m},
                        {"height_step_m", survey.height_step_m},
                        {"heights_equal", survey.heights_equal}};

@@ -200,4 +200,53 @@ std::string known_calibrations_key(Database& db, const std::vector<ImageRecord>&
   return key.empty() ? key : "calibrations[" + key + "]";
 }
 
+namespace {
+
+// Where the image corner lands under `k` relative to the pinhole, pixels.
+Eigen::Vector2d corner_offset_px(const Intrinsics& k) {
+  const Eigen::Vector2d corner(k.width - 1.0, k.height - 1.0);
+  const Eigen::Vector2d xn((corner.x() - k.cx) / k.fx, (corner.y() - k.cy) / k.fy);
+  const Eigen::Vector2d d = k.distort(xn) - xn;
+  return {d.x() * k.fx, d.y() * k.fy};
+}
+
+}  // namespace
+
+std::vector<CalibrationCheck> check_self_calibration(const std::vector<CameraGroup>& before,
+                                                     const std::vector<CameraGroup>& after,
+                                                     const CalibrationCheckOptions& options) {
+  std::vector<CalibrationCheck> out;
+  for (std::size_t g = 0; g < before.size() && g < after.size(); ++g) {
+    const auto& b = before[g];
+    const auto& a = after[g];
+    CalibrationCheck c;
+    c.group = int(g);
+    c.focal_px = a.intrinsics.fx;
+    if (!b.focal_from_exif && !b.calibration_known) {
+      c.source = "none (focal by self-calibration from a default)";
+      out.push_back(c);
+      continue;
+    }
+    c.source = b.calibration_known ? b.calibration_source : "exif";
+    c.prior_focal_px = b.intrinsics.fx;
+    c.focal_change = (a.intrinsics.fx - b.intrinsics.fx) / b.intrinsics.fx;
+    if (b.calibration_known) c.corner_shift_px = (corner_offset_px(a.intrinsics) - corner_offset_px(b.intrinsics)).norm();
+    std::vector<std::string> found;
+    if (std::abs(c.focal_change) > options.focal_tolerance) {
+      found.push_back(fmt::format(
+          "the solved focal length {:.0f} px is {:+.1f} % from the {} prior {:.0f} px: {}", a.intrinsics.fx,
+          100 * c.focal_change, c.source, b.intrinsics.fx,
+          b.calibration_known ? "the lens is not the one calibrated (zoom, focus), or the block is bent"
+                              : "a wrong sensor width in the list, a digital zoom or crop, or a bent block"));
+    }
+    if (c.corner_shift_px > options.corner_tolerance_px) {
+      found.push_back(fmt::format("its distortion moves the image corner {:.1f} px from the known calibration's",
+                                  c.corner_shift_px));
+    }
+    for (std::size_t i = 0; i < found.size(); ++i) c.finding += (i ? "; " : "") + found[i];
+    out.push_back(c);
+  }
+  return out;
+}
+
 }  // namespace strata

@@ -59,4 +59,30 @@ bool apply_known_calibration(Database& db, std::int64_t camera_id, CameraGroup& 
 // alignment's inputs key: setting, changing or clearing one reruns the alignment.
 std::string known_calibrations_key(Database& db, const std::vector<ImageRecord>& images);
 
+// Self-calibration that can be trusted: the solved intrinsics of each camera group
+// against what was known before (the EXIF focal with the sensor width, a calibration
+// set or imported, another layer's). A focal length more than `focal_tolerance` away
+// from the EXIF prior, or a distortion that moves the image corner more than
+// `corner_tolerance_px` from a known calibration's, is a finding: a wrong sensor width,
+// a zoom changed between photos, or a block the adjustment bent into the lens.
+struct CalibrationCheckOptions {
+  double focal_tolerance = 0.05;      // unitless, |f - f_prior| / f_prior
+  double corner_tolerance_px = 10.0;  // pixels, at the image corner
+};
+
+struct CalibrationCheck {
+  int group = 0;
+  std::string source;             // what the prior was: "exif", "calibration: ..."
+  double focal_px = 0;            // solved
+  double prior_focal_px = 0;      // 0: no prior
+  double focal_change = 0;        // unitless, (f - f_prior) / f_prior
+  double corner_shift_px = 0;     // pixels: solved minus prior distortion at the image corner
+  std::string finding;            // empty: consistent
+};
+
+// `before[g]` is the group as it entered the alignment, `after[g]` as solved.
+std::vector<CalibrationCheck> check_self_calibration(const std::vector<CameraGroup>& before,
+                                                     const std::vector<CameraGroup>& after,
+                                                     const CalibrationCheckOptions& options = {});
+
 }  // namespace strata
