@@ -10,6 +10,7 @@ namespace strata::cli {
 void register_project_commands(CLI::App& app);   // init, info
 void register_stratigraphy_commands(CLI::App& app);  // unit, relation, matrix, layer
 void register_import_commands(CLI::App& app);    // import photos|markers, markers
+CLI::App* register_markers_guide_command(CLI::App& markers);  // markers guide
 void register_synth_command(CLI::App& app);      // synth
 void register_process_commands(CLI::App& app);   // process, (later) volume, check
 void register_export_commands(CLI::App& app);    // export ...

@@ -130,8 +130,15 @@ std::optional<StoredAlignment> load_alignment(Database& db, const LayerRecord& l
   cams.bind(1, a.reconstruction_id);
   while (cams.step()) {
     CameraGroup g;
-    g.intrinsics = {int(cams.get_int(1)), int(cams.get_int(2)), cams.get_double(3), cams.get_double(4),
-                    cams.get_double(5),   cams.get_double(6),   cams.get_double(7), cams.get_double(8)};
+    Intrinsics& k = g.intrinsics;  // radial model: what schema 2 stores
+    k.width = int(cams.get_int(1));
+    k.height = int(cams.get_int(2));
+    k.fx = cams.get_double(3);
+    k.fy = cams.get_double(4);
+    k.cx = cams.get_double(5);
+    k.cy = cams.get_double(6);
+    k.k1 = cams.get_double(7);
+    k.k2 = cams.get_double(8);
     group_of_camera[cams.get_int(0)] = int(a.rec.groups.size());
     a.camera_ids.push_back(cams.get_int(0));
     a.rec.groups.push_back(g);
