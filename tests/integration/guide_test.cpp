@@ -101,7 +101,9 @@ TEST(Guide, FindsClickedQuadrantMarkersInThePhotosThatSeeThem) {
   ok(run_strata(import));
 
   // Clicks: per marker, the first and the last photo of the capture that see it (the
-  // widest baseline a person would pick), each with Gaussian noise.
+  // widest baseline a person would pick), each with Gaussian noise. A marker seen in
+  // two photos only is clicked in both (nothing left to guide, but it still counts in
+  // the check RMSE of both runs).
   std::string crs;
   const auto truth = read_gcp_list(data / "gcp_list.txt", "L1_", &crs);
   std::map<std::string, std::vector<const TruthObservation*>> by_marker;
@@ -112,16 +114,16 @@ TEST(Guide, FindsClickedQuadrantMarkersInThePhotosThatSeeThem) {
   std::string first_clicks = crs + "\n", second_clicks = crs + "\n";
   std::string held_back;  // the marker whose second click comes late (refusal step)
   for (const auto& [marker, seen] : by_marker) {
-    if (seen.size() < 3) continue;  // too few views to guide anything
+    if (seen.size() < 2) continue;  // a person cannot click it twice
     for (const TruthObservation* t : {seen.front(), seen.back()}) {
       const Eigen::Vector2d c(t->x + noise(rng), t->y + noise(rng));
       clicks[{marker, t->image}] = c;
-      const bool late = held_back.empty() ? (t == seen.back()) : false;
+      const bool late = held_back.empty() && seen.size() >= 3 && t == seen.back();
       (late ? second_clicks : first_clicks) += gcp_line(*t, c.x(), c.y());
     }
-    if (held_back.empty()) held_back = marker;
+    if (held_back.empty() && seen.size() >= 3) held_back = marker;
   }
-  ASSERT_GE(clicks.size(), 2u * 4u) << "the scene should show at least 4 markers in 3+ photos";
+  ASSERT_GE(clicks.size(), 2u * 4u) << "the scene should show at least 4 markers in 2+ photos";
   test::write_text(dir / "clicks1.txt", first_clicks);
   test::write_text(dir / "clicks2.txt", second_clicks);
   ok(run_strata({"-q", "import", "markers", site, (dir / "clicks1.txt").string(), "--format", "odm"}));
@@ -174,7 +176,7 @@ TEST(Guide, FindsClickedQuadrantMarkersInThePhotosThatSeeThem) {
   int should = 0, found = 0, wrong = 0;
   std::vector<double> errors;
   for (const auto& t : truth) {
-    if (!clicks.count({t.marker, t.image}) && by_marker[t.marker].size() >= 3) {
+    if (!clicks.count({t.marker, t.image})) {
       ++should;
       const auto it = guided.find({t.marker, t.image});
       if (it != guided.end()) {
