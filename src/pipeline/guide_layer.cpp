@@ -94,8 +94,8 @@ GuideLayerResult guide_layer(Project& project, const std::string& layer_name, co
   }
   if (clicks.markers.empty()) {
     throw InputError(fmt::format(
-        "layer {}: no marker is clicked in its registered photos; import clicks (a gcp_list or CSV of image "
-        "observations, 'strata import markers') in 2-3 photos per marker first", layer.name));
+        "layer {}: no marker is clicked in its registered photos; import clicks (an OpenDroneMap gcp_list, "
+        "'strata import markers FILE --format odm') in 2-3 photos per marker first", layer.name));
   }
   input.markers = std::move(clicks.markers);
   result.summary = guide_markers(options, input);
