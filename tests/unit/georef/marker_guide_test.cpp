@@ -80,6 +80,11 @@ TEST(MarkerGuide, FindsARenderedQuadrantTargetToATenthOfAPixel) {
     input.photos.push_back({path.filename().string(), path, cam});
   }
   const Eigen::Vector3d X(0, 0, 0);
+  // Sparse points on the ground around it (1 mm of noise): they give the plane.
+  for (int i = 0; i < 40; ++i) {
+    const double a = 0.5 * i, rad = 0.1 + 0.005 * i;
+    input.sparse_points.push_back({rad * std::cos(a), rad * std::sin(a), 0.001 * std::sin(7.0 * i)});
+  }
   // Clicks 2-3 px off in two views; a third click 8 px off (a careless click).
   GuideMarker m;
   m.name = "Q1";
@@ -94,6 +99,8 @@ TEST(MarkerGuide, FindsARenderedQuadrantTargetToATenthOfAPixel) {
   ASSERT_EQ(s.markers.size(), 1u);
   const MarkerGuideResult& r = s.markers[0];
   ASSERT_TRUE(r.triangulated) << r.message;
+  EXPECT_EQ(r.plane_points, 40);
+  EXPECT_GT(r.normal.z(), std::cos(1.0 * 3.14159265358979 / 180));  // within a degree of up, turned up
   EXPECT_EQ(r.predicted, 3);
   ASSERT_EQ(r.added.size(), 3u);
   for (const auto& g : r.added) {
