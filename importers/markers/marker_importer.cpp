@@ -312,7 +312,7 @@ MarkerImportSummary import_markers(Project& project, const MarkerImportOptions& 
     o.marker_id = marker_ids.at(observations[i].marker);
     o.image_id = image_ids[i];
     o.pixel = observations[i].pixel;
-    o.source = "manual";
+    o.source = "clicked";
     (upsert_observation(db, o) ? summary.observations_new : summary.observations_updated)++;
   }
   update_contents_extent(db, "markers", "e", "n");

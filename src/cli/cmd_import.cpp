@@ -88,30 +88,44 @@ void register_import_commands(CLI::App& app) {
     });
   }
   {
-    auto* cmd = app.add_subcommand("markers", "list markers with their survey and image observations");
+    auto* cmd = app.add_subcommand(
+        "markers",
+        "list markers with their survey and image observations (clicked, guided, detected);\n"
+        "'strata markers guide DIR --layer L' finds hand-clicked markers in every photo");
     auto dir = std::make_shared<std::string>();
     auto json = std::make_shared<bool>(false);
-    cmd->add_option("DIR", *dir, "project folder")->required();
+    cmd->add_option("DIR", *dir, "project folder");
     cmd->add_flag("--json", *json, "machine-readable output");
+    cmd->require_subcommand(0, 1);
+    CLI::App* guide = register_markers_guide_command(*cmd);
     cmd->callback([=] {
+      if (guide->parsed()) return;
+      if (dir->empty()) throw InputError("markers: the project folder DIR is required (strata markers DIR)");
       Project p = Project::open(*dir);
-      std::map<std::int64_t, int> seen;
-      for (const auto& o : list_observations(p.db())) seen[o.marker_id]++;
+      // Observations per marker and source (a marker may have several per photo:
+      // a click and a detection; the alignment takes one, see docs/markers.md).
+      std::map<std::int64_t, std::map<std::string, int>> seen;
+      for (const auto& o : list_observations(p.db())) seen[o.marker_id][o.source]++;
       const auto markers = list_markers(p.db());
       if (*json) {
         nlohmann::json j = nlohmann::json::array();
         for (const auto& m : markers) {
+          auto& s = seen[m.id];
+          const int total = s["clicked"] + s["guided"] + s["detected"];
           j.push_back({{"name", m.name}, {"kind", m.kind}, {"E", m.position.x()}, {"N", m.position.y()},
-                       {"Z", m.position.z()}, {"sigma_m", m.sigma.x()}, {"observations", seen[m.id]}});
+                       {"Z", m.position.z()}, {"sigma_m", m.sigma.x()}, {"observations", total},
+                       {"sources", {{"clicked", s["clicked"]}, {"guided", s["guided"]}, {"detected", s["detected"]}}}});
         }
         fmt::print("{}\n", j.dump(2));
         return;
       }
-      fmt::print("{:<10} {:<8} {:>14} {:>14} {:>10} {:>8} {:>6}\n", "name", "kind", "E", "N", "Z",
-                 "sigma", "obs");
+      fmt::print("{:<10} {:<8} {:>14} {:>14} {:>10} {:>8} {:>6} {:>8} {:>7} {:>9}\n", "name", "kind", "E", "N", "Z",
+                 "sigma", "obs", "clicked", "guided", "detected");
       for (const auto& m : markers) {
-        fmt::print("{:<10} {:<8} {:>14.4f} {:>14.4f} {:>10.4f} {:>8.4f} {:>6}\n", m.name, m.kind,
-                   m.position.x(), m.position.y(), m.position.z(), m.sigma.x(), seen[m.id]);
+        auto& s = seen[m.id];
+        fmt::print("{:<10} {:<8} {:>14.4f} {:>14.4f} {:>10.4f} {:>8.4f} {:>6} {:>8} {:>7} {:>9}\n", m.name, m.kind,
+                   m.position.x(), m.position.y(), m.position.z(), m.sigma.x(),
+                   s["clicked"] + s["guided"] + s["detected"], s["clicked"], s["guided"], s["detected"]);
       }
       fmt::print("{} markers. Residuals appear here once a layer is processed.\n", markers.size());
     });

@@ -18,6 +18,7 @@ struct SynthArgs {
   std::string size = "small";
   std::uint64_t seed = 1;
   int stages = -1, photos = -1, width = -1, height = -1, threads = 0;
+  std::string marker_pattern = "aruco";
 };
 
 void run_synth(const SynthArgs& a) {
@@ -27,6 +28,11 @@ void run_synth(const SynthArgs& a) {
                                                                : SyntheticExcavationOptions::Size::small);
   o.seed = a.seed;
   o.render.threads = a.threads;
+  if (a.marker_pattern == "quadrant") {
+    o.site.marker_pattern = SyntheticExcavationOptions::Site::MarkerPattern::quadrant;
+  } else if (a.marker_pattern != "aruco") {
+    throw InputError("synth: --marker-pattern must be aruco or quadrant (got " + a.marker_pattern + ")");
+  }
   if (a.stages >= 0) o.site.stages = a.stages;
   if (a.photos >= 0) o.photos.per_layer = a.photos;
   // A different width keeps the preset's aspect unless --height is given, and
@@ -79,6 +85,10 @@ void register_synth_command(CLI::App& app) {
   cmd->add_option("--photos", args->photos, "photos per layer (3..500) [small 12, full 40]");
   cmd->add_option("--width", args->width, "image width in pixels [small 1000, full 2400]");
   cmd->add_option("--height", args->height, "image height in pixels [width x 2/3]");
+  cmd->add_option("--marker-pattern", args->marker_pattern,
+                  "aruco (coded targets, detected automatically) or quadrant (non-coded chequered\n"
+                  "quadrant targets: click them and run 'strata markers guide')")
+      ->capture_default_str();
   cmd->add_option("--threads", args->threads, "worker threads, 0 = all cores")->capture_default_str();
   cmd->callback([args] { run_synth(*args); });
 }

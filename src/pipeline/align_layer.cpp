@@ -81,7 +81,8 @@ AlignResult align_layer(Project& project, const std::string& layer_name, const A
   const auto markers = list_markers(db);
   AlignResult result;
 
-  // Up to date? The key covers photos, survey, manual observations and options.
+  // Up to date? The key covers photos, survey, clicked and guided observations and
+  // options (detected ones are this stage's own output).
   Sha256 key;
   key.update(options.fingerprint());
   for (const auto& r : records) key.update(r.sha256);
@@ -90,7 +91,9 @@ AlignResult align_layer(Project& project, const std::string& layer_name, const A
                            m.position.y(), m.position.z(), m.sigma.x()));
   }
   for (const auto& o : list_observations(db, layer.id)) {
-    if (o.source == "manual") key.update(fmt::format("{} {} {:.3f} {:.3f}", o.marker_id, o.image_id, o.pixel.x(), o.pixel.y()));
+    if (o.source != "detected") {
+      key.update(fmt::format("{} {} {} {:.3f} {:.3f}", o.source, o.marker_id, o.image_id, o.pixel.x(), o.pixel.y()));
+    }
   }
   key.update(known_calibrations_key(db, records));
   const std::string inputs_key = key.hex_digest();
@@ -197,7 +200,7 @@ AlignResult align_layer(Project& project, const std::string& layer_name, const A
   }
   check_cancelled();
 
-  // ---- georeference: manual and detected observations of known markers
+  // ---- georeference: clicked, detected and guided observations of known markers
   std::map<std::int64_t, int> index_of_image;
   for (std::size_t i = 0; i < records.size(); ++i) index_of_image[records[i].id] = int(i);
   std::map<std::int64_t, const MarkerRecord*> marker_by_id;
@@ -208,15 +211,21 @@ AlignResult align_layer(Project& project, const std::string& layer_name, const A
     observations.push_back({marker_by_id.at(o.marker_id)->name, index_of_image.at(o.image_id), o.pixel});
     observed_markers.insert(o.marker_id);
   };
-  // A hand-entered observation wins over a detection of the same marker in the same photo.
-  std::set<std::pair<std::int64_t, std::int64_t>> manual;
-  for (const auto& o : list_observations(db, layer.id)) {
-    if (o.source != "manual") continue;
-    manual.emplace(o.marker_id, o.image_id);
+  // One observation per marker and photo. A click wins (a person looked), then a
+  // coded-target detection, then a guided one (derived from the clicks; 'markers
+  // guide' never places one where a detection exists, but a later detection may).
+  std::set<std::pair<std::int64_t, std::int64_t>> taken;
+  const auto stored_observations = list_observations(db, layer.id);
+  for (const auto& o : stored_observations) {
+    if (o.source != "clicked") continue;
+    taken.emplace(o.marker_id, o.image_id);
     add_observation(o);
   }
   for (const auto& o : detected) {
-    if (!manual.count({o.marker_id, o.image_id})) add_observation(o);
+    if (taken.emplace(o.marker_id, o.image_id).second) add_observation(o);
+  }
+  for (const auto& o : stored_observations) {
+    if (o.source == "guided" && taken.emplace(o.marker_id, o.image_id).second) add_observation(o);
   }
   // What the survey's coordinates alone say (georef/survey.hpp): heights that are all
   // equal are unknown (ODM gcp files from a plan survey write 0.0), not level ground:

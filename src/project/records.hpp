@@ -72,7 +72,9 @@ struct ObservationRecord {
   std::int64_t marker_id = 0;
   std::int64_t image_id = 0;
   Eigen::Vector2d pixel = Eigen::Vector2d::Zero();
-  std::string source = "manual";  // detected|manual
+  // detected (coded target) | clicked (placed by a person) | guided (markers guide);
+  // schema 7 renamed the 'manual' rows of earlier projects to clicked.
+  std::string source = "clicked";
 };
 
 // ---- units and relations

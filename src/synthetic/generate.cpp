@@ -332,7 +332,9 @@ void write_dataset(const SyntheticExcavationOptions& o, const fs::path& dir, Syn
                  {"width", intrinsics.width},
                  {"height", intrinsics.height},
                  {"focal_mm", focal_mm}};
-  j["markers"] = {{"dictionary", "DICT_4X4_50"},
+  const bool quadrant = site.marker_pattern == SyntheticExcavationOptions::Site::MarkerPattern::quadrant;
+  j["markers"] = {{"pattern", quadrant ? "quadrant" : "aruco"},
+                  {"dictionary", quadrant ? nlohmann::ordered_json(nullptr) : nlohmann::ordered_json("DICT_4X4_50")},
                   {"size_m", site.marker_size},
                   {"count", site.markers},
                   {"check", site.check_markers},

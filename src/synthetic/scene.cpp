@@ -265,12 +265,22 @@ void Scene::layout(std::uint64_t seed) {
     m.centre = {p.x(), p.y(), 0.0};  // z from the built surface
     m.yaw = rng.uniform(0, 2 * kPi);
     m.size = site.marker_size;
-    cv::Mat bits;
-    cv::aruco::drawMarker(dict, m.id, 6, bits, 1);  // 4x4 code + 1-cell black border
-    for (int r = 0; r < 8; ++r)
-      for (int c = 0; c < 8; ++c)
-        m.white[std::size_t(r * 8 + c)] =
-            (r == 0 || c == 0 || r == 7 || c == 7) ? 1 : (bits.at<std::uint8_t>(r - 1, c - 1) > 127);
+    if (site.marker_pattern == SyntheticExcavationOptions::Site::MarkerPattern::quadrant) {
+      // Chequered quadrant target: 3 x 3 black cells top-left and bottom-right inside
+      // the 1-cell white border, so the black-white saddle sits at the print's centre.
+      for (int r = 0; r < 8; ++r)
+        for (int c = 0; c < 8; ++c) {
+          const bool border = r == 0 || c == 0 || r == 7 || c == 7;
+          m.white[std::size_t(r * 8 + c)] = border || ((r < 4) != (c < 4));
+        }
+    } else {
+      cv::Mat bits;
+      cv::aruco::drawMarker(dict, m.id, 6, bits, 1);  // 4x4 code + 1-cell black border
+      for (int r = 0; r < 8; ++r)
+        for (int c = 0; c < 8; ++c)
+          m.white[std::size_t(r * 8 + c)] =
+              (r == 0 || c == 0 || r == 7 || c == 7) ? 1 : (bits.at<std::uint8_t>(r - 1, c - 1) > 127);
+    }
     markers_.push_back(m);
   }
   // Check points spread around the ring (for 8 markers and 2 checks: the 2nd and 6th).

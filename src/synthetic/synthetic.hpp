@@ -37,6 +37,11 @@ struct SyntheticExcavationOptions {
     int markers = 8;               // coded targets around the trench (6..12)
     int check_markers = 2;         // of which check points (the rest are control)
     double marker_size = 0.15;     // metres, printed square including its white border
+    // What is printed on the markers: ArUco codes (found by coded-target detection), or
+    // a non-coded chequered quadrant target (two black quadrants, point-symmetric about
+    // its centre, inside the same white border) that only clicks or 'markers guide' find.
+    enum class MarkerPattern { aruco, quadrant };
+    MarkerPattern marker_pattern = MarkerPattern::aruco;
     double survey_sigma = 0.003;   // metres, Gaussian noise of the 'surveyed' markers
   } site;
 

@@ -61,6 +61,56 @@ TEST(Project, MigrationsRunOnAnEmptyDatabaseAndAreIdempotent) {
             std::to_string(latest_schema_version()));
 }
 
+// Schema 7 rebuilds observations to change its CHECK (detected|manual ->
+// detected|clicked|guided): an older project opens with its ids kept, its 'manual'
+// rows read as clicked, and a database that is still a valid GeoPackage.
+TEST(Project, Migration7KeepsObservationIdsAndRenamesManualToClicked) {
+  test::ScratchDir dir("m7");
+  const auto site = dir / "site";
+  {
+    Project p = Project::create(site, {"EPSG:32636", "Trench 7", std::nullopt});
+    auto& db = p.db();
+    // Back to the observations table of schema 1 and a level below 7.
+    db.exec("DROP TABLE observations");
+    db.exec("CREATE TABLE observations (id INTEGER PRIMARY KEY, marker_id INTEGER NOT NULL REFERENCES "
+            "markers(fid) ON DELETE CASCADE, image_id INTEGER NOT NULL REFERENCES images(id) ON DELETE CASCADE, "
+            "x REAL NOT NULL, y REAL NOT NULL, source TEXT NOT NULL CHECK (source IN ('detected', 'manual')), "
+            "UNIQUE (marker_id, image_id, source))");
+    db.exec("CREATE INDEX observations_image ON observations(image_id)");
+    db.exec("INSERT INTO units(id, code, type) VALUES (1, '101', 'deposit')");
+    db.exec("INSERT INTO layers(id, name, unit_id) VALUES (1, 'L1', 1)");
+    db.exec("INSERT INTO images(id, layer_id, name, sha256, media_path, bytes, width, height, imported_at) "
+            "VALUES (3, 1, 'a.jpg', 'ab', 'media/ab/ab.jpg', 10, 100, 80, '2024-01-01T00:00:00Z')");
+    db.exec("INSERT INTO markers(fid, name, e, n, z, sigma_e, sigma_n, sigma_z) VALUES "
+            "(2, 'GCP1', 734001, 4174002, 1450, 0.01, 0.01, 0.01)");
+    db.exec("INSERT INTO observations(id, marker_id, image_id, x, y, source) VALUES "
+            "(17, 2, 3, 10.5, 20.25, 'manual'), (42, 2, 3, 11.0, 21.0, 'detected')");
+    db.exec("UPDATE strata_meta SET value = '6' WHERE key = 'schema_version'");
+  }
+  Project p = Project::open(site);
+  auto& db = p.db();
+  EXPECT_EQ(p.schema_version(), latest_schema_version());
+  EXPECT_EQ(db.query_text("SELECT source FROM observations WHERE id = 17"), "clicked");
+  EXPECT_EQ(db.query_text("SELECT source FROM observations WHERE id = 42"), "detected");
+  EXPECT_EQ(db.query_text("SELECT x || ',' || y FROM observations WHERE id = 17"), "10.5,20.25");
+  const auto obs = list_observations(db);
+  ASSERT_EQ(obs.size(), 2u);
+  EXPECT_EQ(obs[0].source == "clicked" ? obs[0].id : obs[1].id, 17);
+  // The new sources are accepted, the old name is not.
+  db.exec("INSERT INTO observations(marker_id, image_id, x, y, source) VALUES (2, 3, 12, 22, 'guided')");
+  EXPECT_ANY_THROW(db.exec("INSERT INTO observations(marker_id, image_id, x, y, source) VALUES (2, 3, 1, 2, 'manual')"));
+  // Still a consistent GeoPackage: foreign keys, integrity, identification, contents.
+  EXPECT_EQ(db.query_int("SELECT count(*) FROM pragma_foreign_key_check"), 0);
+  EXPECT_EQ(db.query_text("PRAGMA integrity_check"), "ok");
+  EXPECT_EQ(db.query_int("PRAGMA application_id"), 0x47504B47);
+  EXPECT_EQ(db.query_int("PRAGMA user_version"), 10200);
+  EXPECT_EQ(db.query_int("SELECT count(*) FROM sqlite_master WHERE type = 'index' AND name = 'observations_image'"), 1);
+  EXPECT_EQ(db.query_text("SELECT srs_id FROM gpkg_contents WHERE table_name = 'markers'"), "32636");
+  // Deleting the marker still cascades to its observations.
+  db.exec("DELETE FROM markers WHERE fid = 2");
+  EXPECT_EQ(db.query_int("SELECT count(*) FROM observations"), 0);
+}
+
 TEST(Project, RefusesGeographicAndUnknownCrsAndLeavesNothingBehind) {
   test::ScratchDir dir("g");
   EXPECT_THROW(Project::create(dir / "a", {"EPSG:4326", "", std::nullopt}), CrsError);
