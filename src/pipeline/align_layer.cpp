@@ -133,8 +133,9 @@ AlignResult align_layer(Project& project, const std::string& layer_name, const A
       // The lens model: from the lens or the option (a known calibration keeps its own).
       LensChoice choice = choose_lens_model(options.lens, cam);
       apply_lens_choice(g, choice);
-      log::info("camera {}: {}", cam ? fmt::format("{} {} ({}x{})", cam->make, cam->model, r.width, r.height)
-                                     : fmt::format("without EXIF ({}x{})", r.width, r.height),
+      const bool named = cam && !(cam->make.empty() && cam->model.empty());
+      log::info("camera {}: {}", named ? fmt::format("{} {} ({}x{})", cam->make, cam->model, r.width, r.height)
+                                       : fmt::format("without a name in the EXIF ({}x{})", r.width, r.height),
                 choice.reason);
       lens_choices.push_back(choice);
       groups.push_back(g);
