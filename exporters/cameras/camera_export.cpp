@@ -62,6 +62,26 @@ void write_cameras_csv(const Reconstruction& rec, const Eigen::Vector3d& origin,
   f.commit();
 }
 
+void write_cameras_lens_csv(const Reconstruction& rec, const Eigen::Vector3d& origin,
+                            const fs::path& out) {
+  AtomicFile f(out);
+  fmt::print(f.get(),
+             "image,model,fx,fy,ppx,ppy,k1,k2,k3,k4,p1,p2,r11,r12,r13,r21,r22,r23,r31,r32,r33,X,Y,Z\n");
+  for (const auto& im : rec.images) {
+    if (!im.registered) continue;
+    const Intrinsics& k = rec.groups.at(im.group).intrinsics;
+    const Eigen::Matrix3d& R = im.pose.R;
+    const Eigen::Vector3d C = im.pose.centre() + origin;
+    fmt::print(f.get(), "{},{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g}",
+               im.name, to_string(k.model), k.fx, k.fy, k.cx, k.cy, k.k1, k.k2, k.k3, k.k4, k.p1, k.p2);
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) fmt::print(f.get(), ",{:.17g}", R(r, c));
+    }
+    fmt::print(f.get(), ",{:.17g},{:.17g},{:.17g}\n", C.x(), C.y(), C.z());
+  }
+  f.commit();
+}
+
 void write_colmap_model(const Reconstruction& rec, const fs::path& folder) {
   fs::create_directories(folder);
   {
@@ -69,9 +89,28 @@ void write_colmap_model(const Reconstruction& rec, const fs::path& folder) {
     fmt::print(f.get(), "# Camera list: CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS[] (written by strata)\n");
     for (std::size_t g = 0; g < rec.groups.size(); ++g) {
       const Intrinsics& k = rec.groups[g].intrinsics;
-      // OPENCV: fx, fy, cx, cy, k1, k2, p1, p2
-      fmt::print(f.get(), "{} OPENCV {} {} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g} 0 0\n", g + 1, k.width,
-                 k.height, k.fx, k.fy, k.cx + 0.5, k.cy + 0.5, k.k1, k.k2);
+      const double cx = k.cx + 0.5, cy = k.cy + 0.5;
+      switch (k.model) {
+        case CameraModel::radial:
+          // OPENCV: fx, fy, cx, cy, k1, k2, p1, p2
+          fmt::print(f.get(), "{} OPENCV {} {} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g} 0 0\n", g + 1,
+                     k.width, k.height, k.fx, k.fy, cx, cy, k.k1, k.k2);
+          break;
+        case CameraModel::brown:
+          // FULL_OPENCV: fx, fy, cx, cy, k1, k2, p1, p2, k3, k4, k5, k6 (k4-k6: the
+          // rational model's denominator, zero here)
+          fmt::print(f.get(),
+                     "{} FULL_OPENCV {} {} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g} "
+                     "{:.17g} 0 0 0\n",
+                     g + 1, k.width, k.height, k.fx, k.fy, cx, cy, k.k1, k.k2, k.p1, k.p2, k.k3);
+          break;
+        case CameraModel::fisheye:
+          // OPENCV_FISHEYE: fx, fy, cx, cy, k1, k2, k3, k4
+          fmt::print(f.get(),
+                     "{} OPENCV_FISHEYE {} {} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g}\n",
+                     g + 1, k.width, k.height, k.fx, k.fy, cx, cy, k.k1, k.k2, k.k3, k.k4);
+          break;
+      }
     }
     f.commit();
   }

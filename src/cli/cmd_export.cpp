@@ -22,7 +22,10 @@ void register_export_commands(CLI::App& app) {
         "cameras",
         "aligned cameras of a layer. csv: one row per photo with the header\n"
         "image,fx,fy,ppx,ppy,k1,k2,r11,...,r33,X,Y,Z (pixels, world-to-camera rotation, camera\n"
-        "centre in site CRS coordinates). colmap: a COLMAP text model (cameras.txt, images.txt,\n"
+        "centre in site CRS coordinates; the brown and fisheye terms k3, k4, p1, p2 are not in it).\n"
+        "csv-lens: the same with the lens model and all its terms:\n"
+        "image,model,fx,fy,ppx,ppy,k1,k2,k3,k4,p1,p2,r11,...,r33,X,Y,Z.\n"
+        "colmap: a COLMAP text model (cameras.txt, images.txt,\n"
         "points3D.txt) in the site frame, to continue in COLMAP or OpenMVS.");
     auto dir = std::make_shared<std::string>();
     auto layer = std::make_shared<std::string>();
@@ -30,7 +33,8 @@ void register_export_commands(CLI::App& app) {
     auto out = std::make_shared<std::string>();
     cmd->add_option("DIR", *dir, "project folder")->required();
     cmd->add_option("--layer", *layer, "the layer")->required();
-    cmd->add_option("--format", *format, "csv (default) or colmap")->check(CLI::IsMember({"csv", "colmap"}));
+    cmd->add_option("--format", *format, "csv (default), csv-lens or colmap")
+        ->check(CLI::IsMember({"csv", "csv-lens", "colmap"}));
     cmd->add_option("--out", *out, "output file (csv) or folder (colmap)")->required();
     cmd->callback([=] {
       Project p = Project::open(*dir);
@@ -41,6 +45,15 @@ void register_export_commands(CLI::App& app) {
       const SiteInfo site = p.site();
       if (*format == "csv") {
         write_cameras_csv(a->rec, site.origin, *out);
+        for (const auto& g : a->rec.groups) {
+          if (g.intrinsics.model != CameraModel::radial) {
+            log::warn("layer {}: its {} lens terms (k3, k4, p1, p2) are not in the csv format; "
+                      "--format csv-lens has them", l.name, to_string(g.intrinsics.model));
+            break;
+          }
+        }
+      } else if (*format == "csv-lens") {
+        write_cameras_lens_csv(a->rec, site.origin, *out);
       } else {
         write_colmap_model(a->rec, *out);
       }

@@ -22,6 +22,37 @@
 namespace strata::cli {
 namespace {
 
+// The lens model of each camera, why, and what self-calibration found; the focal
+// search of photos without EXIF when it ran.
+void print_cameras(const nlohmann::json& q) {
+  if (!q.contains("cameras")) return;  // stored by an earlier version
+  for (const auto& c : q["cameras"]) {
+    const std::string model = c["model"].get<std::string>();
+    std::string terms = fmt::format("k1 {:.4f} k2 {:.4f}", c["k1"].get<double>(), c["k2"].get<double>());
+    if (c.contains("k3")) terms += fmt::format(" k3 {:.4f}", c["k3"].get<double>());
+    if (c.contains("k4")) terms += fmt::format(" k4 {:.4f}", c["k4"].get<double>());
+    if (c.contains("p1")) terms += fmt::format(" p1 {:.5f} p2 {:.5f}", c["p1"].get<double>(), c["p2"].get<double>());
+    fmt::print("  camera {:<12} {} x {}: {}, f {:.1f} px, pp ({:.1f}, {:.1f}), {}{}\n",
+               c["camera_id"].is_null() ? std::string("-") : std::to_string(c["camera_id"].get<std::int64_t>()),
+               c["width"].get<int>(), c["height"].get<int>(), model, c["fx"].get<double>(),
+               c["cx"].get<double>(), c["cy"].get<double>(), terms,
+               c["calibration_fixed"].get<bool>() ? " (fixed calibration)" : "");
+    if (c.contains("model_reason")) fmt::print("    lens model        {}\n", c["model_reason"].get<std::string>());
+  }
+  if (q.contains("focal_search")) {
+    for (const auto& a : q["focal_search"]["attempts"]) {
+      const std::string outcome =
+          a["failure"].is_null()
+              ? fmt::format("{} photos, RMSE {:.3f} px, focal {:.0f} px", a["registered"].get<int>(),
+                            a["rmse_px"].is_null() ? 0.0 : a["rmse_px"].get<double>(),
+                            a["focal_px"].empty() ? 0.0 : a["focal_px"][0].get<double>())
+              : "failed: " + a["failure"].get<std::string>();
+      fmt::print("    focal prior       {:.1f} x long side: {}{}\n", a["factor"].get<double>(), outcome,
+                 a["chosen"].get<bool>() ? "  (kept)" : "");
+    }
+  }
+}
+
 void print_quality(const nlohmann::json& q, bool skipped) {
   fmt::print("layer {}{}\n", q["layer"].get<std::string>(), skipped ? " (up to date, not recomputed)" : "");
   fmt::print("  photos aligned      {} / {}\n", q["images_registered"].get<int>(), q["images_total"].get<int>());
@@ -29,6 +60,7 @@ void print_quality(const nlohmann::json& q, bool skipped) {
              q["mean_track_length"].get<double>());
   fmt::print("  reprojection RMSE   {:.3f} px\n", q["reprojection_rmse_px"].get<double>());
   fmt::print("  ground sampling     {:.2f} mm/px\n", 1000 * q["gsd_m"].get<double>());
+  print_cameras(q);
   if (!q["georeferenced"].get<bool>()) {
     fmt::print("  NOT georeferenced: arbitrary local frame and scale\n");
     return;
@@ -177,6 +209,13 @@ void register_process_commands(CLI::App& app) {
   cmd->add_option("--max-image-size", options->features.max_image_size,
                   "long side (px) photos are reduced to for feature detection (default 2000)");
   cmd->add_option("--max-features", options->features.max_features, "SIFT features per photo (default 8000)");
+  cmd->add_option("--camera-model", options->lens.model,
+                  "lens model of every camera: auto (default: from the lens, see docs/cameras.md), "
+                  "radial (k1, k2), brown (k1-k3, p1, p2; wide lenses) or fisheye (equidistant, k1-k4)")
+      ->check(CLI::IsMember({"auto", "radial", "brown", "fisheye"}));
+  cmd->add_flag("!--no-focal-search", options->focal_search.enabled,
+                "photos without EXIF focal length: keep the default prior (1.2 x long side) even when "
+                "the alignment with it is poor");
   cmd->add_flag("!--no-targets", options->detect_targets, "do not detect coded targets");
   cmd->add_option("--target-dictionary", options->targets.dictionary,
                   "coded target family: DICT_4X4_50 (default), DICT_APRILTAG_36h11, ...");

@@ -19,7 +19,27 @@ struct SynthArgs {
   std::uint64_t seed = 1;
   int stages = -1, photos = -1, width = -1, height = -1, threads = 0;
   std::string marker_pattern = "aruco";
+  std::string lens = "radial";
+  bool no_exif = false;
 };
+
+// The camera of each synthetic lens (docs/cameras.md, "Synthetic lenses").
+void set_lens(const std::string& lens, SyntheticExcavationOptions& o) {
+  using Lens = SyntheticExcavationOptions::Photos::Lens;
+  if (lens == "radial") {
+    o.photos.lens = Lens::radial;
+  } else if (lens == "brown") {
+    // A wide zoom at 16 mm on APS-C (24 mm equivalent).
+    o.photos.lens = Lens::brown;
+    o.photos.focal_ratio = 16.0 / 23.5;
+  } else if (lens == "fisheye") {
+    // An action camera: 1/2.3" sensor (6.17 mm wide); the focal from the field of view.
+    o.photos.lens = Lens::fisheye;
+    o.photos.sensor_width_mm = 6.17;
+  } else {
+    throw InputError("synth: --lens must be radial, brown or fisheye (got " + lens + ")");
+  }
+}
 
 void run_synth(const SynthArgs& a) {
   if (a.size != "small" && a.size != "full")
@@ -27,6 +47,8 @@ void run_synth(const SynthArgs& a) {
   auto o = SyntheticExcavationOptions::preset(a.size == "full" ? SyntheticExcavationOptions::Size::full
                                                                : SyntheticExcavationOptions::Size::small);
   o.seed = a.seed;
+  set_lens(a.lens, o);
+  o.photos.exif = !a.no_exif;
   o.render.threads = a.threads;
   if (a.marker_pattern == "quadrant") {
     o.site.marker_pattern = SyntheticExcavationOptions::Site::MarkerPattern::quadrant;
@@ -70,7 +92,8 @@ void register_synth_command(CLI::App& app) {
       "near-vertical over the trench) with ArUco DICT_4X4_50 targets GCP1..GCP8 around it.\n\n"
       "OUT gets site.json, units.csv, relations.csv, layers.csv, markers.csv (surveyed),\n"
       "gcp_list.txt (OpenDroneMap), photos/L<k>/*.jpg and truth/ (cameras.csv,\n"
-      "surface.tif per layer, markers.csv, units.csv). See docs/synthetic.md.\n\n"
+      "surface.tif per layer, markers.csv, units.csv; cameras_lens.csv with every lens term).\n"
+      "See docs/synthetic.md.\n\n"
       "Examples:\n"
       "  strata synth /tmp/dig --size small            4 x 20 photos at 1000 x 667, a minute\n"
       "  strata synth examples/data/dig --size full    4 x 40 photos at 2400 x 1600, minutes\n"
@@ -90,6 +113,11 @@ void register_synth_command(CLI::App& app) {
                   "quadrant targets: click them and run 'strata markers guide')")
       ->capture_default_str();
   cmd->add_option("--threads", args->threads, "worker threads, 0 = all cores")->capture_default_str();
+  cmd->add_option("--lens", args->lens,
+                  "radial (a normal lens, mild barrel), brown (a wide DSLR zoom: strong barrel and "
+                  "decentring) or fisheye (an action camera, 150 degrees diagonally); EXIF to match")
+      ->capture_default_str();
+  cmd->add_flag("--no-exif", args->no_exif, "write the photos without any EXIF (no focal length, no camera)");
   cmd->callback([args] { run_synth(*args); });
 }
 

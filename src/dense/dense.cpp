@@ -175,6 +175,11 @@ DenseSummary run_dense(const DenseOptions& options, const Reconstruction& rec,
       const auto mtime = std::filesystem::last_write_time(image_paths[i], ec).time_since_epoch().count();
       key = mix(mix(mix(key, size), mtime), pm.scale);
       for (double v : {intr.fx, intr.fy, intr.cx, intr.cy, intr.k1, intr.k2}) key = mix(key, v);
+      // The other lens models' terms; a radial camera keeps the key of earlier versions.
+      if (intr.model != CameraModel::radial) {
+        key = mix(key, std::uint64_t(intr.model));
+        for (double v : {intr.k3, intr.k4, intr.p1, intr.p2}) key = mix(key, v);
+      }
       key = mix(mix(key, intr.width), intr.height);
       key = mix_pose(key, im.pose);
       image_key[i] = key;

@@ -207,8 +207,14 @@ features::StoredMatches verify(const VerificationOptions& o, const ImageKeypoint
 
 std::string prior_string(const std::optional<Intrinsics>& k) {
   if (!has_focal(k)) return "none";
-  return fmt::format("{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g}", k->fx, k->fy, k->cx,
-                     k->cy, k->k1, k->k2);
+  std::string s = fmt::format("{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g}", k->fx, k->fy,
+                              k->cx, k->cy, k->k1, k->k2);
+  // The other lens models' terms; a radial prior keeps the key of earlier versions.
+  if (k->model != CameraModel::radial) {
+    s += fmt::format(",{},{:.17g},{:.17g},{:.17g},{:.17g}", to_string(k->model), k->k3, k->k4,
+                     k->p1, k->p2);
+  }
+  return s;
 }
 
 }  // namespace

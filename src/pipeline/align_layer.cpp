@@ -52,6 +52,8 @@ void AlignOptions::validate() const {
   matching.validate();
   targets.validate();
   naming.validate();
+  lens.validate();
+  focal_search.validate();
   sfm.validate();
   georef.validate();
 }
@@ -60,8 +62,10 @@ std::string AlignOptions::fingerprint() const {
   // g[...]: the georeference's screening and rejection rules (2: blunder screening).
   // s[...]: the structure-from-motion options that change its result, the final
   // adjustments' tolerances included (a stored alignment from other ones is stale).
-  return fmt::format("f[{}] m[{}] t[{},{},{}] s[{},{},{},{},{},{}] g[3,{},{},{},{},{},{},{}]", features.fingerprint(),
+  // c[...]: the lens model choice and the focal search for photos without EXIF.
+  return fmt::format("f[{}] m[{}] t[{},{},{}] c[{};{};{}] s[{},{},{},{},{},{}] g[3,{},{},{},{},{},{},{}]", features.fingerprint(),
                      matching.fingerprint(), detect_targets, targets.dictionary, naming.rule,
+                     lens.fingerprint(), focal_search.fingerprint(), sfm.higher_order_min_images,
                      sfm.min_triangulation_angle_deg, sfm.max_reprojection_px, sfm.final_max_reprojection_px,
                      sfm.final_refinement_passes, sfm.bundle.function_tolerance, sfm.bundle.parameter_tolerance,
                      georef.outlier_threshold_m, georef.outlier_sigma_factor, georef.rays.agree_factor,
@@ -116,6 +120,7 @@ AlignResult align_layer(Project& project, const std::string& layer_name, const A
   std::vector<ImageInput> inputs;
   std::vector<FeatureImage> feature_images;
   std::vector<std::optional<Intrinsics>> priors;
+  std::vector<LensChoice> lens_choices;  // per group
   std::vector<double> times;
   for (const auto& r : records) {
     const std::int64_t cam_id = r.camera_id.value_or(0);
@@ -130,7 +135,16 @@ AlignResult align_layer(Project& project, const std::string& layer_name, const A
       k.fx = k.fy = g.focal_from_exif ? *cam->focal_px : kDefaultFocalFactor * std::max(r.width, r.height);
       k.cx = (r.width - 1) / 2.0;
       k.cy = (r.height - 1) / 2.0;
+      g.calibration_source = g.focal_from_exif ? "exif" : "default";
       if (r.camera_id) apply_known_calibration(db, *r.camera_id, g);
+      // The lens model: from the lens or the option (a known calibration keeps its own).
+      LensChoice choice = choose_lens_model(options.lens, cam);
+      apply_lens_choice(g, choice);
+      const bool named = cam && !(cam->make.empty() && cam->model.empty());
+      log::info("camera {}: {}", named ? fmt::format("{} {} ({}x{})", cam->make, cam->model, r.width, r.height)
+                                       : fmt::format("without a name in the EXIF ({}x{})", r.width, r.height),
+                choice.reason);
+      lens_choices.push_back(choice);
       groups.push_back(g);
       camera_ids.push_back(cam_id);
     }
@@ -189,8 +203,15 @@ AlignResult align_layer(Project& project, const std::string& layer_name, const A
   }
 
   // ---- incremental reconstruction
+  // Photos without EXIF focal length: the default prior, and others when it fails.
   IncrementalSummary is;
-  Reconstruction rec = reconstruct_incremental(options.sfm, groups, inputs, keypoints, matches, &is);
+  FocalSearchSummary focal_search;
+  Reconstruction rec = reconstruct_with_focal_search(
+      options.focal_search, groups,
+      [&](const std::vector<CameraGroup>& start, IncrementalSummary& summary) {
+        return reconstruct_incremental(options.sfm, start, inputs, keypoints, matches, &summary);
+      },
+      is, focal_search);
   timings["sfm_s"] = is.seconds;
   fault_point("align.after_sfm");
   if (is.registered < 2) {
@@ -281,6 +302,8 @@ AlignResult align_layer(Project& project, const std::string& layer_name, const A
   quality["observations"] = q.observations;
   quality["mean_track_length"] = q.mean_track_length;
   quality["reprojection_rmse_px"] = q.reprojection_rmse_px;
+  quality["cameras"] = cameras_json(rec, lens_choices, camera_ids);
+  if (!focal_search.groups.empty()) quality["focal_search"] = focal_search_json(focal_search);
   quality["gsd_m"] = q.gsd_m;
   quality["georeferenced"] = gs.georeferenced;
   quality["control_rmse"] = rmse_json(gs.control);

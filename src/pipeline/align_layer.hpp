@@ -4,6 +4,7 @@
 // the maths lives in features/, sfm/ and georef/.
 #include "features/features.hpp"
 #include "georef/georeference.hpp"
+#include "pipeline/lens_setup.hpp"
 #include "project/project.hpp"
 #include "sfm/incremental.hpp"
 
@@ -20,6 +21,8 @@ struct AlignOptions {
   bool detect_targets = true;  // coded targets -> observations (source 'detected')
   TargetOptions targets;
   TargetNaming naming;
+  LensChoiceOptions lens;          // the lens model of each camera (docs/cameras.md)
+  FocalSearchOptions focal_search; // photos without EXIF focal length
   IncrementalOptions sfm;
   GeoreferenceOptions georef;
   bool force = false;  // rerun even when inputs and options are unchanged

@@ -44,8 +44,9 @@ std::int64_t store_alignment(Database& db, const LayerRecord& layer, const SiteI
     const Intrinsics& k = a.rec.groups[g].intrinsics;
     db.prepare(
           "INSERT INTO solved_cameras(reconstruction_id, camera_id, width, height, fx, fy, cx, cy, "
-          "k1, k2) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)")
-        .bind_all(rid, a.camera_ids[g], k.width, k.height, k.fx, k.fy, k.cx, k.cy, k.k1, k.k2)
+          "k1, k2, model, k3, k4, p1, p2) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)")
+        .bind_all(rid, a.camera_ids[g], k.width, k.height, k.fx, k.fy, k.cx, k.cy, k.k1, k.k2,
+                  std::string(to_string(k.model)), k.k3, k.k4, k.p1, k.p2)
         .run();
   }
   auto pose_st = db.prepare(
@@ -125,12 +126,12 @@ std::optional<StoredAlignment> load_alignment(Database& db, const LayerRecord& l
 
   std::map<std::int64_t, int> group_of_camera;
   auto cams = db.prepare(
-      "SELECT camera_id, width, height, fx, fy, cx, cy, k1, k2 FROM solved_cameras WHERE "
-      "reconstruction_id = ? ORDER BY camera_id");
+      "SELECT camera_id, width, height, fx, fy, cx, cy, k1, k2, model, k3, k4, p1, p2 FROM "
+      "solved_cameras WHERE reconstruction_id = ? ORDER BY camera_id");
   cams.bind(1, a.reconstruction_id);
   while (cams.step()) {
     CameraGroup g;
-    Intrinsics& k = g.intrinsics;  // schema 2 rows: the radial model
+    Intrinsics& k = g.intrinsics;
     k.width = int(cams.get_int(1));
     k.height = int(cams.get_int(2));
     k.fx = cams.get_double(3);
@@ -139,6 +140,17 @@ std::optional<StoredAlignment> load_alignment(Database& db, const LayerRecord& l
     k.cy = cams.get_double(6);
     k.k1 = cams.get_double(7);
     k.k2 = cams.get_double(8);
+    const std::string model = cams.get_text(9);
+    const auto m = camera_model_from_string(model);
+    if (!m) {
+      throw IoError(fmt::format("{}: solved_cameras row of camera {}: unknown lens model '{}'",
+                                db.path().string(), cams.get_int(0), model));
+    }
+    k.model = *m;
+    k.k3 = cams.get_double(10);
+    k.k4 = cams.get_double(11);
+    k.p1 = cams.get_double(12);
+    k.p2 = cams.get_double(13);
     group_of_camera[cams.get_int(0)] = int(a.rec.groups.size());
     a.camera_ids.push_back(cams.get_int(0));
     a.rec.groups.push_back(g);

@@ -64,7 +64,41 @@ IntrinsicsBlock to_block(const Intrinsics& k) {
   b[kK1] = k.k1;
   b[kK2] = k.k2;
   b[kAspect] = k.fx != 0 ? k.fy / k.fx : 1.0;
+  // Only the coefficients of the model: the others are held constant at zero, so a
+  // stray value in an unused field cannot enter the projection.
+  const bool brown = k.model == CameraModel::brown, fisheye = k.model == CameraModel::fisheye;
+  b[kK3] = brown || fisheye ? k.k3 : 0.0;
+  b[kK4] = fisheye ? k.k4 : 0.0;
+  b[kP1] = brown ? k.p1 : 0.0;
+  b[kP2] = brown ? k.p2 : 0.0;
   return b;
+}
+
+void add_group(BaProblem& problem, const Intrinsics& k, bool calibration_fixed) {
+  problem.intrinsics.push_back(to_block(k));
+  problem.models.push_back(k.model);
+  problem.intrinsics_fixed.push_back(calibration_fixed ? 1 : 0);
+}
+
+std::vector<int> constant_intrinsics(const IntrinsicsRefinement& refine, CameraModel model) {
+  const bool brown = model == CameraModel::brown, fisheye = model == CameraModel::fisheye;
+  std::vector<int> fixed;
+  if (!refine.focal) fixed.push_back(kFocal);
+  if (!refine.principal_point) {
+    fixed.push_back(kCx);
+    fixed.push_back(kCy);
+  }
+  if (!refine.k1) fixed.push_back(kK1);
+  if (!refine.k2) fixed.push_back(kK2);
+  if (!refine.aspect_ratio) fixed.push_back(kAspect);
+  if (!refine.k3 || !(brown || fisheye)) fixed.push_back(kK3);
+  if (!refine.k4 || !fisheye) fixed.push_back(kK4);
+  if (!refine.tangential || !brown) {
+    fixed.push_back(kP1);
+    fixed.push_back(kP2);
+  }
+  std::sort(fixed.begin(), fixed.end());
+  return fixed;
 }
 
 void from_block(const IntrinsicsBlock& b, Intrinsics& k) {
@@ -74,6 +108,10 @@ void from_block(const IntrinsicsBlock& b, Intrinsics& k) {
   k.cy = b[kCy];
   k.k1 = b[kK1];
   k.k2 = b[kK2];
+  k.k3 = b[kK3];
+  k.k4 = b[kK4];
+  k.p1 = b[kP1];
+  k.p2 = b[kP2];
 }
 
 std::array<double, kPoseSize> to_block(const Pose& pose) {
@@ -104,7 +142,7 @@ void set_gauge(BaProblem& problem, int a, int b) {
 
 double reprojection_error_px(const BaProblem& problem, const BaObservation& obs) {
   const auto& cam = problem.cameras[obs.camera];
-  const ReprojectionCost cost(obs.pixel, 1.0);
+  const ReprojectionCost cost(obs.pixel, 1.0, problem.models[cam.group]);
   double r[2];
   if (!cost(cam.pose.data(), problem.intrinsics[cam.group].data(), problem.points[obs.point].data(),
             r)) {
@@ -153,7 +191,7 @@ BundleSummary solve_bundle(const BundleOptions& options, BaProblem& problem) {
                          : obs.marker     ? options.marker_sigma_px
                                           : options.keypoint_sigma_px;
     auto* cost = new ceres::AutoDiffCostFunction<ReprojectionCost, 2, kPoseSize, kIntrinsicsSize, 3>(
-        new ReprojectionCost(obs.pixel, sigma));
+        new ReprojectionCost(obs.pixel, sigma, problem.models[cam.group]));
     ceres_problem.AddResidualBlock(cost, obs.marker ? marker_loss.get() : keypoint_loss.get(),
                                    cam.pose.data(), problem.intrinsics[cam.group].data(),
                                    problem.points[obs.point].data());
@@ -190,26 +228,16 @@ BundleSummary solve_bundle(const BundleOptions& options, BaProblem& problem) {
       ceres_problem.SetParameterBlockConstant(problem.points[p].data());
     }
   }
-  std::vector<int> fixed_intrinsics;
-  const auto& refine = options.refine;
-  if (!refine.focal) fixed_intrinsics.push_back(kFocal);
-  if (!refine.principal_point) {
-    fixed_intrinsics.push_back(kCx);
-    fixed_intrinsics.push_back(kCy);
-  }
-  if (!refine.k1) fixed_intrinsics.push_back(kK1);
-  if (!refine.k2) fixed_intrinsics.push_back(kK2);
-  if (!refine.aspect_ratio) fixed_intrinsics.push_back(kAspect);
   for (std::size_t g = 0; g < problem.intrinsics.size(); ++g) {
     if (!group_used[g]) continue;
     double* block = problem.intrinsics[g].data();
     const bool fixed = g < problem.intrinsics_fixed.size() && problem.intrinsics_fixed[g];
+    const std::vector<int> constant = constant_intrinsics(options.refine, problem.models[g]);
     if (fixed || !problem.refine_intrinsics || !any_variable_camera ||
-        fixed_intrinsics.size() == std::size_t(kIntrinsicsSize)) {
+        constant.size() == std::size_t(kIntrinsicsSize)) {
       ceres_problem.SetParameterBlockConstant(block);
-    } else if (!fixed_intrinsics.empty()) {
-      ceres_problem.SetManifold(block,
-                                new ceres::SubsetManifold(kIntrinsicsSize, fixed_intrinsics));
+    } else if (!constant.empty()) {
+      ceres_problem.SetManifold(block, new ceres::SubsetManifold(kIntrinsicsSize, constant));
     }
   }
 
@@ -281,10 +309,7 @@ BundleSummary bundle_adjust(const BundleOptions& options, Reconstruction& rec,
                keypoints.size(), rec.images.size());
 
   BaProblem problem;
-  for (const auto& g : rec.groups) {
-    problem.intrinsics.push_back(to_block(g.intrinsics));
-    problem.intrinsics_fixed.push_back(g.calibration_fixed ? 1 : 0);
-  }
+  for (const auto& g : rec.groups) add_group(problem, g.intrinsics, g.calibration_fixed);
   std::vector<int> camera_of_image(rec.images.size(), -1);
   for (std::size_t i = 0; i < rec.images.size(); ++i) {
     const auto& im = rec.images[i];
@@ -353,6 +378,9 @@ BundleSummary bundle_adjust(const BundleOptions& options, Reconstruction& rec,
   const BundleSummary summary = solve_bundle(options, problem);
 
   for (std::size_t g = 0; g < rec.groups.size(); ++g) {
+    // A fixed calibration is not read back: the block's aspect ratio (fy / fx) would
+    // round fy, and a fixed calibration must come out bit-identical.
+    if (rec.groups[g].calibration_fixed) continue;
     from_block(problem.intrinsics[g], rec.groups[g].intrinsics);
   }
   for (std::size_t i = 0; i < rec.images.size(); ++i) {

@@ -23,13 +23,20 @@ enum class RobustLoss { none, huber, cauchy };
 
 // Which intrinsics are estimated; the others stay at their current values.
 // One focal f is estimated with fy = f * aspect, aspect fixed at the group's
-// initial fy/fx unless `aspect_ratio` is set.
+// initial fy/fx unless `aspect_ratio` is set. A coefficient is estimated only when
+// the group's lens model has it (geometry/camera.hpp):
+//   radial   f, pp, k1, k2
+//   brown    f, pp, k1, k2, k3, p1, p2
+//   fisheye  f, pp, k1, k2, k3, k4
 struct IntrinsicsRefinement {
   bool focal = true;
   bool principal_point = true;
   bool k1 = true;
   bool k2 = true;
   bool aspect_ratio = false;
+  bool k3 = true;          // brown, fisheye
+  bool k4 = true;          // fisheye
+  bool tangential = true;  // p1, p2 (brown)
 };
 
 struct BundleOptions {

@@ -36,6 +36,7 @@ struct BaPrior {
 
 struct BaProblem {
   std::vector<IntrinsicsBlock> intrinsics;  // per camera group
+  std::vector<CameraModel> models;          // per camera group: the lens model of the block
   std::vector<char> intrinsics_fixed;       // per camera group: a known, fixed calibration
   std::vector<BaCamera> cameras;
   std::vector<Eigen::Vector3d> points;
@@ -51,6 +52,11 @@ struct BaProblem {
 };
 
 IntrinsicsBlock to_block(const Intrinsics& k);
+// Appends one camera group (its block, lens model and fixed flag) to the problem.
+void add_group(BaProblem& problem, const Intrinsics& k, bool calibration_fixed);
+// The block entries an adjustment holds constant for this model and refinement:
+// those the model does not have, and those `refine` leaves out. Sorted.
+std::vector<int> constant_intrinsics(const IntrinsicsRefinement& refine, CameraModel model);
 void from_block(const IntrinsicsBlock& b, Intrinsics& k);
 std::array<double, kPoseSize> to_block(const Pose& pose);
 Pose pose_from_block(const std::array<double, kPoseSize>& b);

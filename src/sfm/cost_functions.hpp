@@ -7,17 +7,24 @@
 //   pose[6]        {w, t}: angle-axis w of the world->camera rotation R (radians,
 //                  |w| = angle) and t of X_cam = R X_world + t (metres). One block,
 //                  so Ceres' Schur eliminator runs its specialisation <2, 3, 6>.
-//   intrinsics[6]  {f, cx, cy, k1, k2, aspect}: fx = f, fy = f * aspect (pixels);
-//                  the strata camera model of geometry/camera.hpp
+//   intrinsics[10] {f, cx, cy, k1, k2, aspect, k3, k4, p1, p2}: fx = f, fy = f * aspect
+//                  (pixels) and the lens coefficients of geometry/camera.hpp. One layout
+//                  for every CameraModel: the entries a model does not use are held
+//                  constant (bundle_adjustment.cpp), so they stay at zero.
 //   point[3]       X_world (metres)
+#include "geometry/camera.hpp"
+
 #include <Eigen/Core>
 
 #include <cmath>
 
 namespace strata::sfm_detail {
 
-enum IntrinsicIndex { kFocal = 0, kCx = 1, kCy = 2, kK1 = 3, kK2 = 4, kAspect = 5 };
-constexpr int kIntrinsicsSize = 6;
+// The first six keep the order of the radial-only block of earlier versions.
+enum IntrinsicIndex {
+  kFocal = 0, kCx = 1, kCy = 2, kK1 = 3, kK2 = 4, kAspect = 5, kK3 = 6, kK4 = 7, kP1 = 8, kP2 = 9
+};
+constexpr int kIntrinsicsSize = 10;
 constexpr int kPoseSize = 6;
 
 // Rotates p by the angle-axis vector w (Rodrigues' formula):
@@ -45,12 +52,56 @@ void angle_axis_rotate(const T* w, const T* p, T* out) {
   }
 }
 
+// The lens model of Intrinsics::distort() on normalised coordinates (xn, yn), written
+// once for doubles and Jets so the adjustment and geometry/camera.cpp agree (the unit
+// tests compare the two). Formulas in geometry/camera.hpp.
+template <typename T>
+void distort_normalised(CameraModel model, const T* k, const T& xn, const T& yn, T* xd, T* yd) {
+  const T r2 = xn * xn + yn * yn;
+  switch (model) {
+    case CameraModel::radial: {
+      const T radial = T(1) + k[kK1] * r2 + k[kK2] * r2 * r2;
+      *xd = xn * radial;
+      *yd = yn * radial;
+      return;
+    }
+    case CameraModel::brown: {
+      // Brown (1971) / OpenCV: radial to r^6 plus decentring (tangential) terms.
+      const T radial = T(1) + r2 * (k[kK1] + r2 * (k[kK2] + r2 * k[kK3]));
+      const T xy = xn * yn;
+      *xd = xn * radial + T(2) * k[kP1] * xy + k[kP2] * (r2 + T(2) * xn * xn);
+      *yd = yn * radial + k[kP1] * (r2 + T(2) * yn * yn) + T(2) * k[kP2] * xy;
+      return;
+    }
+    case CameraModel::fisheye: {
+      // Equidistant Kannala-Brandt (2006): theta_d / r scales the normalised point.
+      // At r = 0 the scale tends to 1 (theta ~ r); sqrt would have no derivative there.
+      using std::atan;
+      using std::sqrt;
+      T scale(1);
+      if (r2 > T(1e-20)) {
+        const T r = sqrt(r2);
+        const T theta = atan(r);
+        const T t2 = theta * theta;
+        const T theta_d = theta * (T(1) + t2 * (k[kK1] + t2 * (k[kK2] + t2 * (k[kK3] + t2 * k[kK4]))));
+        scale = theta_d / r;
+      }
+      *xd = xn * scale;
+      *yd = yn * scale;
+      return;
+    }
+  }
+  *xd = xn;
+  *yd = yn;
+}
+
 // Reprojection residual of one observation, in units of its standard deviation:
-//   r = (pi(K, k1, k2, R X + t) - observed) / sigma_px.
-// pi: x_n = X_c.xy / X_c.z, x_d = x_n (1 + k1 r^2 + k2 r^4), u = fx x_d + cx, v = fy y_d + cy.
+//   r = (pi(K, lens, R X + t) - observed) / sigma_px.
+// pi: x_n = X_c.xy / X_c.z, x_d = distort_normalised(x_n), u = fx x_d + cx, v = fy y_d + cy.
 struct ReprojectionCost {
-  ReprojectionCost(const Eigen::Vector2d& observed_px, double sigma_px)
-      : u(observed_px.x()), v(observed_px.y()), inv_sigma(1.0 / sigma_px) {}
+  ReprojectionCost(const Eigen::Vector2d& observed_px, double sigma_px,
+                   CameraModel lens = CameraModel::radial)
+      : u(observed_px.x()), v(observed_px.y()), inv_sigma(1.0 / sigma_px), model(lens) {}
 
   template <typename T>
   bool operator()(const T* pose, const T* intrinsics, const T* point, T* residual) const {
@@ -63,16 +114,17 @@ struct ReprojectionCost {
     // let the division flip signs.
     if (!(xc[2] > T(1e-12))) return false;
     const T xn = xc[0] / xc[2], yn = xc[1] / xc[2];
-    const T r2 = xn * xn + yn * yn;
-    const T radial = T(1) + intrinsics[kK1] * r2 + intrinsics[kK2] * r2 * r2;
+    T xd, yd;
+    distort_normalised(model, intrinsics, xn, yn, &xd, &yd);
     const T fx = intrinsics[kFocal];
     const T fy = intrinsics[kFocal] * intrinsics[kAspect];
-    residual[0] = (fx * radial * xn + intrinsics[kCx] - T(u)) * T(inv_sigma);
-    residual[1] = (fy * radial * yn + intrinsics[kCy] - T(v)) * T(inv_sigma);
+    residual[0] = (fx * xd + intrinsics[kCx] - T(u)) * T(inv_sigma);
+    residual[1] = (fy * yd + intrinsics[kCy] - T(v)) * T(inv_sigma);
     return true;
   }
 
   double u, v, inv_sigma;
+  CameraModel model;
 };
 
 // Prior on a surveyed control marker, per axis: r_i = (X_i - S_i) / sigma_i,

@@ -47,6 +47,9 @@ void IncrementalOptions::validate() const {
   if (local_ba_max_observations < 0) fail("local_ba_max_observations", local_ba_max_observations, ">= 0");
   if (!(global_ba_growth > 1)) fail("global_ba_growth", global_ba_growth, "> 1");
   if (calibration_min_images < 2) fail("calibration_min_images", calibration_min_images, ">= 2");
+  if (higher_order_min_images < calibration_min_images) {
+    fail("higher_order_min_images", higher_order_min_images, ">= calibration_min_images");
+  }
   if (principal_point_min_images < 2) fail("principal_point_min_images", principal_point_min_images, ">= 2");
   if (intermediate_ba_max_iterations < 1) fail("intermediate_ba_max_iterations", intermediate_ba_max_iterations, ">= 1");
   if (!(intermediate_ba_function_tolerance > 0)) fail("intermediate_ba_function_tolerance", intermediate_ba_function_tolerance, "> 0");
@@ -591,8 +594,9 @@ std::pair<std::size_t, std::size_t> IncrementalMapper::pair_agreement(int image,
 
 void IncrementalMapper::adjust(const std::vector<int>& variable_images, bool global) {
   BaProblem problem;
-  for (const auto& k : intr_) problem.intrinsics.push_back(to_block(k));
-  for (const auto& g : groups_) problem.intrinsics_fixed.push_back(g.calibration_fixed ? 1 : 0);
+  for (std::size_t g = 0; g < intr_.size(); ++g) {
+    add_group(problem, intr_[g], groups_[g].calibration_fixed);
+  }
   std::vector<int> camera_of(images_.size(), -1);
   std::vector<int> image_of_camera;
   std::vector<char> variable(images_.size(), 0);
@@ -645,12 +649,18 @@ void IncrementalMapper::adjust(const std::vector<int>& variable_images, bool glo
   }
   problem.refine_intrinsics = global && n_registered_ >= opt_.calibration_min_images;
   if (n_registered_ < opt_.principal_point_min_images) bo.refine.principal_point = false;
+  if (n_registered_ < opt_.higher_order_min_images) {
+    bo.refine.k3 = bo.refine.k4 = bo.refine.tangential = false;
+  }
 
   const auto s = solve_bundle(bo, problem);
   ba_seconds_ += s.seconds;
   (global ? global_count_ : local_count_)++;
 
-  for (std::size_t g = 0; g < intr_.size(); ++g) from_block(problem.intrinsics[g], intr_[g]);
+  // A fixed calibration is not read back (bit-identical, see bundle_adjust()).
+  for (std::size_t g = 0; g < intr_.size(); ++g) {
+    if (!groups_[g].calibration_fixed) from_block(problem.intrinsics[g], intr_[g]);
+  }
   for (std::size_t c = 0; c < problem.cameras.size(); ++c) {
     if (!problem.cameras[c].variable) continue;
     const int image = image_of_camera[c];

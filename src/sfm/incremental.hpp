@@ -81,6 +81,12 @@ struct IncrementalOptions {
   // The principal point is refined only from this many images on (it trades off
   // against camera tilt and needs varied viewing directions).
   int principal_point_min_images = 6;
+  // The higher lens terms (k3, k4 and the tangential p1, p2 of the brown and fisheye
+  // models) join only from this many images on: with few, overlapping views they
+  // trade off against focal, k1 and the poses and an early adjustment can run away
+  // with them (COLMAP likewise refines extra parameters only in global adjustments).
+  // The radial model's f, k1, k2 keep their earlier staging.
+  int higher_order_min_images = 10;
   // Local and intermediate global adjustments only need to keep the model on track
   // for the next resections: they stop earlier than the final ones (which use
   // `bundle` as given).

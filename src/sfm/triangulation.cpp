@@ -79,7 +79,7 @@ TriangulationResult triangulate_views(const std::vector<Camera>& cameras,
     for (std::size_t i = 0; i < cameras.size(); ++i) {
       problem.AddResidualBlock(
           new ceres::AutoDiffCostFunction<ReprojectionCost, 2, kPoseSize, kIntrinsicsSize, 3>(
-              new ReprojectionCost(pixels[i], 1.0)),
+              new ReprojectionCost(pixels[i], 1.0, cameras[i].intrinsics.model)),
           nullptr, pose[i].data(), intr[i].data(), point);
       problem.SetParameterBlockConstant(pose[i].data());
       problem.SetParameterBlockConstant(intr[i].data());

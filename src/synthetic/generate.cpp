@@ -38,6 +38,11 @@ constexpr double kMidGrey = 0.18;            // linear mean the auto-exposure ai
 constexpr std::int64_t kMaxGridNodes = 80'000'000;  // per layer: ~320 MB of Float32
 constexpr const char* kMake = "Strata Synthetic";
 constexpr const char* kModel = "SynthCam APS-C";
+constexpr const char* kFisheyeModel = "SynthCam Action";  // a 1/2.3" action camera
+
+const char* camera_name(const SyntheticExcavationOptions& o) {
+  return o.photos.lens == SyntheticExcavationOptions::Photos::Lens::fisheye ? kFisheyeModel : kModel;
+}
 
 template <typename T>
 void require(bool ok, const char* field, T value, const char* range) {
@@ -174,8 +179,9 @@ void write_dataset(const SyntheticExcavationOptions& o, const fs::path& dir, Syn
         const LinearImage img = render_view(scene, k, *texture, light, p.camera, settings);
         const auto rgb = develop(img, intrinsics, o.photos.noise_sigma, mix64(o.seed * 1000003 + std::uint64_t(k) * 1009 + i));
         ExifFields exif;
+        exif.write = o.photos.exif;
         exif.make = kMake;
-        exif.model = kModel;
+        exif.model = camera_name(o);
         exif.software = "strata synth 0.1.0";
         exif.description = fmt::format("strata synthetic excavation, seed {}, layer {}", o.seed, layer);
         exif.datetime = exif_time(session_time(k, p.seconds_after_start));
@@ -221,6 +227,21 @@ void write_dataset(const SyntheticExcavationOptions& o, const fs::path& dir, Syn
       cams.out() << fmt::format(",{:.17g},{:.17g},{:.17g}\n", c.x(), c.y(), c.z());
     }
     cams.close();
+    // The same with every lens term (the header of 'strata export cameras --format csv-lens').
+    TextFile lens(dir / "truth" / layer / "cameras_lens.csv");
+    lens.out() << "image,model,fx,fy,ppx,ppy,k1,k2,k3,k4,p1,p2,r11,r12,r13,r21,r22,r23,r31,r32,r33,X,Y,Z\n";
+    for (const auto& p : plan) {
+      const auto& K = p.camera.intrinsics;
+      const auto& R = p.camera.pose.R;
+      const Eigen::Vector3d c = p.camera.pose.centre() + origin;
+      lens.out() << fmt::format("{},{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g}",
+                                p.name, to_string(K.model), K.fx, K.fy, K.cx, K.cy, K.k1, K.k2, K.k3, K.k4,
+                                K.p1, K.p2);
+      for (int r = 0; r < 3; ++r)
+        for (int q = 0; q < 3; ++q) lens.out() << fmt::format(",{:.17g}", R(r, q));
+      lens.out() << fmt::format(",{:.17g},{:.17g},{:.17g}\n", c.x(), c.y(), c.z());
+    }
+    lens.close();
 
     // Truth surface: cell centres on a grid aligned to multiples of the cell in the CRS.
     Raster raster;
@@ -327,7 +348,9 @@ void write_dataset(const SyntheticExcavationOptions& o, const fs::path& dir, Syn
                            {"photos", fmt::format("photos/L{}", k + 1)},
                            {"truth", fmt::format("truth/L{}", k + 1)}});
   j["camera"] = {{"make", kMake},
-                 {"model", kModel},
+                 {"model", camera_name(o)},
+                 {"lens", to_string(intrinsics.model)},
+                 {"exif", o.photos.exif},
                  {"sensor_width_mm", sensor},
                  {"width", intrinsics.width},
                  {"height", intrinsics.height},
@@ -385,6 +408,8 @@ void SyntheticExcavationOptions::validate() const {
   require(photos.focal_ratio >= 0.5 && photos.focal_ratio <= 2.0, "photos.focal_ratio", photos.focal_ratio, "0.5..2");
   require(photos.sensor_width_mm > 1 && photos.sensor_width_mm <= 100, "photos.sensor_width_mm",
           photos.sensor_width_mm, "1..100 mm");
+  require(photos.fisheye_diagonal_deg >= 90 && photos.fisheye_diagonal_deg <= 170, "photos.fisheye_diagonal_deg",
+          photos.fisheye_diagonal_deg, "90..170 degrees");
   require(photos.jpeg_quality >= 1 && photos.jpeg_quality <= 100, "photos.jpeg_quality", photos.jpeg_quality, "1..100");
   require(photos.noise_sigma >= 0 && photos.noise_sigma <= 20, "photos.noise_sigma", photos.noise_sigma, "0..20 grey levels");
   require(render.height_cell >= 0.001 && render.height_cell <= 0.01, "render.height_cell", render.height_cell, "0.001..0.01 m");

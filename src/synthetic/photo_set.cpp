@@ -33,8 +33,39 @@ Intrinsics make_intrinsics(const SyntheticExcavationOptions& options) {
   const double ang = rng.uniform(0, 2 * kPi), off = rng.uniform(0.006, 0.015) * k.width;
   k.cx = 0.5 * (k.width - 1) + off * std::cos(ang);
   k.cy = 0.5 * (k.height - 1) + off * std::sin(ang);
-  k.k1 = rng.uniform(-0.10, -0.05);  // barrel, typical of a 20-24 mm lens on APS-C
-  k.k2 = rng.uniform(0.01, 0.04);
+  using Lens = SyntheticExcavationOptions::Photos::Lens;
+  switch (options.photos.lens) {
+    case Lens::radial:
+      k.model = CameraModel::radial;
+      k.k1 = rng.uniform(-0.10, -0.05);  // barrel, typical of a 20-24 mm lens on APS-C
+      k.k2 = rng.uniform(0.01, 0.04);
+      break;
+    case Lens::brown: {
+      // A wide DSLR zoom at its short end (16-18 mm on APS-C): strong barrel, and a
+      // slightly decentred element group (tangential terms of 1e-4..1e-3, of either sign).
+      k.model = CameraModel::brown;
+      k.k1 = rng.uniform(-0.20, -0.12);
+      k.k2 = rng.uniform(0.05, 0.12);
+      k.k3 = rng.uniform(-0.03, 0.0);
+      const auto decentring = [&rng] { return (rng.uniform() < 0.5 ? -1 : 1) * rng.uniform(1e-4, 1e-3); };
+      k.p1 = decentring();
+      k.p2 = decentring();
+      break;
+    }
+    case Lens::fisheye: {
+      // An action camera: equidistant with a mild polynomial, the half-diagonal at
+      // half of fisheye_diagonal_deg off the axis (f = r_corner / theta_d).
+      k.model = CameraModel::fisheye;
+      k.k1 = rng.uniform(0.02, 0.06);
+      k.k2 = rng.uniform(-0.02, 0.0);
+      k.k3 = rng.uniform(0.0, 0.005);
+      k.k4 = rng.uniform(-0.001, 0.0);
+      const double theta = 0.5 * options.photos.fisheye_diagonal_deg * kDeg, t2 = theta * theta;
+      const double theta_d = theta * (1 + t2 * (k.k1 + t2 * (k.k2 + t2 * (k.k3 + t2 * k.k4))));
+      k.fx = k.fy = 0.5 * std::hypot(double(k.width), double(k.height)) / theta_d;
+      break;
+    }
+  }
   return k;
 }
 

@@ -404,7 +404,9 @@ std::shared_ptr<const std::vector<Eigen::Vector2d>> undistorted_pixel_centres(co
   std::lock_guard lock(mutex);
   const bool same = cached && cached_for.width == k.width && cached_for.height == k.height &&
                     cached_for.fx == k.fx && cached_for.fy == k.fy && cached_for.cx == k.cx &&
-                    cached_for.cy == k.cy && cached_for.k1 == k.k1 && cached_for.k2 == k.k2;
+                    cached_for.cy == k.cy && cached_for.model == k.model && cached_for.k1 == k.k1 &&
+                    cached_for.k2 == k.k2 && cached_for.k3 == k.k3 && cached_for.k4 == k.k4 &&
+                    cached_for.p1 == k.p1 && cached_for.p2 == k.p2;
   if (!same) {
     auto table = std::make_shared<std::vector<Eigen::Vector2d>>(std::size_t(k.width) * std::size_t(k.height));
     tbb::parallel_for(0, k.height, [&](int v) {

@@ -49,8 +49,15 @@ struct SyntheticExcavationOptions {
     int per_layer = 12;            // photos of each recorded surface
     int width = 800;               // pixels
     int height = 533;              // pixels
-    double focal_ratio = 0.9;      // fx / width (0.8..1.0: a 'normal' lens)
+    double focal_ratio = 0.9;      // fx / width (0.8..1.0: a 'normal' lens; brown: ~0.65)
     double sensor_width_mm = 23.5; // APS-C; sets EXIF FocalLength and 35 mm equivalent
+    // The lens (docs/cameras.md, "Synthetic lenses"): radial, a mild barrel (k1, k2);
+    // brown, a wide DSLR zoom (strong barrel k1 -0.12..-0.20, k2, k3, decentring p1, p2
+    // of 1e-4..1e-3); fisheye, an equidistant action camera whose diagonal spans
+    // `fisheye_diagonal_deg` (focal_ratio is then derived from it).
+    enum class Lens { radial, brown, fisheye } lens = Lens::radial;
+    double fisheye_diagonal_deg = 150; // degrees, fisheye only
+    bool exif = true;              // false: JPEGs without any EXIF (no focal, no camera name)
     int jpeg_quality = 92;         // 1..100
     double noise_sigma = 1.5;      // 8-bit grey levels of read noise (shot noise added)
   } photos;

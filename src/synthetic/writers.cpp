@@ -28,6 +28,13 @@ void write_jpeg(const std::filesystem::path& path, const std::vector<std::uint8_
   if (!cv::imencode(".jpg", bgr, jpeg, {cv::IMWRITE_JPEG_QUALITY, quality}))
     throw IoError("synth.writer.jpeg: cannot encode " + path.string());
 
+  if (!e.write) {
+    std::ofstream out(path, std::ios::binary);
+    out.write(reinterpret_cast<const char*>(jpeg.data()), std::streamsize(jpeg.size()));
+    out.close();
+    if (!out) throw IoError("synth.writer.jpeg: cannot write " + path.string());
+    return;
+  }
   // exiv2 0.27 is not reliably thread-safe: one image at a time.
   static std::mutex exiv2_mutex;
   std::lock_guard lock(exiv2_mutex);

@@ -10,6 +10,7 @@
 namespace strata::synthetic {
 
 struct ExifFields {
+  bool write = true;              // false: the JPEG without any EXIF block
   std::string make, model, software, description;
   std::string datetime;           // EXIF form "YYYY:MM:DD HH:MM:SS"
   double focal_mm = 0;            // millimetres

@@ -246,6 +246,55 @@ TEST(Georeference, EndToEndFromIncrementalReconstruction) {
   EXPECT_LT(s.bundle.rmse_px, 0.5);
 }
 
+// Every lens model end to end: SfM with self-calibration of the model, then the
+// georeference; camera centres absolute against the truth (after the georeference,
+// no similarity to the truth).
+void expect_lens_end_to_end(CameraModel lens) {
+  const SyntheticScene sc = make_scene({.cameras = 14, .points = 1500, .lens = lens});
+  IncrementalSummary sfm;
+  Reconstruction rec = reconstruct_incremental({}, sc.groups, sc.images, sc.keypoints, sc.matches, &sfm);
+  ASSERT_EQ(sfm.registered, sc.images.size()) << to_string(lens);
+  const auto s = georeference({}, sc.markers, sc.marker_observations, sc.keypoints, rec);
+  std::printf("[ figures  ] %s end to end: rmse %.3f px, check 3D %.2f mm, centres max %.2f mm, "
+              "focal err %.3f %%\n",
+              to_string(lens), s.bundle.rmse_px, s.check.xyz * 1e3, max_centre_error(rec, sc) * 1e3,
+              100 * std::abs(rec.groups[0].intrinsics.fx / sc.truth.fx - 1));
+  EXPECT_TRUE(s.georeferenced);
+  EXPECT_LT(s.bundle.rmse_px, 0.5) << to_string(lens);
+  EXPECT_LT(s.check.xyz, kCheckTolM) << to_string(lens);
+  EXPECT_LT(max_centre_error(rec, sc), kCentreTolM) << to_string(lens);
+}
+
+TEST(Georeference, BrownLayerEndToEnd) { expect_lens_end_to_end(CameraModel::brown); }
+
+TEST(Georeference, FisheyeLayerEndToEnd) { expect_lens_end_to_end(CameraModel::fisheye); }
+
+// A known calibration held fixed: not one bit of it changes through the incremental
+// reconstruction and the georeference (which adjusts everything else).
+TEST(Georeference, FixedCalibrationIsHonouredThroughSfmAndGeoreference) {
+  SyntheticScene sc = make_scene({.cameras = 14, .points = 1500, .lens = CameraModel::fisheye});
+  Intrinsics known = sc.truth;
+  known.fx *= 1.002;  // a calibration a little off: the adjustment would move it
+  known.fy = known.fx * 1.0004;
+  sc.groups[0].intrinsics = known;
+  sc.groups[0].calibration_known = sc.groups[0].calibration_fixed = true;
+  IncrementalSummary sfm;
+  Reconstruction rec = reconstruct_incremental({}, sc.groups, sc.images, sc.keypoints, sc.matches, &sfm);
+  ASSERT_EQ(sfm.registered, sc.images.size());
+  const auto s = georeference({}, sc.markers, sc.marker_observations, sc.keypoints, rec);
+  ASSERT_TRUE(s.georeferenced);
+  const Intrinsics& k = rec.groups[0].intrinsics;
+  EXPECT_EQ(k.model, known.model);
+  EXPECT_EQ(k.fx, known.fx);
+  EXPECT_EQ(k.fy, known.fy);
+  EXPECT_EQ(k.cx, known.cx);
+  EXPECT_EQ(k.cy, known.cy);
+  EXPECT_EQ(k.k1, known.k1);
+  EXPECT_EQ(k.k2, known.k2);
+  EXPECT_EQ(k.k3, known.k3);
+  EXPECT_EQ(k.k4, known.k4);
+}
+
 const Blunder* blunder_of(const GeoreferenceSummary& s, const std::string& marker) {
   for (const auto& b : s.blunders) {
     if (b.marker == marker) return &b;

@@ -49,14 +49,35 @@ SyntheticScene make_scene(const SceneOptions& o) {
   s.truth.fx = s.truth.fy = 1380.0;
   s.truth.cx = 799.5 + 14.0;
   s.truth.cy = 599.5 - 9.0;
-  s.truth.k1 = -0.045;
-  s.truth.k2 = 0.012;
+  s.truth.model = o.lens;
+  switch (o.lens) {
+    case CameraModel::radial:
+      s.truth.k1 = -0.045;
+      s.truth.k2 = 0.012;
+      break;
+    case CameraModel::brown:
+      s.truth.k1 = -0.16;
+      s.truth.k2 = 0.09;
+      s.truth.k3 = -0.02;
+      s.truth.p1 = 4e-4;
+      s.truth.p2 = -6e-4;
+      break;
+    case CameraModel::fisheye:
+      // The half-diagonal (1000 px) at 75 degrees off axis: f = 1000 / 1.309 rad.
+      s.truth.fx = s.truth.fy = 764.0;
+      s.truth.k1 = 0.04;
+      s.truth.k2 = -0.01;
+      s.truth.k3 = 0.003;
+      s.truth.k4 = -0.0005;
+      break;
+  }
   CameraGroup prior;
   prior.intrinsics = s.truth;
   prior.intrinsics.fx = prior.intrinsics.fy = s.truth.fx * (1.0 + o.focal_prior_error);
   prior.intrinsics.cx = 799.5;
   prior.intrinsics.cy = 599.5;
-  prior.intrinsics.k1 = prior.intrinsics.k2 = 0.0;
+  prior.intrinsics.k1 = prior.intrinsics.k2 = prior.intrinsics.k3 = prior.intrinsics.k4 = 0.0;
+  prior.intrinsics.p1 = prior.intrinsics.p2 = 0.0;
   prior.focal_from_exif = true;
   s.groups = {prior};
 

@@ -28,6 +28,9 @@ struct SceneOptions {
   double focal_prior_error = 0.03;  // relative error of the EXIF focal prior
   double marker_noise_px = 0.2;   // pixels
   unsigned seed = 7;
+  // The true lens: radial (a mild barrel), brown (a wide DSLR zoom: strong barrel,
+  // decentring) or fisheye (an action camera, about 150 degrees across the diagonal).
+  CameraModel lens = CameraModel::radial;
   std::vector<SceneMarker> markers = {
       {"C1", {-1.5, -1.1}, true}, {"C2", {1.6, -1.0}, true}, {"C3", {0.2, 1.2}, true},
       {"C4", {-1.3, 1.0}, true},  {"K1", {0.1, -0.1}, false}, {"K2", {1.1, 0.6}, false}};
