@@ -86,8 +86,15 @@ def clicks(args):
             p = p + np.array([rng.gauss(0, 1.0), rng.gauss(0, 1.0)])
             if rng.random() < opts["gross"]:
                 a, d = rng.uniform(0, 2 * math.pi), rng.uniform(20, 80)
-                p = p + d * np.array([math.cos(a), math.sin(a)])
-                gross += 1
+                q = p + d * np.array([math.cos(a), math.sin(a)])
+                cam = truth_cams[image]
+                # Kept inside the photo (the principal point is near its centre).
+                if 0 <= q[0] <= 2 * cam["cx"] and 0 <= q[1] <= 2 * cam["cy"]:
+                    p = q
+                    gross += 1
+            cam = truth_cams[image]
+            if not (0 <= p[0] <= 2 * cam["cx"] and 0 <= p[1] <= 2 * cam["cy"]):
+                continue  # the clicked point of the object falls outside this photo
             s = surveyed[name]
             r = [round(v / step) * step for v in s]
             lines.append(f"{r[0]:.3f}\t{r[1]:.3f}\t{r[2]:.3f}\t{p[0]:.2f}\t{p[1]:.2f}\t{image}\t{name}")

@@ -141,7 +141,7 @@ TEST(Coverage, SideWithTheThinnerStretchOfTheCameraRing) {
 TEST(Coverage, NadirCameraSeesItsFootprintAtItsGsd) {
   CoverageMap m = coverage_grid(-1.5, 1.5, 0.1, 30, 30, std::vector<float>(900, 0.0f));
   Camera cam;
-  cam.intrinsics = {1000, 1000, 1000, 1000, 499.5, 499.5, CameraModel::radial, 0, 0};  // 1 m footprint at 2 m height
+  cam.intrinsics = {1000, 1000, 1000, 1000, 499.5, 499.5, 0, 0};  // 1 m footprint at 2 m height
   cam.pose = Pose::look_at({0, 0, 2}, {0, 0, 0}, Eigen::Vector3d::UnitY());
   count_coverage(m, {cam});
   int seen = 0;

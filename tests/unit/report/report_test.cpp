@@ -33,7 +33,7 @@ double surface(double x, double y, double base) {
   return base + 0.03 * std::sin(2 * x) * std::cos(3 * y) + 0.02 * x;
 }
 
-Intrinsics test_intrinsics() { return {1200, 800, 1300, 1300, 599.5, 399.5, CameraModel::radial, 0, 0}; }
+Intrinsics test_intrinsics() { return {1200, 800, 1300, 1300, 599.5, 399.5, 0, 0}; }
 
 Project make_project(const fs::path& dir) {
   CreateOptions co;

@@ -115,7 +115,7 @@ Raster read_raster(const fs::path& path) {
 Camera camera_from_row(const std::map<std::string, std::string>& row, const Eigen::Vector3d& origin, int w, int h) {
   Camera c;
   c.intrinsics = {w, h, std::stod(row.at("fx")), std::stod(row.at("fy")), std::stod(row.at("ppx")),
-                  std::stod(row.at("ppy")), CameraModel::radial, std::stod(row.at("k1")),
+                  std::stod(row.at("ppy")), std::stod(row.at("k1")),
                   std::stod(row.at("k2"))};
   Eigen::Matrix3d R;
   const char* names[9] = {"r11", "r12", "r13", "r21", "r22", "r23", "r31", "r32", "r33"};
@@ -388,7 +388,7 @@ TEST(SyntheticRender, ASurfacePointAppearsWhereTheCameraProjectsIt) {
   settings.edge_samples = 0;
   // Blue: no soil, stone or grass colour comes near it.
   settings.spot = synthetic::RenderSettings::Spot{{x, y}, 0.015, {0.02f, 0.02f, 0.9f}};
-  Intrinsics k{640, 427, 560, 560, 331.7, 209.2, CameraModel::radial, -0.08, 0.02};
+  Intrinsics k{640, 427, 560, 560, 331.7, 209.2, -0.08, 0.02};
   for (const Eigen::Vector3d& eye : {Eigen::Vector3d(x + 0.2, y - 0.1, point.z() + 1.8),
                                      Eigen::Vector3d(x - 0.6, scene.trench_y0() - 0.5, point.z() + 2.0)}) {
     const Camera cam{k, Pose::look_at(eye, point + Eigen::Vector3d(0.1, 0.05, 0))};
