@@ -220,6 +220,17 @@ def triangulate(obs):
     return X
 
 
+def set_distance_to_other_rays(pairs, rows):
+    """Each click's distance (px) to the projection of the point from the kept other clicks."""
+    for i, row in enumerate(rows):
+        others = [pr for j, (pr, r) in enumerate(zip(pairs, rows)) if j != i and not r.get("dropped")]
+        if len(others) < 2:
+            row["to_other_rays_px"] = None
+            continue
+        p = pairs[i][0].project(triangulate(others))[0]
+        row["to_other_rays_px"] = float(np.linalg.norm(p - pairs[i][1]))
+
+
 def marker_rays(cams, clicks):
     """Triangulated point and every click's agreement; one far click left out."""
     obs = [(img, px) for img, px in clicks if img in cams]
@@ -230,13 +241,11 @@ def marker_rays(cams, clicks):
         return out
     pairs = [(cams[img], np.array(px)) for img, px in obs]
     if len(obs) >= 3:
-        for i, row in enumerate(rows):
-            others = pairs[:i] + pairs[i + 1:]
-            p = pairs[i][0].project(triangulate(others))[0]
-            row["to_other_rays_px"] = float(np.linalg.norm(p - pairs[i][1]))
+        set_distance_to_other_rays(pairs, rows)
         worst = max(range(len(rows)), key=lambda i: rows[i]["to_other_rays_px"])
         if rows[worst]["to_other_rays_px"] > CLICK_OUTLIER_PX:
             rows[worst]["dropped"] = True
+            set_distance_to_other_rays(pairs, rows)  # again, without the far click
     kept = [pr for pr, row in zip(pairs, rows) if not row.get("dropped")]
     X = triangulate(kept)
     for (cam, px), row in zip(pairs, rows):

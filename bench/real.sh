@@ -11,6 +11,7 @@
 #
 # Usage: bench/real.sh [--no-colmap] [--set herz|entry|copr|all] [--keep DIR]
 # Data: $STRATA_REAL_DATA (default ../shared/data beside the repository).
+# The binary: built here into $STRATA_BUILD_DIR (default build/), or $STRATA_BIN as it is.
 # Writes bench/results/real-<UTC timestamp>.json and bench/results/latest-real.json.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -41,10 +42,14 @@ command -v /usr/bin/time >/dev/null && /usr/bin/python3 -c 'import numpy' 2>/dev
   sudo_cmd=; [[ $(id -u) -ne 0 ]] && sudo_cmd=sudo
   $sudo_cmd env DEBIAN_FRONTEND=noninteractive apt-get install -y -q time python3-numpy >/dev/null
 }
-build=${STRATA_BUILD_DIR:-build}  # another build directory of the same tree, e.g. a developer's
-cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo >/dev/null
-cmake --build "$build" -j "$(nproc)" --target strata
-strata=$PWD/$build/src/cli/strata
+if [[ -n "${STRATA_BIN:-}" ]]; then
+  strata=$STRATA_BIN  # a strata binary built elsewhere (e.g. another commit): used as it is
+else
+  build=${STRATA_BUILD_DIR:-build}  # another build directory of the same tree, e.g. a developer's
+  cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo >/dev/null
+  cmake --build "$build" -j "$(nproc)" --target strata
+  strata=$PWD/$build/src/cli/strata
+fi
 if [[ $colmap == 1 ]] && ! command -v colmap >/dev/null 2>&1; then
   echo "bench: colmap is not installed: strata only"
   colmap=0
