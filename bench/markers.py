@@ -206,16 +206,26 @@ def triangulate(obs):
     def residual(x):
         return np.concatenate([cam.project(x)[0] for cam, _ in obs]) - target
 
+    def cost(x):
+        r = residual(x)
+        return float(r @ r) if np.isfinite(r).all() else math.inf
+
     scale = max(1e-6, float(np.mean([np.linalg.norm(X - cam.centre) for cam, _ in obs])))
     for _ in range(GN_ITERATIONS):
         r = residual(X)
         if not np.isfinite(r).all():
-            break
+            break  # behind a camera: the rays do not meet in front of them
         h = 1e-7 * scale
         jac = np.column_stack([(residual(X + h * e) - r) / h for e in np.eye(3)])
         step = np.linalg.lstsq(jac, -r, rcond=None)[0]
-        X = X + step
-        if np.linalg.norm(step) < 1e-10 * scale:
+        # Backtracking: a step is taken only when it lowers the pixel cost.
+        c0, t = float(r @ r), 1.0
+        while t > 1e-6 and cost(X + t * step) >= c0:
+            t *= 0.5
+        if t <= 1e-6:
+            break
+        X = X + t * step
+        if np.linalg.norm(t * step) < 1e-10 * scale:
             break
     return X
 
@@ -225,10 +235,20 @@ def set_distance_to_other_rays(pairs, rows):
     for i, row in enumerate(rows):
         others = [pr for j, (pr, r) in enumerate(zip(pairs, rows)) if j != i and not r.get("dropped")]
         if len(others) < 2:
-            row["to_other_rays_px"] = None
+            row["to_other_rays_px"], row["_others_rms_px"] = None, math.inf
             continue
-        p = pairs[i][0].project(triangulate(others))[0]
-        row["to_other_rays_px"] = float(np.linalg.norm(p - pairs[i][1]))
+        X = triangulate(others)
+        d = float(np.linalg.norm(pairs[i][0].project(X)[0] - pairs[i][1]))
+        row["to_other_rays_px"] = d if math.isfinite(d) else None  # None: the others meet behind it
+        res = np.concatenate([cam.project(X)[0] - px for cam, px in others])
+        row["_others_rms_px"] = float(np.sqrt(np.mean(res ** 2))) if np.isfinite(res).all() else math.inf
+
+
+def far_click(rows):
+    """The click whose removal leaves the best-agreeing others, if it is far from them."""
+    i = min(range(len(rows)), key=lambda k: rows[k]["_others_rms_px"])
+    d = rows[i]["to_other_rays_px"]
+    return i if d is None or d > CLICK_OUTLIER_PX else None
 
 
 def marker_rays(cams, clicks):
@@ -242,14 +262,21 @@ def marker_rays(cams, clicks):
     pairs = [(cams[img], np.array(px)) for img, px in obs]
     if len(obs) >= 3:
         set_distance_to_other_rays(pairs, rows)
-        worst = max(range(len(rows)), key=lambda i: rows[i]["to_other_rays_px"])
-        if rows[worst]["to_other_rays_px"] > CLICK_OUTLIER_PX:
+        worst = far_click(rows)
+        if worst is not None:
             rows[worst]["dropped"] = True
             set_distance_to_other_rays(pairs, rows)  # again, without the far click
+        for row in rows:
+            row.pop("_others_rms_px", None)
     kept = [pr for pr, row in zip(pairs, rows) if not row.get("dropped")]
     X = triangulate(kept)
     for (cam, px), row in zip(pairs, rows):
-        row["residual_px"] = float(np.linalg.norm(cam.project(X)[0] - px))
+        d = float(np.linalg.norm(cam.project(X)[0] - px))
+        row["residual_px"] = d if math.isfinite(d) else None  # None: the point is behind this camera
+    if any(row["residual_px"] is None for row in rows if not row.get("dropped")):
+        out["triangulated"] = False
+        out["reason"] = "the kept rays meet behind a camera"
+        return out
     out["triangulated"] = True
     out["point"] = X.tolist()
     kept_res = [row["residual_px"] for row in rows if not row.get("dropped")]
@@ -397,7 +424,7 @@ def print_marker_table(m):
             t = m.get(tool) or {}
             pm = t.get("per_marker", {}).get(name, {})
             fit = (t.get("fit") or {}).get("markers", {}).get(name, {})
-            rays = " ".join(f"{o.get('residual_px', float('nan')):.1f}({f(o.get('to_other_rays_px'), 0)})"
+            rays = " ".join(f"{f(o.get('residual_px'), 1)}({f(o.get('to_other_rays_px'), 0)})"
                             + ("x" if o.get("dropped") else "") for o in pm.get("observations", []))
             loo = math.hypot(fit["loo_dE_m"], fit["loo_dN_m"]) if "loo_dE_m" in fit else None
             extra = ""
