@@ -15,15 +15,16 @@ Method for copr (heights unknown, all 0.0 in the survey):
      and the residual at the point from all clicks;
   3. one click per marker whose distance to the other rays exceeds CLICK_OUTLIER_PX is
      named and left out (a click on another target is hundreds of pixels away);
-  4. the model is levelled on the plane through the triangulated markers and fitted to
-     the surveyed E, N by a 4-parameter plan similarity (2D Umeyama). Why not 3D with the
-     heights free: the markers lie on a nearly flat beach, and for coplanar points the
-     plan projection of a rotated, scaled plane is any 2D affine map, so the tilt would be
-     traded for plan fit (6 effective parameters for 2n equations). Levelling on the
-     markers' own plane instead costs little: a tilt error t changes plan distances by
-     (1 - cos t), 0.4 % at 5 deg, 8 cm over 20 m, against metre-level misfits. The
-     2D affine fit is reported too, as the bound on what any tilt or anisotropic scale
-     could explain;
+  4. the model is levelled (COLMAP: on the robust plane of its whole sparse cloud, the
+     beach; strata: its own site frame, z up) and fitted to the surveyed E, N by a
+     4-parameter plan similarity (2D Umeyama). Why not 3D with the heights free: the
+     markers lie on a nearly flat beach, and for coplanar points the plan projection of a
+     rotated, scaled plane is any 2D affine map, so the tilt would be traded for plan fit
+     (6 effective parameters for 2n equations). Levelling on the ground instead costs
+     little: a tilt error t changes plan distances by (1 - cos t), 0.4 % at 5 deg, 8 cm
+     over 20 m, against metre-level misfits. The 2D affine fit is reported too: it is
+     the best that any tilt, scale or shear could do, so its residual is a bound that
+     no levelling can beat;
   5. leave-one-out: each marker predicted by the fit on the others.
 """
 import csv
@@ -298,15 +299,25 @@ def umeyama(src, dst, with_scale=True):
     return scale, rot, md - scale * rot @ ms
 
 
-def level(points, up_hint):
-    """Plan coordinates of points on their own best plane, normal towards up_hint."""
+def ground_normal(cloud, up_hint):
+    """Unit normal of the plane through a sparse cloud (robust: two passes, 3 MAD), towards up_hint."""
+    c = np.asarray(cloud)
+    keep = np.ones(len(c), dtype=bool)
+    for _ in range(2):
+        m = c[keep].mean(0)
+        _, _, vt = np.linalg.svd(c[keep] - m, full_matrices=False)
+        d = np.abs((c - m) @ vt[2])
+        keep = d <= 3 * 1.4826 * np.median(d[keep])
+    return vt[2] if np.dot(vt[2], up_hint - m) > 0 else -vt[2]
+
+
+def level(points, n):
+    """Plan coordinates of points on the plane of normal n (right-handed e1, e2, n)."""
     m = points.mean(0)
-    _, _, vt = np.linalg.svd(points - m)
-    n = vt[2] if np.dot(vt[2], up_hint - m) > 0 else -vt[2]
     e1 = np.cross(n, [0.0, 0.0, 1.0]) if abs(n[2]) < 0.9 else np.cross(n, [1.0, 0.0, 0.0])
     e1 /= np.linalg.norm(e1)
     e2 = np.cross(n, e1)
-    return np.column_stack([(points - m) @ e1, (points - m) @ e2]), n
+    return np.column_stack([(points - m) @ e1, (points - m) @ e2])
 
 
 def fit_similarity_2d(src, dst):
@@ -353,18 +364,23 @@ def tool_analysis(cams, survey, clicks, cloud=None):
         return out
     pts = np.array([per[n]["point"] for n in names])
     up = np.mean([c.centre for c in cams.values()], axis=0)  # the kite is above the beach
-    plan, normal = level(pts, up)
+    # The vertical: the plane of the tool's whole sparse cloud (the beach), or the tool's
+    # own z axis when it has georeferenced (strata: site frame, z up). Not the markers'
+    # own plane: copr's markers lie near a line along the beach, which leaves the plane's
+    # tilt about that line undetermined.
+    normal = ground_normal(list(cloud.values()), up) if cloud else np.array([0.0, 0.0, 1.0])
+    plan = level(pts, normal)
+    sv = np.linalg.svd(pts - pts.mean(0), compute_uv=False)
+    out["markers_spread_m"] = sv.tolist()  # singular values: a small 2nd one = nearly collinear
+    _, _, vt = np.linalg.svd(pts - pts.mean(0))
+    out["markers_plane_tilt_deg"] = math.degrees(math.acos(min(1.0, abs(float(vt[2] @ normal)))))
     en = np.array([survey[n][:2] for n in names])
     en0 = en.mean(0)  # fit in a local frame (never raw UTM in the least squares)
     out["fit"] = plan_fit(names, plan, en - en0, fit_similarity_2d, 4)
     out["fit"]["scale"] = float(fit_similarity_2d(plan, en - en0)[1])
     out["affine_fit"] = plan_fit(names, plan, en - en0, fit_affine_2d, 6)
+    out["levelling"] = "sparse cloud plane" if cloud else "tool's z axis"
     out["levelling_normal"] = normal.tolist()
-    if cloud is not None and len(cloud) >= 3:
-        # The tilt between the markers' plane and the plane of the whole sparse cloud.
-        c = np.array(list(cloud.values()))
-        _, _, vt = np.linalg.svd(c - c.mean(0))
-        out["markers_plane_to_cloud_plane_deg"] = math.degrees(math.acos(min(1.0, abs(float(vt[2] @ normal)))))
     return out
 
 
