@@ -101,7 +101,7 @@ def clicks(args):
     with open(out, "w") as f:
         f.write(crs + "\n")
         f.write("\n".join(lines) + "\n")
-    print(json.dumps({"clicks": len(lines), "gross": gross, **opts}))
+    print(json.dumps({"clicks": len(lines), "gross_clicks": gross, **opts}))
 
 
 def score(args):

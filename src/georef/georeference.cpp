@@ -4,6 +4,8 @@
 #include "core/log.hpp"
 #include "core/resources.hpp"
 
+#include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
@@ -299,6 +301,57 @@ std::optional<std::string> diagnose_bending(const std::vector<MarkerResidual>& r
                      x(1) > 0 ? "bowl" : "dome", 1000 * edge, std::sqrt(r2_max), 100 * (1 - left / total));
 }
 
+// The up direction of the reconstruction's ground: the normal of the sparse points'
+// least-squares plane (smallest principal axis), turned towards the cameras (which
+// look down at the ground from above it).
+Eigen::Vector3d ground_up(const Reconstruction& rec) {
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto& p : rec.points) mean += p.X;
+  mean /= double(std::max<std::size_t>(1, rec.points.size()));
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (const auto& p : rec.points) cov += (p.X - mean) * (p.X - mean).transpose();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
+  Eigen::Vector3d up = eig.eigenvectors().col(0);
+  Eigen::Vector3d cameras = Eigen::Vector3d::Zero();
+  int n = 0;
+  for (const auto& im : rec.images) {
+    if (!im.registered) continue;
+    cameras += im.pose.centre();
+    ++n;
+  }
+  if (n > 0 && up.dot(cameras / n - mean) < 0) up = -up;
+  return up.normalized();
+}
+
+// Plan-only control (every height unknown) fixes scale, the rotation about the
+// vertical and the plan position, but not the tilt: a 3D fit then tilts the block to
+// soak up plan misfits (a real set tilted 40 degrees that way). The tilt is taken from
+// the ground instead: level the block so that its ground plane is horizontal, then fit
+// a 4-parameter plan similarity (Umeyama 1991 in 2D) of the markers' photo positions
+// onto their surveyed E, N; the height offset puts the markers' mean at their nominal
+// height. `local` in the current frame, `survey` in the site frame.
+Similarity3 level_plan_similarity(const Reconstruction& rec, const std::vector<Eigen::Vector3d>& local,
+                                  const std::vector<Eigen::Vector3d>& survey) {
+  const Eigen::Matrix3d L = Eigen::Quaterniond::FromTwoVectors(ground_up(rec), Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  Eigen::Matrix2Xd src(2, local.size()), dst(2, local.size());
+  for (std::size_t i = 0; i < local.size(); ++i) {
+    src.col(Eigen::Index(i)) = (L * local[i]).head<2>();
+    dst.col(Eigen::Index(i)) = survey[i].head<2>();
+  }
+  const Eigen::Matrix3d T = Eigen::umeyama(src, dst, true);  // 2D similarity, homogeneous
+  const double scale = std::sqrt(std::abs(T.block<2, 2>(0, 0).determinant()));
+  Eigen::Matrix3d Rz = Eigen::Matrix3d::Identity();
+  Rz.block<2, 2>(0, 0) = T.block<2, 2>(0, 0) / scale;
+  Similarity3 s;
+  s.scale = scale;
+  s.R = Rz * L;
+  s.t = Eigen::Vector3d(T(0, 2), T(1, 2), 0);
+  double dz = 0;
+  for (std::size_t i = 0; i < local.size(); ++i) dz += survey[i].z() - s.apply(local[i]).z();
+  s.t.z() = dz / double(local.size());
+  return s;
+}
+
 }  // namespace
 
 GeoreferenceSummary keep_arbitrary_frame(Reconstruction& rec) {
@@ -580,6 +633,17 @@ GeoreferenceSummary georeference(const GeoreferenceOptions& options,
   }
   for (int i : inliers) summary.control_used.push_back(usable[i].m->name);
   summary.similarity = fit(inliers);
+  const bool plan_only_control = std::all_of(inliers.begin(), inliers.end(), [&](int i) { return usable[i].plan; });
+  if (plan_only_control) {
+    std::vector<Eigen::Vector3d> src, dst;
+    for (int i : inliers) {
+      src.push_back(usable[i].local);
+      dst.push_back(usable[i].m->position);
+    }
+    summary.similarity = level_plan_similarity(rec, src, dst);
+    log::info("georeference: every control marker is plan only: the block is levelled on its ground (the "
+              "sparse points' plane) and fitted in plan");
+  }
   for (std::size_t i = 0; i < n_usable; ++i) {
     const Eigen::Vector3d d = summary.similarity.apply(usable[i].local) - usable[i].m->position;
     log::debug("georeference: {} after the similarity: dE {:+.3f} dN {:+.3f} dZ {:+.3f} m",
@@ -600,6 +664,19 @@ GeoreferenceSummary georeference(const GeoreferenceOptions& options,
       if (used.count(m.name)) constraints.push_back(m);
     }
     summary.bundle = bundle_adjust(bundle, rec, keypoints, constraints, kept_observations());
+    if (plan_only_control) {
+      // The adjustment leaves the tilt to the weak height priors; level it on the
+      // ground again and refit in plan (a similarity: reprojections are unchanged).
+      fit_all();
+      std::vector<Eigen::Vector3d> src, dst;
+      for (const auto& name : summary.control_used) {
+        const auto& f = fits.at(name);
+        if (!f.ok) continue;
+        src.push_back(f.X);
+        dst.push_back(by_name.at(name)->position);
+      }
+      if (src.size() >= 3) transform_reconstruction(level_plan_similarity(rec, src, dst), rec);
+    }
     log::debug("georeference: adjustment {} ({} iterations, {:.1f} s, rmse {:.3f} px)",
                summary.bundle.message, summary.bundle.iterations, summary.bundle.seconds,
                summary.bundle.rmse_px);
