@@ -123,7 +123,7 @@ def score(args):
         "centre_rmse_mm": 1000 * math.sqrt(sum(x * x for x in d) / len(d)) if d else None,
         "centre_max_mm": 1000 * max(d) if d else None,
         "control_rmse_mm": 1000 * q["control_rmse"]["xyz_m"] if q.get("georeferenced") else None,
-        "markers_used": sum(1 for m in q.get("markers", []) if m["role"] == "control" and m["triangulated"]),
+        "markers_used": q["control_rmse"]["markers"] if q.get("georeferenced") else 0,
         "markers_given": len(q.get("markers", [])),
         "left_out": len(q.get("blunders", [])),
         "markers": markers,
