@@ -188,9 +188,11 @@ double median(std::vector<double> v) {
   return v[mid];
 }
 
-// The marker's rays in words, when they do not meet as one point.
+// The marker's rays in words, when they do not meet as one point. `metric`: the frame
+// is the site frame (metres); before the georeference the scale is arbitrary and the
+// scatter is given in pixels only.
 std::string diagnose_marker(const MarkerRayFit& fit, const std::vector<Ray>& rays, const Reconstruction& rec,
-                            double click_sigma_px) {
+                            double click_sigma_px, bool metric) {
   const std::size_t fitted = std::size_t(std::count_if(rays.begin(), rays.end(), [](const Ray& r) {
     return r.excluded.empty();
   }));
@@ -203,10 +205,11 @@ std::string diagnose_marker(const MarkerRayFit& fit, const std::vector<Ray>& ray
   std::string text;
   const double dispersion_px = fit.mean_footprint > 0 ? fit.dispersion / fit.mean_footprint : 0;
   if (dispersion_px > 2 * click_sigma_px) {
-    text = fmt::format("its clicks scatter by {:.1f} px ({:.1f} mm at {:.2f} m) about one point: an object "
-                       "seen from different sides, or positions placed by another program; weighted by that "
-                       "dispersion",
-                       dispersion_px, 1000 * fit.dispersion, fit.mean_depth);
+    const std::string size =
+        metric ? fmt::format(" ({:.1f} mm at {:.2f} m)", 1000 * fit.dispersion, fit.mean_depth) : std::string();
+    text = fmt::format("its clicks scatter by {:.1f} px{} about one point: an object seen from different sides, "
+                       "or positions placed by another program; weighted by that dispersion",
+                       dispersion_px, size);
   }
   const std::size_t disagree = fitted - std::size_t(fit.agreeing);
   if (disagree == 1) {
@@ -496,7 +499,7 @@ GeoreferenceSummary georeference(const GeoreferenceOptions& options,
     }
     const MarkerRayFit& fit = fits.at(m.name);
     if (!fit.ok) {
-      const std::string why = diagnose_marker(fit, it->second, rec, ray_options.click_sigma_px);
+      const std::string why = diagnose_marker(fit, it->second, rec, ray_options.click_sigma_px, false);
       summary.unusable.push_back(m.name);
       unusable_why.push_back(fmt::format("{} ({} of {} rays agree, {:.1f} deg apart{}{})", m.name, fit.agreeing,
                                          views, fit.max_angle_deg, why.empty() ? "" : ": ", why));
@@ -740,7 +743,7 @@ GeoreferenceSummary georeference(const GeoreferenceOptions& options,
         const MarkerRayFit& fit = fits.at(m.name);
         row.observed = int(it->second.size());
         row.images = int(kept_count(it->second));
-        row.diagnosis = diagnose_marker(fit, it->second, rec, ray_options.click_sigma_px);
+        row.diagnosis = diagnose_marker(fit, it->second, rec, ray_options.click_sigma_px, true);
         if (fit.ok) {
           row.triangulated = true;
           const Eigen::Vector3d d = fit.X - m.position;
