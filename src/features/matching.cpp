@@ -24,7 +24,10 @@ namespace strata {
 namespace {
 
 // Bump when matching or verification changes its output (cache invalidation).
-constexpr int kMatchingVersion = 1;
+constexpr int kMatchingVersion = 2;  // 2: FLANN trees from a fixed seed
+
+// The start of the random generator for every FLANN index (any fixed value).
+constexpr std::uint64_t kFlannSeed = 0x5eed'f1a2'2026ULL;
 
 // Descriptors of one image plus, for FLANN, a kd-tree index over them, built
 // once and queried by every pair the image takes part in.
@@ -304,6 +307,12 @@ std::vector<PairMatches> match_pairs(const MatchingOptions& options,
     auto& d = descriptors[i];
     d.descriptors = features::load_descriptors(cache_dir, images[i]);
     if (options.matcher == MatchingOptions::Matcher::flann && d.descriptors.rows >= 2) {
+      // FLANN's randomised kd-trees draw from OpenCV's per-thread generator; which
+      // worker builds which image's index (and what it drew before) depends on the
+      // scheduling, so without a fixed start the trees, the approximate neighbours
+      // and in the end the reconstruction changed from run to run and machine to
+      // machine. Every index starts from the same state.
+      cv::theRNG() = cv::RNG(kFlannSeed);
       d.index = std::make_unique<cv::flann::Index>(
           d.descriptors, cv::flann::KDTreeIndexParams(options.flann_trees),
           cvflann::FLANN_DIST_L2);

@@ -21,6 +21,19 @@
 #include <set>
 
 namespace strata {
+namespace {
+
+// OpenCV's rotation vector and translation (world to camera) as a Pose.
+Pose pose_from_cv(const cv::Mat& rvec, const cv::Mat& tvec) {
+  cv::Mat Rcv;
+  cv::Rodrigues(rvec, Rcv);
+  Pose pose;
+  cv::cv2eigen(Rcv, pose.R);
+  cv::cv2eigen(tvec, pose.t);
+  return pose;
+}
+
+}  // namespace
 
 void IncrementalOptions::validate() const {
   auto fail = [](const char* name, auto value, const char* rule) {
@@ -100,6 +113,14 @@ class IncrementalMapper {
   double focal_of(int image) const { return intrinsics_of(image).fx; }
   Camera camera(int image) const { return Camera{intrinsics_of(image), poses_[image]}; }
   double error_px(const Track& t, std::size_t k) const;
+  // A world point and where a photo sees it.
+  struct Correspondence {
+    Eigen::Vector3d X;
+    Eigen::Vector2d pixel;
+  };
+  // How many of them a pose of `image` reprojects within max_reprojection_px.
+  std::size_t fitting_correspondences(int image, const Pose& pose,
+                                      const std::vector<Correspondence>& c) const;
   // --- stages
   TwoViewGeometry two_view(const PairMatches& pair) const;
   std::pair<int, int> initialise();
@@ -208,6 +229,17 @@ double IncrementalMapper::error_px(const Track& t, std::size_t k) const {
   const auto proj = camera(e.image).project(t.X);
   if (!proj) return std::numeric_limits<double>::infinity();
   return (*proj - pixel(e)).norm();
+}
+
+std::size_t IncrementalMapper::fitting_correspondences(int image, const Pose& pose,
+                                                      const std::vector<Correspondence>& c) const {
+  const Camera cam{intrinsics_of(image), pose};
+  std::size_t n = 0;
+  for (const auto& [X, px] : c) {
+    const auto proj = cam.project(X);
+    if (proj && (*proj - px).norm() <= opt_.max_reprojection_px) ++n;
+  }
+  return n;
 }
 
 TwoViewGeometry IncrementalMapper::two_view(const PairMatches& pair) const {
@@ -438,7 +470,7 @@ std::size_t IncrementalMapper::filter_points(const std::vector<int>& ids, double
 bool IncrementalMapper::try_register(int image, const ResectionRule& rule) {
   std::vector<cv::Point3d> object;
   std::vector<cv::Point2d> image_points;
-  std::vector<int> which;  // track of each correspondence
+  std::vector<Correspondence> pixels;  // the same in pixels, to judge a pose
   for (int id : image_tracks_[image]) {
     const auto& t = tracks_[id];
     if (!t.has_point) continue;
@@ -447,7 +479,7 @@ bool IncrementalMapper::try_register(int image, const ResectionRule& rule) {
       const Eigen::Vector2d xn = normalised(e);
       object.emplace_back(t.X.x(), t.X.y(), t.X.z());
       image_points.emplace_back(xn.x(), xn.y());
-      which.push_back(id);
+      pixels.push_back({t.X, pixel(e)});
     }
   }
   if (int(object.size()) < rule.min_inliers) {
@@ -460,6 +492,7 @@ bool IncrementalMapper::try_register(int image, const ResectionRule& rule) {
   cv::Mat rvec, tvec;
   std::vector<int> inliers;
   std::size_t n_inliers = 0;
+  Pose pose;
   const cv::Mat K = cv::Mat::eye(3, 3, CV_64F);
   try {
     const bool ok = cv::solvePnPRansac(object, image_points, K, cv::noArray(), rvec, tvec, false,
@@ -471,7 +504,6 @@ bool IncrementalMapper::try_register(int image, const ResectionRule& rule) {
                  images_[image].name, inliers.size(), object.size(), ok ? "ok" : "failed");
       return false;
     }
-    n_inliers = inliers.size();
     // Levenberg-Marquardt on the inliers (the minimal-sample pose is noisy).
     std::vector<cv::Point3d> in_obj;
     std::vector<cv::Point2d> in_img;
@@ -479,18 +511,30 @@ bool IncrementalMapper::try_register(int image, const ResectionRule& rule) {
       in_obj.push_back(object[i]);
       in_img.push_back(image_points[i]);
     }
-    cv::solvePnPRefineLM(in_obj, in_img, K, cv::noArray(), rvec, tvec);
+    cv::Mat rvec_lm = rvec.clone(), tvec_lm = tvec.clone();
+    cv::solvePnPRefineLM(in_obj, in_img, K, cv::noArray(), rvec_lm, tvec_lm);
+    // Both poses are judged where the adjustment and the track filter judge them: in
+    // pixels, through the full lens model. Normalised coordinates stretch towards the
+    // edge of a wide lens (tan of the angle), so a least-squares refinement there can
+    // pull the pose away from what the photo shows: a fisheye photo once came out of
+    // it 2.7 m off, with 6 of its 214 correspondences still within the pixel limit.
+    const Pose ransac_pose = pose_from_cv(rvec, tvec);
+    const Pose refined_pose = pose_from_cv(rvec_lm, tvec_lm);
+    const std::size_t fit_ransac = fitting_correspondences(image, ransac_pose, pixels);
+    const std::size_t fit_refined = fitting_correspondences(image, refined_pose, pixels);
+    pose = fit_refined >= fit_ransac ? refined_pose : ransac_pose;
+    n_inliers = std::max(fit_ransac, fit_refined);
+    if (int(n_inliers) < rule.min_inliers ||
+        double(n_inliers) < rule.min_inlier_ratio * double(object.size())) {
+      log::debug("sfm: resection of {} rejected: {} of {} correspondences within {:.1f} px "
+                 "(RANSAC {}, refined {})", images_[image].name, n_inliers, object.size(),
+                 opt_.max_reprojection_px, fit_ransac, fit_refined);
+      return false;
+    }
   } catch (const cv::Exception& e) {
     log::debug("sfm: resection of {} failed in OpenCV: {}", images_[image].name, e.what());
     return false;
   }
-  cv::Mat Rcv;
-  cv::Rodrigues(rvec, Rcv);
-  Eigen::Matrix3d R;
-  Eigen::Vector3d t;
-  cv::cv2eigen(Rcv, R);
-  cv::cv2eigen(tvec, t);
-  const Pose pose{R, t};
   if (rule.check_pairs) {
     const auto [matches, agree] = pair_agreement(image, pose, opt_.ransac_threshold_px);
     const bool ok = int(matches) >= opt_.retry_min_pair_matches &&
@@ -503,6 +547,8 @@ bool IncrementalMapper::try_register(int image, const ResectionRule& rule) {
               "with registered photos agree with its pose", images_[image].name, n_inliers,
               object.size(), agree, matches);
   }
+  log::debug("sfm: registered {} as photo {}: {} of {} 2D-3D inliers", images_[image].name,
+             n_registered_ + 1, n_inliers, object.size());
   poses_[image] = pose;
   registered_[image] = 1;
   ++n_registered_;

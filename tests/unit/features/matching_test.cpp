@@ -9,7 +9,11 @@
 
 #include <Eigen/Geometry>
 
+#include <opencv2/core.hpp>
+
 #include <algorithm>
+#include <filesystem>
+#include <utility>
 #include <iostream>
 
 namespace strata {
@@ -142,6 +146,40 @@ TEST(Matching, EssentialMatrixWithFocalPrior) {
     // Planar scene: the homography explains (almost) all of them.
     EXPECT_GE(matches[0].homography_inliers, 0.9 * matches[0].matches.size());
     expect_obeys_homography(matches[0], kp, p.H, /*epipolar_only=*/true);
+  }
+}
+
+// FLANN's randomised kd-trees draw from OpenCV's per-thread generator. What that
+// generator drew before (on whichever worker builds which image's index) must not
+// change the matches: a run-to-run difference once moved a photo of a CI machine's
+// reconstruction 2.7 m. Few checks make the search approximate enough that
+// different trees give different neighbours.
+TEST(Matching, MatchesDoNotDependOnTheRandomGeneratorsPastOrTheThreads) {
+  WarpedPair p;
+  make_pair(p);
+  FeatureExtractionOptions fo;
+  fo.max_features = 3000;
+  const auto kp = extract_features(fo, p.images, p.dir / "cache");
+  MatchingOptions mo;
+  mo.flann_checks = 4;
+  mo.verification.max_error_px = kVerifyThresholdPx;
+  auto run = [&](int threads, int draws) {
+    std::filesystem::remove_all(p.dir / "cache" / "matches");  // computed, not read back
+    mo.num_threads = threads;
+    cv::RNG& rng = cv::theRNG();  // this thread's: a one-thread run builds here
+    for (int i = 0; i < draws; ++i) rng.next();
+    MatchingSummary s;
+    const auto m = match_pairs(mo, kp, {{0, 1}}, {}, p.dir / "cache", &s);
+    EXPECT_EQ(s.from_cache, 0u);
+    return m;
+  };
+  const auto first = run(1, 0);
+  ASSERT_EQ(first.size(), 1u);
+  EXPECT_GE(first[0].matches.size(), kMinInliers);
+  for (const auto& [threads, draws] : {std::pair{1, 1}, std::pair{1, 977}, std::pair{2, 5}}) {
+    const auto again = run(threads, draws);
+    ASSERT_EQ(again.size(), 1u);
+    EXPECT_EQ(again[0].matches, first[0].matches) << threads << " threads, " << draws << " draws before";
   }
 }
 
