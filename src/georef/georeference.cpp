@@ -261,6 +261,44 @@ std::optional<std::string> diagnose_lens(const RaysByMarker& rays, const Reconst
                      std::sqrt(ratio), n_outer, n_inner);
 }
 
+// A photo whose marker clicks all disagree with the other photos of those markers is
+// placed wrong by the alignment, not clicked wrong: several independent clicks do not
+// fail together in one photo. Named when at least 3 markers judged by their other rays
+// (2 or more agreeing) are seen in it and at least 3 in 4 of them disagree.
+std::vector<std::string> diagnose_misplaced_photos(const RaysByMarker& rays,
+                                                   const FitsByMarker& fits,
+                                                   const Reconstruction& rec) {
+  struct Count {
+    int judged = 0, disagree = 0;
+    double least = std::numeric_limits<double>::infinity(), most = 0;
+  };
+  std::map<int, Count> by_image;
+  for (const auto& [name, list] : rays) {
+    const auto fit = fits.find(name);
+    if (fit == fits.end() || fit->second.agreeing < 2) continue;
+    for (const auto& r : list) {
+      if (!r.excluded.empty()) continue;
+      Count& c = by_image[r.image];
+      ++c.judged;
+      if (!r.kept) {
+        ++c.disagree;
+        c.least = std::min(c.least, r.error_px);
+        c.most = std::max(c.most, r.error_px);
+      }
+    }
+  }
+  std::vector<std::string> out;
+  for (const auto& [image, c] : by_image) {
+    if (c.judged < 3 || 4 * c.disagree < 3 * c.judged) continue;
+    out.push_back(fmt::format(
+        "photo {} is probably placed wrong by the alignment, not clicked wrong: {} of the {} markers it "
+        "sees disagree with their other photos ({:.0f}-{:.0f} px); its clicks were left out. Check the photo "
+        "(blurred, another scene, little overlap with its neighbours) and its position in the report",
+        rec.images[image].name, c.disagree, c.judged, c.least, c.most));
+  }
+  return out;
+}
+
 // A block bent by an unmodelled lens or weak geometry shows as a dome or bowl: the
 // markers' height residuals grow with the square of their plan distance from the
 // block's centre. Fitted as dZ = a + b r^2 over the markers with a known height; named
@@ -895,6 +933,10 @@ GeoreferenceSummary georeference(const GeoreferenceOptions& options,
   if (auto lens = diagnose_lens(rays, rec)) {
     summary.diagnosis.push_back(*lens);
     log::warn("georeference: {}", *lens);
+  }
+  for (const auto& photo : diagnose_misplaced_photos(rays, fits, rec)) {
+    summary.diagnosis.push_back(photo);
+    log::warn("georeference: {}", photo);
   }
   summary.residuals = std::move(rows);
   summary.blunders = std::move(all_blunders);

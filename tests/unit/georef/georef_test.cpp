@@ -395,6 +395,58 @@ TEST(Georeference, OneWrongClickIsDroppedAndNamed) {
   EXPECT_FALSE(row(s, "K1").loo) << "check markers are checks already";
 }
 
+// A photo the alignment placed wrong (a CI machine's fisheye layer once had one 2.7 m
+// off at a 0.24 px RMSE: the points it saw were its own) shows as every marker in it
+// disagreeing with the other photos. The photo is named, not its clicks.
+TEST(Georeference, APhotoWhoseMarkersAllDisagreeIsNamedAsMisplaced) {
+  Reconstruction rec = arbitrary_frame(scene());
+  const auto& observations = scene().marker_observations;
+  // The photo that sees the most markers.
+  std::map<int, int> seen;
+  for (const auto& o : observations) ++seen[o.image];
+  const auto most = std::max_element(seen.begin(), seen.end(), [](const auto& a, const auto& b) {
+    return a.second < b.second;
+  });
+  ASSERT_GE(most->second, 3);
+  const int wrong = most->first;
+  // Its points are its own: none of the block's tracks confirm or move it.
+  for (auto& p : rec.points) {
+    std::erase_if(p.track, [&](const TrackElement& e) { return e.image == wrong; });
+  }
+  rec.points.erase(std::remove_if(rec.points.begin(), rec.points.end(),
+                                  [](const SparsePoint& p) { return p.track.size() < 2; }),
+                   rec.points.end());
+  // Moved by about a third of its distance to the ground and turned by 6 degrees.
+  Pose& pose = rec.images[wrong].pose;
+  const Eigen::Vector3d centre = pose.centre() + Eigen::Vector3d(0.4, -0.3, 0.2);
+  pose.R = Eigen::AngleAxisd(0.1, Eigen::Vector3d(1, 2, 0).normalized()).toRotationMatrix() * pose.R;
+  pose.t = -pose.R * centre;
+  const auto markers = only(scene(), {"C1", "C2", "C3", "C4", "K1", "K2"});
+  const auto s = georeference({}, markers, observations, scene().keypoints, rec);
+  const std::string name = rec.images[wrong].name;
+  std::vector<std::string> named;
+  for (const auto& d : s.diagnosis) {
+    if (d.find("photo ") == 0) named.push_back(d);
+  }
+  ASSERT_EQ(named.size(), 1u) << "exactly the moved photo is named";
+  std::printf("[ figures  ] %s\n", named[0].c_str());
+  EXPECT_EQ(named[0].find("photo " + name + " is probably placed wrong"), 0u) << named[0];
+  // Its clicks are left out, each named; the georeference itself is sound.
+  std::size_t dropped = 0;
+  for (const auto& b : s.blunders) dropped += b.image == name ? 1 : 0;
+  EXPECT_GE(4 * dropped, 3u * std::size_t(most->second));
+  EXPECT_LT(s.check.xyz, kCheckTolM);
+  EXPECT_LT(s.control.xyz, kCheckTolM);
+}
+
+// A clean block names no photo.
+TEST(Georeference, NoPhotoIsNamedAsMisplacedInACleanBlock) {
+  Reconstruction rec = arbitrary_frame(scene());
+  const auto markers = only(scene(), {"C1", "C2", "C3", "C4", "K1", "K2"});
+  const auto s = georeference({}, markers, scene().marker_observations, scene().keypoints, rec);
+  for (const auto& d : s.diagnosis) EXPECT_NE(d.find("photo "), 0u) << d;
+}
+
 // As in the Coal Oil Point gcp_list.txt: a marker with a single observation, clicked
 // at the very pixel of another marker whose other photos confirm its target.
 TEST(Georeference, TwoMarkersAtOnePixelKeepTheConfirmedOne) {
