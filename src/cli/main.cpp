@@ -4,6 +4,7 @@
 #include "core/error.hpp"
 #include "core/log.hpp"
 #include "core/progress.hpp"
+#include "core/resources.hpp"
 
 #include <fmt/format.h>
 
@@ -27,11 +28,17 @@ int main(int argc, char** argv) {
   app.set_version_flag("--version", "strata 0.1.0");
   app.require_subcommand(1);
   bool quiet = false, verbose = false;
+  int threads = 0;
   app.add_flag("-q,--quiet", quiet, "only warnings and errors on stderr");
   app.add_flag("-v,--verbose", verbose, "debug messages on stderr");
+  app.add_option("--threads", threads,
+                 "most threads to run at once, 0 = every core (default); fewer keep a field laptop "
+                 "responsive. The sparse result does not depend on it (tests/integration/threads_test.cpp)")
+      ->check(CLI::NonNegativeNumber);
   app.parse_complete_callback([&] {
     if (quiet) strata::log::set_level(strata::log::Level::warning);
     if (verbose) strata::log::set_level(strata::log::Level::debug);
+    strata::set_thread_limit(threads);
   });
 
   strata::cli::register_project_commands(app);

@@ -1,5 +1,5 @@
 #pragma once
-// Time and memory figures that every reconstruction records.
+// Time and memory figures that every reconstruction records, and the cores it may use.
 #include <chrono>
 #include <cstdint>
 
@@ -7,6 +7,15 @@ namespace strata {
 
 // Peak resident set size of this process so far, in bytes (VmHWM).
 std::int64_t peak_memory_bytes();
+
+// The most threads this process runs at once (strata --threads): every TBB loop, the
+// stages' worker pools and the bundle adjustments keep within it. 0 lifts the limit
+// (all cores). Throws InputError below 0.
+void set_thread_limit(int threads);
+// The limit, or the number of hardware threads when none is set (at least 1).
+int thread_limit();
+// `requested` threads (0 = as many as allowed), within the limit.
+int allowed_threads(int requested);
 
 class Stopwatch {
  public:

@@ -1,22 +1,19 @@
 #pragma once
 // Internal to the features module: run fn(i) for i in [0, n) on a bounded number
-// of TBB worker threads. OpenCV on Debian is built on TBB too, so its own
-// parallel loops inside fn share the same arena instead of oversubscribing.
-// The first exception thrown by fn propagates to the caller.
+// of TBB worker threads (within strata --threads). OpenCV on Debian is built on TBB
+// too, so its own parallel loops inside fn share the same arena instead of
+// oversubscribing. The first exception thrown by fn propagates to the caller.
+#include "core/resources.hpp"
+
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
 #include <cstddef>
-#include <thread>
 
 namespace strata::features {
 
-inline int resolve_threads(int requested) {
-  if (requested > 0) return requested;
-  const unsigned hw = std::thread::hardware_concurrency();
-  return hw == 0 ? 1 : static_cast<int>(hw);
-}
+inline int resolve_threads(int requested) { return allowed_threads(requested); }
 
 template <typename Fn>
 void parallel_for_index(std::size_t n, int num_threads, Fn&& fn) {

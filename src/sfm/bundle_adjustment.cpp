@@ -271,7 +271,7 @@ BundleSummary solve_bundle(const BundleOptions& options, BaProblem& problem) {
   solver_options.function_tolerance = options.function_tolerance;
   solver_options.gradient_tolerance = options.gradient_tolerance;
   solver_options.parameter_tolerance = options.parameter_tolerance;
-  solver_options.num_threads = options.num_threads;
+  solver_options.num_threads = allowed_threads(options.num_threads);
   solver_options.logging_type = ceres::SILENT;
   solver_options.minimizer_progress_to_stdout = false;
 

@@ -453,7 +453,7 @@ SyntheticExcavationSummary generate_excavation(const SyntheticExcavationOptions&
   SyntheticExcavationSummary summary;
   summary.out_dir = parent / name;
   try {
-    tbb::task_arena arena(options.render.threads > 0 ? options.render.threads : tbb::task_arena::automatic);
+    tbb::task_arena arena(allowed_threads(options.render.threads));
     arena.execute([&] { write_dataset(options, partial, summary); });
     if (fs::exists(summary.out_dir)) fs::remove(summary.out_dir);  // checked empty above
     fs::rename(partial, summary.out_dir);
