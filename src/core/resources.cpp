@@ -38,6 +38,8 @@ int hardware_threads() {
 int g_thread_limit = 0;
 std::unique_ptr<tbb::global_control> g_tbb_limit;
 
+int thread_limit() { return g_thread_limit > 0 ? g_thread_limit : hardware_threads(); }
+
 }  // namespace
 
 void set_thread_limit(int threads) {
@@ -49,8 +51,6 @@ void set_thread_limit(int threads) {
                                                         static_cast<std::size_t>(threads));
   }
 }
-
-int thread_limit() { return g_thread_limit > 0 ? g_thread_limit : hardware_threads(); }
 
 int allowed_threads(int requested) {
   return requested > 0 ? std::min(requested, thread_limit()) : thread_limit();

@@ -12,9 +12,8 @@ std::int64_t peak_memory_bytes();
 // stages' worker pools and the bundle adjustments keep within it. 0 lifts the limit
 // (all cores). Throws InputError below 0.
 void set_thread_limit(int threads);
-// The limit, or the number of hardware threads when none is set (at least 1).
-int thread_limit();
-// `requested` threads (0 = as many as allowed), within the limit.
+// `requested` threads (0 = as many as allowed), within the limit; without a limit, 0
+// means the number of hardware threads (at least 1).
 int allowed_threads(int requested);
 
 class Stopwatch {

@@ -13,12 +13,10 @@
 
 namespace strata::features {
 
-inline int resolve_threads(int requested) { return allowed_threads(requested); }
-
 template <typename Fn>
 void parallel_for_index(std::size_t n, int num_threads, Fn&& fn) {
   if (n == 0) return;
-  tbb::task_arena arena(resolve_threads(num_threads));
+  tbb::task_arena arena(allowed_threads(num_threads));
   arena.execute([&] {
     // grain 1: one image or one pair is already seconds of work.
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 1),

@@ -75,16 +75,7 @@ TEST(Align, SyntheticLayerMatchesTruth) {
   // view (coded-target detection alone may miss small or oblique targets at this
   // resolution); markers.csv then sets the control / check roles and sigmas.
   // Only the lines of L1's photos (the importer refuses photos not in the project).
-  {
-    std::ifstream in(data / "gcp_list.txt");
-    std::string line, kept;
-    std::getline(in, line);
-    kept = line + "\n";  // the CRS line
-    while (std::getline(in, line)) {
-      if (line.find("\tL1_") != std::string::npos) kept += line + "\n";
-    }
-    test::write_text(dir / "gcp_l1.txt", kept);
-  }
+  test::write_gcp_lines_of(data / "gcp_list.txt", "L1_", dir / "gcp_l1.txt");
   ok(run_strata({"-q", "import", "markers", site, (dir / "gcp_l1.txt").string(), "--format", "odm"}));
   ok(run_strata({"-q", "import", "markers", site, (data / "markers.csv").string()}));
 

@@ -111,16 +111,7 @@ void align_synthetic_layer(Layer& l, Shot shot, const std::vector<std::string>& 
   import.insert(import.end(), photos.begin(), photos.end());
   ok(run_strata(import));
   // L1's lines of the generator's gcp_list.txt (see align_test.cpp), then the roles.
-  {
-    std::ifstream in(l.data / "gcp_list.txt");
-    std::string line, kept;
-    std::getline(in, line);
-    kept = line + "\n";
-    while (std::getline(in, line)) {
-      if (line.find("\tL1_") != std::string::npos) kept += line + "\n";
-    }
-    test::write_text(l.dir / "gcp_l1.txt", kept);
-  }
+  test::write_gcp_lines_of(l.data / "gcp_list.txt", "L1_", l.dir / "gcp_l1.txt");
   ok(run_strata({"-q", "import", "markers", l.site, (l.dir / "gcp_l1.txt").string(), "--format", "odm"}));
   ok(run_strata({"-q", "import", "markers", l.site, (l.data / "markers.csv").string()}));
   const auto r = run_strata({"process", l.site, "--layer", "L1", "--until", "sparse", "--json"});

@@ -13,7 +13,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -41,16 +40,7 @@ std::string sparse_cameras(const fs::path& root, const fs::path& data, int threa
   import.insert(import.end(), photos.begin(), photos.end());
   ok(run_strata(import));
   // L1's lines of the generator's gcp_list.txt (the clicks), then the roles.
-  {
-    std::ifstream in(data / "gcp_list.txt");
-    std::string line, kept;
-    std::getline(in, line);
-    kept = line + "\n";
-    while (std::getline(in, line)) {
-      if (line.find("\tL1_") != std::string::npos) kept += line + "\n";
-    }
-    test::write_text(root / "gcp_l1.txt", kept);
-  }
+  test::write_gcp_lines_of(data / "gcp_list.txt", "L1_", root / "gcp_l1.txt");
   ok(run_strata({"-q", "import", "markers", site, (root / "gcp_l1.txt").string(), "--format", "odm"}));
   ok(run_strata({"-q", "import", "markers", site, (data / "markers.csv").string()}));
   const auto r = run_strata({"-q", "--threads", t, "process", site, "--layer", "L1", "--until", "sparse"});

@@ -92,6 +92,17 @@ void write_text(const fs::path& path, const std::string& text) {
   std::ofstream(path, std::ios::binary) << text;
 }
 
+void write_gcp_lines_of(const fs::path& gcp_list, const std::string& photo_prefix, const fs::path& out) {
+  std::ifstream in(gcp_list);
+  std::string line, kept;
+  std::getline(in, line);
+  kept = line + "\n";  // the CRS line
+  while (std::getline(in, line)) {
+    if (line.find("\t" + photo_prefix) != std::string::npos) kept += line + "\n";
+  }
+  write_text(out, kept);
+}
+
 std::string read_text(const fs::path& path) {
   std::ifstream in(path, std::ios::binary);
   std::stringstream ss;

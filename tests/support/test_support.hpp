@@ -38,6 +38,12 @@ CommandResult run_strata(const std::vector<std::string>& args);
 void write_text(const std::filesystem::path& path, const std::string& text);
 std::string read_text(const std::filesystem::path& path);
 
+// The lines of an OpenDroneMap gcp_list (e.g. the generator's) whose photo name starts
+// with `photo_prefix` (e.g. "L1_"), after its CRS line, written to `out`: the importer
+// refuses observations in photos that are not in the project.
+void write_gcp_lines_of(const std::filesystem::path& gcp_list, const std::string& photo_prefix,
+                        const std::filesystem::path& out);
+
 // A listing of every file under a folder with its size and SHA-256, for
 // "nothing changed" comparisons.
 std::string tree_fingerprint(const std::filesystem::path& dir);
