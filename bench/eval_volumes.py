@@ -18,6 +18,11 @@ import sys
 
 VOLUME_TOLERANCE_PCT = 1.0  # issue 7: volume within 1 % of the truth
 MEAN_TOLERANCE_MM = 3.0     # issue 7: mean thickness within 3 mm
+# issue 21 (without an outline): volume within 0.5 %, the truth inside the
+# interval, its half-width under 2 % of the volume, the extent's area within 2 %.
+STRICT_VOLUME_PCT = 0.5
+STRICT_INTERVAL_PCT = 2.0
+STRICT_AREA_PCT = 2.0
 
 
 def read_truth(path):
@@ -38,6 +43,9 @@ def evaluate(measured, truth):
         mean_err = 1000.0 * (m["mean_thickness_m"] - t["mean_thickness_m"])
         area_err = 100.0 * (m["area_m2"] - t["area_m2"]) / t["area_m2"]
         sigma = m.get("volume_sigma_m3")
+        interval = m.get("interval_m3")
+        inside = interval[0] <= t["volume_m3"] <= interval[1] if interval else None
+        half_pct = 100.0 * (interval[1] - m["volume_m3"]) / m["volume_m3"] if interval else None
         rows.append({
             "unit": unit,
             "volume_m3": m["volume_m3"],
@@ -53,7 +61,13 @@ def evaluate(measured, truth):
             "truth_mean_thickness_m": t["mean_thickness_m"],
             "mean_thickness_error_mm": mean_err,
             "filled_fraction": m.get("filled_fraction"),
+            "interval_m3": interval,
+            "confidence": m.get("confidence"),
+            "truth_inside_interval": inside,
+            "interval_half_width_pct": half_pct,
             "pass": abs(vol_err) <= VOLUME_TOLERANCE_PCT and abs(mean_err) <= MEAN_TOLERANCE_MM,
+            "strict_pass": bool(abs(vol_err) <= STRICT_VOLUME_PCT and inside and half_pct is not None
+                                and half_pct < STRICT_INTERVAL_PCT and abs(area_err) <= STRICT_AREA_PCT),
         })
     missing = sorted(set(truth) - {r["unit"] for r in rows})
     return rows, missing
@@ -71,24 +85,33 @@ def main():
     summary = {
         "units": rows,
         "missing_units": missing,
-        "tolerances": {"volume_pct": VOLUME_TOLERANCE_PCT, "mean_thickness_mm": MEAN_TOLERANCE_MM},
+        "tolerances": {"volume_pct": VOLUME_TOLERANCE_PCT, "mean_thickness_mm": MEAN_TOLERANCE_MM,
+                       "strict_volume_pct": STRICT_VOLUME_PCT, "strict_interval_pct": STRICT_INTERVAL_PCT,
+                       "strict_area_pct": STRICT_AREA_PCT},
         "all_pass": bool(rows) and not missing and all(r["pass"] for r in rows),
+        "all_strict_pass": bool(rows) and not missing and all(r["strict_pass"] for r in rows),
     }
     if a.json == "-":
         print(json.dumps(summary, indent=2))
         return 0 if summary["all_pass"] else 1
-    print(f"{'unit':<6} {'volume m3':>10} {'truth m3':>10} {'err %':>8} {'err/sigma':>9} {'area m2':>8} "
-          f"{'truth m2':>8} {'mean err mm':>11} {'filled %':>8}  ok")
+    print(f"{'unit':<6} {'volume m3':>10} {'truth m3':>10} {'err %':>8} {'err/sigma':>9} {'+/- %':>6} {'inside':>6} "
+          f"{'area m2':>8} {'truth m2':>8} {'area %':>7} {'mean err mm':>11} {'filled %':>8}  ok strict")
     for r in rows:
         es = f"{r['error_in_sigmas']:.1f}" if r["error_in_sigmas"] is not None else "-"
         ff = f"{100 * r['filled_fraction']:.1f}" if r["filled_fraction"] is not None else "-"
+        hw = f"{r['interval_half_width_pct']:.2f}" if r["interval_half_width_pct"] is not None else "-"
+        ins = "-" if r["truth_inside_interval"] is None else ("yes" if r["truth_inside_interval"] else "NO")
         print(f"{r['unit']:<6} {r['volume_m3']:>10.4f} {r['truth_volume_m3']:>10.4f} {r['volume_error_pct']:>8.2f} "
-              f"{es:>9} {r['area_m2']:>8.3f} {r['truth_area_m2']:>8.3f} {r['mean_thickness_error_mm']:>11.2f} "
-              f"{ff:>8}  {'yes' if r['pass'] else 'NO'}")
+              f"{es:>9} {hw:>6} {ins:>6} {r['area_m2']:>8.3f} {r['truth_area_m2']:>8.3f} {r['area_error_pct']:>7.2f} "
+              f"{r['mean_thickness_error_mm']:>11.2f} {ff:>8}  {'yes' if r['pass'] else 'NO '} "
+              f"{'yes' if r['strict_pass'] else 'NO'}")
     for u in missing:
         print(f"{u:<6} no measured volume")
     print(f"acceptance (volume within {VOLUME_TOLERANCE_PCT} %, mean thickness within {MEAN_TOLERANCE_MM} mm): "
           f"{'pass' if summary['all_pass'] else 'FAIL'}")
+    print(f"strict (without an outline: volume within {STRICT_VOLUME_PCT} %, truth inside the interval, "
+          f"half-width under {STRICT_INTERVAL_PCT} %, area within {STRICT_AREA_PCT} %): "
+          f"{'pass' if summary['all_strict_pass'] else 'FAIL'}")
     if a.json:
         with open(a.json, "w") as f:
             json.dump(summary, f, indent=2)

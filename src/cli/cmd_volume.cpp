@@ -30,6 +30,7 @@ struct ModelArgs {
   std::string outline;                  // FILE: trench outline, the gap-fill domain
   bool no_fill = false;
   double fill_closing = GapFillOptions{}.closing_m;
+  double confidence = VolumeOptions{}.confidence;
 };
 
 void add_model_options(CLI::App* cmd, ModelArgs& a) {
@@ -49,6 +50,9 @@ void add_model_options(CLI::App* cmd, ModelArgs& a) {
                   "surfaces are filled inside it (default: the closed union of the surfaces' data)");
   cmd->add_option("--fill-closing", a.fill_closing,
                   "radius of the closing that derives the trench outline from the data, metres (default 0.25)");
+  cmd->add_option("--confidence", a.confidence,
+                  "confidence of the significance test that finds where a unit was dug, and of its volume's "
+                  "interval (default 0.95)");
   cmd->add_flag("--no-fill", a.no_fill, "do not fill gaps in the layer surfaces (volumes lose the gaps' area)");
 }
 
@@ -74,6 +78,7 @@ SiteVolumeOptions site_options(const ModelArgs& a) {
   o.outline_file = a.outline;
   o.volume.fill.enabled = !a.no_fill;
   o.volume.fill.closing_m = a.fill_closing;
+  o.volume.confidence = a.confidence;
   o.validate();
   return o;
 }
@@ -88,20 +93,7 @@ const UnitSolid& require_solid(const SiteModel& m, const std::string& unit) {
 }
 
 nlohmann::ordered_json measures_json(const UnitSolid& s, const VoxelSummary& v) {
-  const auto& m = s.measures;
-  nlohmann::ordered_json j = {{"unit", s.unit},
-                      {"volume_m3", m.volume_m3},
-                      {"area_m2", m.area_m2},
-                      {"mean_thickness_m", m.mean_thickness_m},
-                      {"min_thickness_m", m.min_thickness_m},
-                      {"max_thickness_m", m.max_thickness_m},
-                      {"max_thickness_raw_m", m.max_thickness_raw_m},
-                      {"volume_sigma_m3", m.volume_sigma_m3},
-                      {"filled_area_m2", m.filled_area_m2},
-                      {"filled_fraction", m.filled_fraction},
-                      {"fill_sigma_m3", m.fill_sigma_m3},
-                      {"top_layer", s.top_layer},
-                      {"bottom_layers", s.bottom_layers}};
+  nlohmann::ordered_json j = unit_measures_json(s);
   for (const auto& u : v.units)
     if (u.unit == s.unit) {
       j["voxel_volume_m3"] = u.fog_volume_m3;
@@ -136,8 +128,10 @@ void register_volume(CLI::App& app) {
       fmt::print("{}\n", list.dump(2));
       return;
     }
-    fmt::print("{:<8} {:>10} {:>9} {:>9} {:>8} {:>9} {:>9} {:>10}  {}\n", "unit", "volume m3", "+/- m3", "area m2",
-               "filled %", "mean m", "p99 m", "voxels m3", "surfaces");
+    const int pct = int(std::lround(100 * o.volume.confidence));
+    fmt::print("{:<8} {:>10} {:>9} {:>9} {:>8} {:>9} {:>9} {:>9} {:>10}  {}\n", "unit", "volume m3",
+               fmt::format("{}% +/-", pct), "area m2", "filled %", "mean m", "normal m", "p99 m", "voxels m3",
+               "surfaces");
     for (const auto& s : m.solids) {
       if (!unit->empty() && s.unit != *unit) continue;
       const auto& q = s.measures;
@@ -146,13 +140,17 @@ void register_volume(CLI::App& app) {
         if (u.unit == s.unit) vox = u.fog_volume_m3;
       std::string bottoms;
       for (const auto& b : s.bottom_layers) bottoms += (bottoms.empty() ? "" : ",") + b;
-      fmt::print("{:<8} {:>10.4f} {:>9.4f} {:>9.3f} {:>8.1f} {:>9.3f} {:>9.3f} {:>10.4f}  {} -> {}{}\n", s.unit,
-                 q.volume_m3, q.volume_sigma_m3, q.area_m2, 100 * q.filled_fraction, q.mean_thickness_m,
-                 q.max_thickness_m, vox, s.top_layer, bottoms,
+      fmt::print("{:<8} {:>10.4f} {:>9.4f} {:>9.3f} {:>8.1f} {:>9.3f} {:>9.3f} {:>9.3f} {:>10.4f}  {} -> {}{}\n",
+                 s.unit, q.volume_m3, q.interval_high_m3 - q.volume_m3, q.area_m2, 100 * q.filled_fraction,
+                 q.mean_thickness_m, q.mean_normal_thickness_m, q.max_thickness_m, vox, s.top_layer, bottoms,
                  q.filled_fraction > o.volume.fill.warn_fraction ? "  (gaps filled: uncertain)" : "");
     }
-    fmt::print("p99: the thickness exceeded over 1 % of the unit's area (robust maximum; the thickest single cell "
-               "is max_thickness_raw_m in --json)\n");
+    for (const auto& s : m.solids)
+      if ((unit->empty() || s.unit == *unit) && !s.measures.advice.empty())
+        fmt::print("{}: {}\n", s.unit, s.measures.advice);
+    fmt::print("normal: mean thickness along the unit's local normal (steep faces); p99: the thickness exceeded "
+               "over 1 % of the unit's area (robust maximum; the thickest single cell is max_thickness_raw_m in "
+               "--json)\n");
     log::info("wrote {}", (p.products_dir() / "volume" / "units.vdb").string());
   });
 }

@@ -190,7 +190,11 @@ struct HeightField {
   double x0 = 0, y0 = 0, cell = 0;
   int nx = 0, ny = 0;
   std::vector<double> z;
+  // Height uncertainty per cell, metres, one sigma (empty: not known). From a
+  // fused surface: the agreement of the depth maps that saw the cell (fusion.cpp).
+  std::vector<double> sigma;
   double at(int i, int j) const { return z[static_cast<std::size_t>(j) * nx + i]; }
+  bool has_sigma() const { return sigma.size() == z.size() && !z.empty(); }
 };
 
 LevelSetInfo read_level_set_info(const std::filesystem::path& vdb);

@@ -34,6 +34,16 @@ namespace {
 constexpr const char* kSurfaceGrid = "surface";
 constexpr const char* kWeightGrid = "weight";
 constexpr const char* kColourGrid = "colour";
+// The agreement of the observations: per voxel, the weighted variance of the
+// truncated distances averaged into it (m2) and the sum of the squared weights
+// (their effective number is W^2 / sum w^2). They give each surface cell its
+// height uncertainty (top_surface).
+constexpr const char* kSpreadGrid = "spread";
+constexpr const char* kWeight2Grid = "weight2";
+// Prior of one observation's standard deviation, in voxels, and its strength in
+// observations: a cell seen once has no agreement to measure and keeps this prior.
+constexpr double kPriorSigmaVoxels = 1.0;
+constexpr double kPriorObservations = 1.0;
 
 void init_openvdb() {
   static std::once_flag once;
@@ -50,6 +60,8 @@ struct TsdfVolume::Impl {
   openvdb::FloatGrid::Ptr tsdf;    // truncated signed distance, metres; background +trunc
   openvdb::FloatGrid::Ptr weight;  // accumulated weight; background 0 (may be null when read)
   openvdb::Vec3SGrid::Ptr colour;  // RGB 0..255 weighted mean; background 0 (may be null)
+  openvdb::FloatGrid::Ptr spread;  // weighted variance of the distances, m2 (may be null: older files)
+  openvdb::FloatGrid::Ptr weight2; // sum of squared weights (null with spread)
 
   // True when the 2x2x2 voxels from `base` are all observed: a zero crossing there
   // is surface, not the edge of the narrow band next to unseen space.
@@ -81,6 +93,12 @@ TsdfVolume::TsdfVolume(double voxel_size_m, double truncation_m) : impl_(std::ma
   impl_->colour = openvdb::Vec3SGrid::create(openvdb::Vec3s(0.f));
   impl_->colour->setTransform(transform->copy());
   impl_->colour->setName(kColourGrid);
+  impl_->spread = openvdb::FloatGrid::create(0.f);
+  impl_->spread->setTransform(transform->copy());
+  impl_->spread->setName(kSpreadGrid);
+  impl_->weight2 = openvdb::FloatGrid::create(0.f);
+  impl_->weight2->setTransform(transform->copy());
+  impl_->weight2->setName(kWeight2Grid);
 }
 
 TsdfVolume::~TsdfVolume() = default;
@@ -91,7 +109,8 @@ std::size_t TsdfVolume::active_voxels() const { return impl_->tsdf->activeVoxelC
 void TsdfVolume::integrate(const PinholeCamera& cam, const DepthMap& depth,
                            const std::vector<std::uint8_t>& rgb) {
   STRATA_CHECK(depth.width == cam.width && depth.height == cam.height, "depth/camera size mismatch");
-  STRATA_CHECK(impl_->weight && impl_->colour, "volume read from a file cannot integrate");
+  STRATA_CHECK(impl_->weight && impl_->colour && impl_->spread && impl_->weight2,
+               "volume read from a file cannot integrate");
   auto& I = *impl_;
   const auto& xform = I.tsdf->transform();
 
@@ -119,6 +138,8 @@ void TsdfVolume::integrate(const PinholeCamera& cam, const DepthMap& depth,
   I.tsdf->tree().topologyUnion(band.tree());
   I.weight->tree().topologyUnion(band.tree());
   I.colour->tree().topologyUnion(band.tree());
+  I.spread->tree().topologyUnion(band.tree());
+  I.weight2->tree().topologyUnion(band.tree());
 
   // 2. Projective update of every band voxel (parallel over leaves; the leaves of the
   //    three grids exist after the unions, so each task writes only its own leaf).
@@ -128,7 +149,9 @@ void TsdfVolume::integrate(const PinholeCamera& cam, const DepthMap& depth,
     auto* tl = I.tsdf->tree().probeLeaf(leaf.origin());
     auto* wl = I.weight->tree().probeLeaf(leaf.origin());
     auto* cl = I.colour->tree().probeLeaf(leaf.origin());
-    if (!tl || !wl || !cl) return;
+    auto* sl = I.spread->tree().probeLeaf(leaf.origin());
+    auto* ql = I.weight2->tree().probeLeaf(leaf.origin());
+    if (!tl || !wl || !cl || !sl || !ql) return;
     for (auto it = leaf.cbeginValueOn(); it; ++it) {
       const openvdb::Vec3d w = xform.indexToWorld(it.getCoord());
       const Eigen::Vector3d Xc = cam.pose.to_camera(Eigen::Vector3d(w.x(), w.y(), w.z()));
@@ -154,8 +177,14 @@ void TsdfVolume::integrate(const PinholeCamera& cam, const DepthMap& depth,
       const auto off = it.pos();
       const float W = wl->getValue(off);
       const float Wn = W + obs_w;
-      tl->setValueOnly(off, (tl->getValue(off) * W + sdf * obs_w) / Wn);
+      // Weighted mean and variance in one pass (West 1979): the variance grows by
+      // w * (x - old mean) * (x - new mean).
+      const float mean = W > 0 ? tl->getValue(off) : sdf;
+      const float mean_n = (mean * W + sdf * obs_w) / Wn;
+      tl->setValueOnly(off, mean_n);
       wl->setValueOnly(off, Wn);
+      sl->setValueOnly(off, (sl->getValue(off) * W + obs_w * (sdf - mean) * (sdf - mean_n)) / Wn);
+      ql->setValueOnly(off, ql->getValue(off) + obs_w * obs_w);
       const openvdb::Vec3s c(rgb[3 * p], rgb[3 * p + 1], rgb[3 * p + 2]);
       cl->setValueOnly(off, (cl->getValue(off) * W + c * obs_w) / Wn);
     }
@@ -170,17 +199,23 @@ void TsdfVolume::finalise(double min_weight) {
   leaves.foreach([&](openvdb::FloatTree::LeafNodeType& wl, std::size_t) {
     auto* tl = I.tsdf->tree().probeLeaf(wl.origin());
     auto* cl = I.colour->tree().probeLeaf(wl.origin());
+    auto* sl = I.spread ? I.spread->tree().probeLeaf(wl.origin()) : nullptr;
+    auto* ql = I.weight2 ? I.weight2->tree().probeLeaf(wl.origin()) : nullptr;
     for (auto it = wl.beginValueOn(); it; ++it) {
       if (*it >= wmin) continue;
       const auto off = it.pos();
       wl.setValueOff(off, 0.f);
       if (tl) tl->setValueOff(off, I.tsdf->background());
       if (cl) cl->setValueOff(off, openvdb::Vec3s(0.f));
+      if (sl) sl->setValueOff(off, 0.f);
+      if (ql) ql->setValueOff(off, 0.f);
     }
   });
   openvdb::tools::pruneInactive(I.tsdf->tree());
   openvdb::tools::pruneInactive(I.weight->tree());
   openvdb::tools::pruneInactive(I.colour->tree());
+  if (I.spread) openvdb::tools::pruneInactive(I.spread->tree());
+  if (I.weight2) openvdb::tools::pruneInactive(I.weight2->tree());
 }
 
 std::size_t TsdfVolume::remove_small_components(double min_fraction) {
@@ -225,18 +260,24 @@ std::size_t TsdfVolume::remove_small_components(double min_fraction) {
   auto tsdf = I.tsdf->getAccessor();
   auto weight = I.weight ? std::optional(I.weight->getAccessor()) : std::nullopt;
   auto colour = I.colour ? std::optional(I.colour->getAccessor()) : std::nullopt;
+  auto spread = I.spread ? std::optional(I.spread->getAccessor()) : std::nullopt;
+  auto weight2 = I.weight2 ? std::optional(I.weight2->getAccessor()) : std::nullopt;
   for (auto it = ids->tree().cbeginValueOn(); it; ++it) {
     if (!it.isVoxelValue() || double(size[static_cast<std::size_t>(find(*it))]) >= min_voxels) continue;
     const openvdb::Coord c = it.getCoord();
     tsdf.setValueOff(c, I.tsdf->background());
     if (weight) weight->setValueOff(c, 0.f);
     if (colour) colour->setValueOff(c, openvdb::Vec3s(0.f));
+    if (spread) spread->setValueOff(c, 0.f);
+    if (weight2) weight2->setValueOff(c, 0.f);
     ++removed;
   }
   if (removed == 0) return 0;
   openvdb::tools::pruneInactive(I.tsdf->tree());
   if (I.weight) openvdb::tools::pruneInactive(I.weight->tree());
   if (I.colour) openvdb::tools::pruneInactive(I.colour->tree());
+  if (I.spread) openvdb::tools::pruneInactive(I.spread->tree());
+  if (I.weight2) openvdb::tools::pruneInactive(I.weight2->tree());
   return removed;
 }
 
@@ -362,12 +403,22 @@ HeightField TsdfVolume::top_surface(double x0, double y0, double cell, int nx, i
 
   // One pass over the active voxels: per voxel column (i, j), the highest crossing
   // from inside (<= 0) at k to outside (> 0) at k+1, both observed, linearly
-  // interpolated. Index-space z, stored densely over the active XY box.
+  // interpolated. Index-space z, stored densely over the active XY box; with it
+  // the height uncertainty of that crossing (metres, one sigma).
   const int ci0 = bbox.min().x(), cj0 = bbox.min().y();
   const int cw = bbox.dim().x(), ch = bbox.dim().y();
+  const bool with_sigma = I.spread && I.weight && I.weight2;
   std::vector<float> column(static_cast<std::size_t>(cw) * ch, -std::numeric_limits<float>::infinity());
+  std::vector<float> column_sigma(with_sigma ? column.size() : 0, 0.f);
   {
     auto acc = I.tsdf->getConstAccessor();
+    std::optional<openvdb::FloatGrid::ConstAccessor> sacc, wacc, qacc;
+    if (with_sigma) {
+      sacc.emplace(I.spread->getConstAccessor());
+      wacc.emplace(I.weight->getConstAccessor());
+      qacc.emplace(I.weight2->getConstAccessor());
+    }
+    const double prior2 = std::pow(kPriorSigmaVoxels * I.voxel, 2);
     for (auto it = I.tsdf->cbeginValueOn(); it; ++it) {
       if (!it.isVoxelValue()) continue;
       const float a = *it;
@@ -376,15 +427,34 @@ HeightField TsdfVolume::top_surface(double x0, double y0, double cell, int nx, i
       const openvdb::Coord up = c.offsetBy(0, 0, 1);
       float b = 0;
       if (!acc.probeValue(up, b) || !(b > 0)) continue;
-      const float z = static_cast<float>(c.z()) + a / (a - b);
-      float& col = column[static_cast<std::size_t>(c.y() - cj0) * cw + (c.x() - ci0)];
-      col = std::max(col, z);
+      const float f = a / (a - b);
+      const float z = static_cast<float>(c.z()) + f;
+      const std::size_t k = static_cast<std::size_t>(c.y() - cj0) * cw + (c.x() - ci0);
+      if (z <= column[k]) continue;
+      column[k] = z;
+      if (!with_sigma) continue;
+      // The surface height's uncertainty from the observations' agreement: their
+      // weighted spread, shrunk towards a prior (one observation has no spread to
+      // measure), over their effective number W^2 / sum w^2.
+      auto lerp = [&](const openvdb::FloatGrid::ConstAccessor& g) {
+        return (1 - f) * g.getValue(c) + f * g.getValue(up);
+      };
+      const double var = std::max(0.f, lerp(*sacc)), W = lerp(*wacc), W2 = lerp(*qacc);
+      const double n_eff = W2 > 0 ? std::max(1.0, W * W / W2) : 1.0;
+      const double s2 = (kPriorObservations * prior2 + n_eff * var) / (kPriorObservations + n_eff);
+      column_sigma[k] = static_cast<float>(std::sqrt(s2 / n_eff));
     }
   }
-  auto col_at = [&](int i, int j) -> float {
-    if (i < ci0 || j < cj0 || i >= ci0 + cw || j >= cj0 + ch) return -std::numeric_limits<float>::infinity();
-    return column[static_cast<std::size_t>(j - cj0) * cw + (i - ci0)];
+  auto col_index = [&](int i, int j) -> std::ptrdiff_t {
+    if (i < ci0 || j < cj0 || i >= ci0 + cw || j >= cj0 + ch) return -1;
+    return static_cast<std::ptrdiff_t>(j - cj0) * cw + (i - ci0);
   };
+  auto col_at = [&](int i, int j) -> float {
+    const auto k = col_index(i, j);
+    return k < 0 ? -std::numeric_limits<float>::infinity() : column[static_cast<std::size_t>(k)];
+  };
+  auto sigma_at = [&](int i, int j) -> double { return column_sigma[static_cast<std::size_t>(col_index(i, j))]; };
+  if (with_sigma) hf.sigma.assign(hf.z.size(), std::numeric_limits<double>::quiet_NaN());
   // Bilinear over the four surrounding columns when all have a crossing, else the
   // nearest column's (edges of the surface, vertical walls).
   const double vs = I.voxel;
@@ -395,14 +465,25 @@ HeightField TsdfVolume::top_surface(double x0, double y0, double cell, int nx, i
       const double ax = fx - i0, ay = fy - j0;
       const float z00 = col_at(i0, j0), z10 = col_at(i0 + 1, j0), z01 = col_at(i0, j0 + 1),
                   z11 = col_at(i0 + 1, j0 + 1);
-      double z = std::numeric_limits<double>::quiet_NaN();
+      double z = std::numeric_limits<double>::quiet_NaN(), sigma = z;
       if (std::isfinite(z00) && std::isfinite(z10) && std::isfinite(z01) && std::isfinite(z11)) {
         z = (1 - ay) * ((1 - ax) * z00 + ax * z10) + ay * ((1 - ax) * z01 + ax * z11);
+        if (with_sigma)
+          sigma = (1 - ay) * ((1 - ax) * sigma_at(i0, j0) + ax * sigma_at(i0 + 1, j0)) +
+                  ay * ((1 - ax) * sigma_at(i0, j0 + 1) + ax * sigma_at(i0 + 1, j0 + 1));
       } else {
-        const float zn = col_at(static_cast<int>(std::lround(fx)), static_cast<int>(std::lround(fy)));
-        if (std::isfinite(zn)) z = zn;
+        const int in = static_cast<int>(std::lround(fx)), jn = static_cast<int>(std::lround(fy));
+        const float zn = col_at(in, jn);
+        if (std::isfinite(zn)) {
+          z = zn;
+          if (with_sigma) sigma = sigma_at(in, jn);
+        }
       }
-      if (std::isfinite(z)) hf.z[static_cast<std::size_t>(j) * nx + i] = z * vs;
+      if (std::isfinite(z)) {
+        const std::size_t cidx = static_cast<std::size_t>(j) * nx + i;
+        hf.z[cidx] = z * vs;
+        if (with_sigma) hf.sigma[cidx] = sigma;
+      }
     }
   }
   return hf;
@@ -443,6 +524,10 @@ void TsdfVolume::write(const std::filesystem::path& vdb, const Eigen::Vector3d& 
   grids.push_back(surface);
   if (I.weight) grids.push_back(I.weight);
   if (I.colour) grids.push_back(I.colour);
+  if (I.spread && I.weight2) {
+    grids.push_back(I.spread);
+    grids.push_back(I.weight2);
+  }
   write_file_atomically(vdb, "writer.vdb", [&](const std::filesystem::path& tmp) {
     try {
       openvdb::io::File file(tmp.string());
@@ -473,6 +558,11 @@ std::unique_ptr<TsdfVolume> TsdfVolume::read(const std::filesystem::path& vdb, L
     if (file.hasGrid(kColourGrid)) {
       impl->colour = openvdb::gridPtrCast<openvdb::Vec3SGrid>(file.readGrid(kColourGrid));
     }
+    if (file.hasGrid(kSpreadGrid) && file.hasGrid(kWeight2Grid) && impl->weight) {
+      impl->spread = openvdb::gridPtrCast<openvdb::FloatGrid>(file.readGrid(kSpreadGrid));
+      impl->weight2 = openvdb::gridPtrCast<openvdb::FloatGrid>(file.readGrid(kWeight2Grid));
+      if (!impl->spread || !impl->weight2) impl->spread = impl->weight2 = nullptr;
+    }
     file.close();
   } catch (const openvdb::Exception& e) {
     throw IoError(fmt::format("reader.vdb: {}: {}", vdb.string(), e.what()));
@@ -480,6 +570,7 @@ std::unique_ptr<TsdfVolume> TsdfVolume::read(const std::filesystem::path& vdb, L
   if (!impl->weight || !impl->colour) {
     impl->weight = nullptr;
     impl->colour = nullptr;
+    impl->spread = impl->weight2 = nullptr;
   }
   impl->voxel = impl->tsdf->voxelSize().x();
   impl->trunc = impl->tsdf->background();

@@ -49,13 +49,16 @@ DenseLayerResult dense_layer(Project& project, const std::string& layer_name, co
                                       layer.name, layer.name));
   }
   const SiteInfo site = project.site();
+  // The fused volume's content: 2 adds the observations' spread (per-cell height
+  // uncertainty), so older surfaces are fused again (their depth maps are reused).
+  constexpr int kFusionVersion = 2;
   DenseOptions o = options;
   DenseLayerResult result;
   // Every option that changes the surface is part of the key (a changed option
   // recomputes; the depth-map cache below still reuses what did not change).
   const std::string inputs_key = sha256_hex(
       alignment->inputs_key +
-      fmt::format("|views {} {} {} {}|{}|{}|fusion {} {} {} {} {} {} {}", o.views.max_neighbours,
+      fmt::format("|fusion v{}|views {} {} {} {}|{}|{}|fusion {} {} {} {} {} {} {}", kFusionVersion, o.views.max_neighbours,
                   o.views.min_shared_points, o.views.min_angle_deg, o.views.max_angle_deg, o.patch_match.fingerprint(),
                   o.consistency.fingerprint(), o.fusion.voxel_size_m, o.fusion.voxel_gsd_factor,
                   o.fusion.min_voxel_size_m, o.fusion.max_voxel_size_m, o.fusion.truncation_voxels,

@@ -176,6 +176,24 @@ ProductsLayerResult products_layer(Project& project, const std::string& layer_na
   const DtmStatistics stats = dtm_statistics(dtm, site.origin.z());
   if (stats.valid_cells == 0) throw ProcessingError(fmt::format("layer {}: the surface gives an empty DTM", layer.name));
   write_dtm_geotiff(out_dir / "dtm.tif", dtm, geo, options.geotiff);
+  // Its per-cell height uncertainty (one sigma, metres) beside it, from the
+  // agreement of the fused depth maps; read by `strata volume` and the report.
+  nlohmann::json sigma_q;
+  if (!dtm.sigma.empty()) {
+    Dtm sigma{dtm.grid, dtm.sigma, {}};
+    RasterGeoreference sigma_geo = geo;
+    sigma_geo.origin.z() = 0;  // metres of uncertainty, not heights
+    write_dtm_geotiff(out_dir / "dtm_sigma.tif", sigma, sigma_geo, options.geotiff);
+    std::vector<float> v;
+    for (float x : dtm.sigma)
+      if (std::isfinite(x)) v.push_back(x);
+    if (!v.empty()) {
+      std::sort(v.begin(), v.end());
+      sigma_q = {{"path", rel_dir + "/dtm_sigma.tif"},
+                 {"median_m", v[v.size() / 2]},
+                 {"p95_m", v[std::min(v.size() - 1, std::size_t(0.95 * double(v.size())))]}};
+    }
+  }
   steps["dtm"] = step_json(w);
   check_cancelled();
 
@@ -235,6 +253,7 @@ ProductsLayerResult products_layer(Project& project, const std::string& layer_na
               {"height", dtm.grid.height},        {"valid_cells", stats.valid_cells}, {"area_m2", stats.area_m2},
               {"min_m", stats.min},               {"max_m", stats.max},            {"mean_m", stats.mean},
               {"median_distance_sparse_m", sparse_median}, {"sparse_points_compared", sparse_n}};
+  if (!sigma_q.is_null()) q["dtm"]["sigma"] = sigma_q;
   q["ortho"] = {{"path", rel_dir + "/ortho.tif"},  {"cell_m", ortho.grid.cell},     {"views", os.views},
                 {"views_used", os.views_used},     {"coverage", os.coverage},       {"seam_fraction", os.seam_fraction},
                 {"balance_rms_before", os.balance_rms_before}, {"balance_rms_after", os.balance_rms_after},
@@ -257,7 +276,9 @@ ProductsLayerResult products_layer(Project& project, const std::string& layer_na
         .run();
     for (const auto& [kind, file, params] :
          {std::tuple{"dtm", "dtm.tif", nlohmann::json{{"cell_m", dtm.grid.cell}, {"nodata", kDtmNoData}}},
-          std::tuple{"ortho", "ortho.tif", nlohmann::json{{"cell_m", ortho.grid.cell}}}}) {
+          std::tuple{"ortho", "ortho.tif", nlohmann::json{{"cell_m", ortho.grid.cell}}},
+          std::tuple{"dtm_sigma", "dtm_sigma.tif", nlohmann::json{{"cell_m", dtm.grid.cell}, {"nodata", kDtmNoData}}}}) {
+      if (std::string(kind) == "dtm_sigma" && sigma_q.is_null()) continue;
       ProductRecord r;
       r.layer_id = layer.id;
       r.kind = kind;

@@ -30,12 +30,14 @@ Dtm dtm_from_height_field(const HeightField& hf) {
   d.grid.x_min = hf.x0 - 0.5 * hf.cell;
   d.grid.y_max = hf.y0 + (hf.ny - 1) * hf.cell + 0.5 * hf.cell;
   d.z.assign(d.grid.cells(), std::numeric_limits<float>::quiet_NaN());
+  if (hf.has_sigma()) d.sigma.assign(d.grid.cells(), std::numeric_limits<float>::quiet_NaN());
   // HeightField rows go south to north (j along +y); rasters go north to south.
   for (int j = 0; j < hf.ny; ++j) {
     const int row = hf.ny - 1 - j;
     for (int i = 0; i < hf.nx; ++i) {
       const double z = hf.at(i, j);
       if (std::isfinite(z)) d.z[d.grid.index(i, row)] = float(z);
+      if (hf.has_sigma() && std::isfinite(z)) d.sigma[d.grid.index(i, row)] = float(hf.sigma[std::size_t(j) * hf.nx + i]);
     }
   }
   return d;

@@ -39,6 +39,9 @@ struct RasterGrid {
 struct Dtm {
   RasterGrid grid;
   std::vector<float> z;
+  // Height uncertainty per cell, metres, one sigma, same layout (NaN where
+  // unknown, and on cells filled by fill_small_gaps); empty: none.
+  std::vector<float> sigma;
 
   float at(int col, int row) const { return z[grid.index(col, row)]; }
   bool valid(int col, int row) const { return std::isfinite(at(col, row)); }

@@ -192,6 +192,13 @@ QgisProjectInput collect_qgis_input(Project& project) {
     g.footprint = count("footprints") > 0;
     in.layers.push_back(g);
   }
+  {
+    auto ex = db.prepare("SELECT count(*) FROM sqlite_master WHERE type = 'table' AND name = 'unit_extents'");
+    if (ex.step() && ex.get_int(0) > 0) {
+      auto n = db.prepare("SELECT count(*) FROM unit_extents");
+      in.unit_extents = n.step() && n.get_int(0) > 0;
+    }
+  }
   auto st = db.prepare(
       "SELECT min(min_x), min(min_y), max(max_x), max(max_y) FROM gpkg_contents WHERE data_type IN "
       "('features', 'tiles', '2d-gridded-coverage') AND srs_id = ?");
@@ -237,6 +244,18 @@ std::string qgis_project_xml(const QgisProjectInput& in, const fs::path& qgs_dir
                           "");
     m.visible = false;
     site.layers.push_back(m);
+  }
+  if (in.unit_extents) {
+    // The excavated extent of every unit, labelled with its volume and interval.
+    site.layers.push_back(w.vector(site_layer_id("unit_extents"), "unit extents", "unit_extents", "Polygon", "",
+                                   QgsWriter::single_symbol("fill", "SimpleFill",
+                                                            {{"style", "no"}, {"color", "0,0,0,0"},
+                                                             {"outline_color", "150,90,30,255"},
+                                                             {"outline_width", "0.5"}}),
+                                   QgsWriter::labels("\"unit\" || ': ' || format_number(\"volume_m3\", 3) || ' m3 (' "
+                                                     "|| format_number(\"volume_low_m3\", 3) || '-' || "
+                                                     "format_number(\"volume_high_m3\", 3) || ')'",
+                                                     true, 0, "150,90,30,255")));
   }
   groups.push_back(site);
 

@@ -30,6 +30,7 @@ struct QgisProjectInput {
   Eigen::Vector2d min = Eigen::Vector2d::Zero(), max = Eigen::Vector2d::Zero();  // map extent, CRS
   std::vector<QgisLayerGroup> layers;   // in capture order: first = earliest
   bool markers = true, camera_positions = true, marker_residuals = true;
+  bool unit_extents = false;            // rows in `unit_extents` (strata volume)
 };
 
 // Gathers layers (capture order), their dtm/ortho products, vectors and extent.

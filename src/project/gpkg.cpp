@@ -20,6 +20,7 @@ constexpr FeatureTable kFeatureTables[] = {
     {"camera_positions", "POINT", 1, "positions of the aligned photos"},
     {"contours", "LINESTRING", 1, "contour lines of each layer's DTM"},
     {"footprints", "MULTIPOLYGON", 0, "reconstructed footprint of each layer"},
+    {"unit_extents", "MULTIPOLYGON", 0, "excavated extent of each unit (strata volume)"},
 };
 
 bool table_exists(Database& db, const std::string& name) {

@@ -598,6 +598,12 @@ std::string hillshade_section(const LayerData& d, const ReportOptions& o) {
   if (d.products_quality) {
     if (auto a = json_number(*d.products_quality, {"dtm", "area_m2"})) caption += fmt::format(" Area {:.2f} m².", *a);
     if (auto c = json_number(*d.products_quality, {"dtm", "cell_m"})) caption += fmt::format(" Cell {:.0f} mm.", *c * 1000);
+    const auto sm = json_number(*d.products_quality, {"dtm", "sigma", "median_m"});
+    const auto sp = json_number(*d.products_quality, {"dtm", "sigma", "p95_m"});
+    if (sm && sp)
+      caption += fmt::format(" Height uncertainty per cell (one sigma, from the agreement of the fused depth maps; "
+                             "dtm_sigma.tif): median {:.1f} mm, 95 % of cells within {:.1f} mm.",
+                             *sm * 1000, *sp * 1000);
   }
   s += "<p class=\"caption\">" + escape(caption) + "</p>\n";
   return s + "</section>\n";

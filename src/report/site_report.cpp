@@ -9,6 +9,7 @@
 #include "volume/site_volumes.hpp"
 
 #include <fmt/format.h>
+#include <nlohmann/json.hpp>
 
 #include <unistd.h>
 
@@ -115,9 +116,9 @@ std::string volumes_section(Database& db) {
   std::string s = "<section><h2>Volumes</h2>\n";
   auto st = db.prepare(
       "SELECT u.code, v.top_layer, v.bottom_layers, v.volume_m3, v.volume_sigma_m3, v.area_m2, v.mean_thickness_m, "
-      "v.min_thickness_m, v.max_thickness_m, v.method FROM unit_volumes v JOIN units u ON u.id = v.unit_id "
-      "ORDER BY u.code");
-  std::string rows;
+      "v.min_thickness_m, v.max_thickness_m, v.method, v.details_json FROM unit_volumes v JOIN units u ON u.id = "
+      "v.unit_id ORDER BY u.code");
+  std::string rows, advice;
   double total = 0;
   while (st.step()) {
     const auto sigma = st.get_optional_double(4);
@@ -128,6 +129,10 @@ std::string volumes_section(Database& db) {
         escape(st.get_text(0)), escape(st.get_text(1)), escape(st.get_text(2)), st.get_double(3),
         sigma ? fmt::format(" ± {:.3f}", *sigma) : "", st.get_double(5), 1000 * st.get_double(6),
         1000 * st.get_double(7), 1000 * st.get_double(8), escape(st.get_text(9)));
+    // How sure the figure is and what would make it surer (strata volume).
+    const auto details = nlohmann::json::parse(st.is_null(10) ? std::string("{}") : st.get_text(10), nullptr, false);
+    if (details.is_object() && details.value("advice", std::string()) != "")
+      advice += fmt::format("<li>{}: {}</li>", escape(st.get_text(0)), escape(details.value("advice", std::string())));
   }
   if (rows.empty()) {
     return s + missing("No volumes yet: they need at least two processed layers; run: strata volume DIR") + "</section>\n";
@@ -135,6 +140,7 @@ std::string volumes_section(Database& db) {
   s += "<table class=\"grid\"><tr><th>unit</th><th>top surface</th><th>bottom surface</th><th>volume (m³)</th>"
        "<th>area (m²)</th><th>mean thickness (mm)</th><th>thickness min–p99 (mm)</th><th>method</th></tr>" +
        rows + "</table>\n";
+  if (!advice.empty()) s += "<ul class=\"advice\">" + advice + "</ul>\n";
   s += fmt::format(
       "<p class=\"caption\">Total excavated volume {:.3f} m³. The upper end of the thickness range is the 99th "
       "percentile of the unit's cells (outlier cells of the dense surfaces left out; the single-cell maximum is in "

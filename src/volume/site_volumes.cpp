@@ -5,6 +5,9 @@
 #include "core/log.hpp"
 
 #include <fstream>
+#include "products/dtm.hpp"
+#include "products/site_plan.hpp"
+#include "project/gpkg.hpp"
 #include "volume/raster_io.hpp"
 
 #include <fmt/format.h>
@@ -28,6 +31,7 @@ struct SurfaceSource {
   fs::path path;
   bool raster = false;
   std::optional<HeightField> field;  // rasters: read at once
+  fs::path sigma_path;               // rasters: per-cell height sigma beside it, if any
   double xmin = 0, ymin = 0, xmax = 0, ymax = 0;  // site frame extent
 };
 
@@ -134,11 +138,16 @@ SiteModel load_site_model(Project& project, const SiteVolumeOptions& options) {
     if (auto f = options.surface_files.find(layer.name); f != options.surface_files.end()) {
       s.path = f->second;
       s.raster = true;
+      // A DTM from elsewhere may bring its uncertainty as NAME_sigma.tif beside it.
+      const fs::path sibling = s.path.parent_path() / (s.path.stem().string() + "_sigma" + s.path.extension().string());
+      if (fs::exists(sibling)) s.sigma_path = sibling;
     } else if (auto p = find_product(db, layer.id, "surface")) {
       s.path = project.dir() / p->path;
     } else if (auto d = find_product(db, layer.id, "dtm")) {
       s.path = project.dir() / d->path;
       s.raster = true;
+      if (auto sg = find_product(db, layer.id, "dtm_sigma"); sg && fs::exists(project.dir() / sg->path))
+        s.sigma_path = project.dir() / sg->path;
     } else {
       log::warn("volume: layer {} has no surface yet (run 'strata process {} --layer {}'): left out", layer.name,
                 project.dir().string(), layer.name);
@@ -209,6 +218,10 @@ SiteModel load_site_model(Project& project, const SiteVolumeOptions& options) {
     l.unit = s.layer.unit;
     l.source = s.path.string();
     l.z = s.raster ? resample(*s.field, grid) : sample_top_surface(s.path, grid.x0, grid.y0, grid.cell, grid.nx, grid.ny);
+    if (!s.sigma_path.empty()) {
+      const Eigen::Vector3d plane(origin.x(), origin.y(), 0);  // metres of uncertainty, no height offset
+      l.z.sigma = resample(read_height_raster(s.sigma_path, plane), grid).z;
+    }
     l.noise_m = surface_noise(db, s.layer.id, options.default_noise_m);
     l.vertical_rmse_m = vertical_rmse(db, s.layer.id);
     model.layers.push_back(std::move(l));
@@ -247,6 +260,50 @@ SiteModel load_site_model(Project& project, const SiteVolumeOptions& options) {
   model.fill = fill_surface_gaps(model.layers, vo);
   model.solids = build_unit_solids(model.layers, vo);
   return model;
+}
+
+nlohmann::ordered_json unit_measures_json(const UnitSolid& s) {
+  const auto& m = s.measures;
+  return {{"unit", s.unit},
+          {"volume_m3", m.volume_m3},
+          {"interval_m3", {m.interval_low_m3, m.interval_high_m3}},
+          {"confidence", m.confidence},
+          {"volume_sigma_m3", m.volume_sigma_m3},
+          {"sigma_parts_m3",
+           {{"random", m.random_sigma_m3},
+            {"systematic", m.systematic_sigma_m3},
+            {"fill", m.fill_sigma_m3},
+            {"extent", m.extent_sigma_m3}}},
+          {"interval_method",
+           "one-sigma parts in quadrature: random (per-cell surface sigmas, from the fused depth maps' agreement, "
+           "scaled on stable ground, correlated over correlation_m: Gaussian model, pi L^2), systematic (the "
+           "surfaces' relative offset on stable ground, else check-marker RMSE z, over the whole area), fill (summed "
+           "linearly over interpolated cells), extent (volumes with the level of detection halved and doubled, "
+           "uniform); interval = volume +/- z sigma"},
+          {"measured_volume_m3", m.measured_volume_m3},
+          {"filled_volume_m3", m.filled_volume_m3},
+          {"area_m2", m.area_m2},
+          {"extent_method", m.extent_method},
+          {"median_lod_m", m.median_lod_m},
+          {"mean_thickness_m", m.mean_thickness_m},
+          {"min_thickness_m", m.min_thickness_m},
+          {"max_thickness_m", m.max_thickness_m},
+          {"max_thickness_raw_m", m.max_thickness_raw_m},
+          {"mean_normal_thickness_m", m.mean_normal_thickness_m},
+          {"max_normal_thickness_m", m.max_normal_thickness_m},
+          {"filled_area_m2", m.filled_area_m2},
+          {"filled_fraction", m.filled_fraction},
+          {"fill_sigma_m3", m.fill_sigma_m3},
+          {"stable_ground",
+           {{"area_m2", m.stable_area_m2},
+            {"bias_m", m.stable_bias_m},
+            {"nmad_m", m.stable_nmad_m},
+            {"noise_scale", m.noise_scale},
+            {"correlation_m", m.correlation_m},
+            {"per_cell_sigma", m.per_cell_sigma}}},
+          {"advice", m.advice},
+          {"top_layer", s.top_layer},
+          {"bottom_layers", s.bottom_layers}};
 }
 
 HarrisMatrix site_matrix(const SiteModel& model) {
@@ -291,21 +348,18 @@ VoxelSummary store_site_volumes(Project& project, const SiteModel& model, const 
     std::string bottoms;
     for (const auto& b : s.bottom_layers) bottoms += (bottoms.empty() ? "" : ",") + b;
     const auto& m = s.measures;
-    nlohmann::json details = {{"cell_m", s.top.cell},
-                              {"cells", m.cells},
-                              {"noise_threshold_m", options.volume.noise_threshold_m},
-                              {"max_thickness_raw_m", m.max_thickness_raw_m},
-                              {"max_thickness_quantile", options.volume.max_thickness_quantile},
-                              {"footprint", options.footprint_files.count(s.unit) > 0},
-                              {"gap_fill", options.volume.fill.enabled},
-                              {"trench_outline", options.outline_file.string()},
-                              {"filled_area_m2", m.filled_area_m2},
-                              {"filled_fraction", m.filled_fraction},
-                              {"fill_sigma_m3", m.fill_sigma_m3},
-                              {"voxel_size_m", voxels.voxel_size_m},
-                              {"voxel_fog_volume_m3", vu ? vu->fog_volume_m3 : 0.0},
-                              {"voxel_label_volume_m3", vu ? vu->label_volume_m3 : 0.0},
-                              {"sources", sources}};
+    nlohmann::ordered_json details = unit_measures_json(s);
+    details.update(nlohmann::ordered_json{{"cell_m", s.top.cell},
+                                          {"cells", m.cells},
+                                          {"noise_threshold_m", options.volume.noise_threshold_m},
+                                          {"max_thickness_quantile", options.volume.max_thickness_quantile},
+                                          {"footprint", options.footprint_files.count(s.unit) > 0},
+                                          {"gap_fill", options.volume.fill.enabled},
+                                          {"trench_outline", options.outline_file.string()},
+                                          {"voxel_size_m", voxels.voxel_size_m},
+                                          {"voxel_fog_volume_m3", vu ? vu->fog_volume_m3 : 0.0},
+                                          {"voxel_label_volume_m3", vu ? vu->label_volume_m3 : 0.0},
+                                          {"sources", sources}});
     db.prepare(
           "INSERT INTO unit_volumes(unit_id, top_layer, bottom_layers, volume_m3, area_m2, mean_thickness_m, "
           "min_thickness_m, max_thickness_m, volume_sigma_m3, method, details_json, computed_at) "
@@ -320,6 +374,28 @@ VoxelSummary store_site_volumes(Project& project, const SiteModel& model, const 
     r.params_json = nlohmann::json{{"cell_m", s.top.cell}}.dump();
     record_product(db, project.dir(), r);
   }
+  // The extent of every unit as polygons (the outline of its dug cells).
+  db.exec("DELETE FROM unit_extents");
+  for (const auto& s : model.solids) {
+    if (s.measures.cells == 0) continue;
+    HeightField mask = s.top;
+    for (std::size_t c = 0; c < mask.z.size(); ++c) mask.z[c] = s.dug(c) ? 1.0 : std::nan("");
+    const Footprint extent = dtm_footprint(dtm_from_height_field(mask), model.site.origin, 0);
+    if (extent.polygons.empty()) continue;
+    const auto& m = s.measures;
+    auto st = db.prepare(
+        "INSERT INTO unit_extents(geom, unit, method, area_m2, volume_m3, volume_low_m3, volume_high_m3, "
+        "confidence, min_e, min_n, max_e, max_n) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
+    st.bind_blob(1, gpkg_multipolygon(model.site.srs_id, extent));
+    st.bind(2, s.unit).bind(3, m.extent_method).bind(4, m.area_m2).bind(5, m.volume_m3);
+    st.bind(6, m.interval_low_m3).bind(7, m.interval_high_m3).bind(8, m.confidence);
+    st.bind(9, extent.min.x()).bind(10, extent.min.y()).bind(11, extent.max.x()).bind(12, extent.max.y());
+    st.run();
+  }
+  db.exec(
+      "UPDATE gpkg_contents SET (min_x, min_y, max_x, max_y, last_change) = (SELECT min(min_e), min(min_n), "
+      "max(max_e), max(max_n), strftime('%Y-%m-%dT%H:%M:%fZ','now') FROM unit_extents) WHERE table_name = "
+      "'unit_extents'");
   ProductRecord r;
   r.kind = "voxels";
   r.path = (rel_dir / "units.vdb").string();

@@ -8,6 +8,8 @@
 #include "stratigraphy/harris_matrix.hpp"
 #include "volume/voxels.hpp"
 
+#include <nlohmann/json.hpp>
+
 #include <filesystem>
 #include <map>
 #include <string>
@@ -62,6 +64,10 @@ VoxelSummary store_site_volumes(Project& project, const SiteModel& model, const 
 
 // The Harris matrix of the project's units and relations.
 HarrisMatrix site_matrix(const SiteModel& model);
+
+// The figures of one unit's solid as a user reads them (`strata volume --json`,
+// unit_volumes.details_json): volume, interval and its parts, extent, thickness.
+nlohmann::ordered_json unit_measures_json(const UnitSolid& solid);
 
 // First polygon of a vector file, exterior ring, site frame (CRS minus origin).
 std::vector<Eigen::Vector2d> read_footprint(const std::filesystem::path& path, const Eigen::Vector3d& site_origin);

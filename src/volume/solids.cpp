@@ -4,6 +4,7 @@
 #include "core/log.hpp"
 #include "stratigraphy/harris_matrix.hpp"
 #include "volume/connected_components.hpp"
+#include "volume/significance.hpp"
 #include "volume/volume.hpp"
 
 #include <fmt/format.h>
@@ -12,6 +13,7 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <numbers>
 #include <set>
 
 namespace strata {
@@ -20,8 +22,13 @@ namespace {
 using volume_detail::Components;
 using volume_detail::connected_components;
 using volume_detail::Connectivity;
+using volume_detail::dilate;
+using volume_detail::StableGround;
+using volume_detail::two_sided_normal_quantile;
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+// The least factor the stable ground may apply to the stated per-cell sigmas.
+constexpr double kMinNoiseScale = 0.5;
 
 bool finite(double v) { return std::isfinite(v); }
 
@@ -36,14 +43,16 @@ double quantile(std::vector<double>& values, double q) {
 }
 
 // Where a unit without a footprint was dug, from its thickness per cell (NaN where
-// a surface is missing): cells thicker than the threshold, less 8-connected specks
-// smaller than min_dug_area_m2, grown by up to edge_growth_m into 4-adjacent cells
-// of positive thickness (the thin edges the threshold would chop off).
-std::vector<std::uint8_t> dug_cells(const std::vector<double>& t, const SiteGrid& g, const VolumeOptions& o) {
+// a surface is missing) and its level of detection per cell: cells thicker than
+// that level, less 8-connected specks smaller than min_dug_area_m2, grown by up to
+// edge_growth_m into 4-adjacent cells thicker than half their level (the thin
+// edges the level would chop off; about one sigma, so noise does not grow it).
+std::vector<std::uint8_t> dug_cells(const std::vector<double>& t, const std::vector<double>& lod, const SiteGrid& g,
+                                    const VolumeOptions& o) {
   const std::size_t n = g.size();
   const int nx = g.nx, ny = g.ny;
   std::vector<std::uint8_t> dug(n, 0);
-  for (std::size_t c = 0; c < n; ++c) dug[c] = t[c] > o.noise_threshold_m;  // false for NaN
+  for (std::size_t c = 0; c < n; ++c) dug[c] = t[c] > lod[c];  // false for NaN
   const std::size_t min_cells = std::size_t(std::ceil(o.min_dug_area_m2 / (g.cell * g.cell)));
   if (min_cells > 1) {
     const Components specks = connected_components(dug, nx, ny, Connectivity::eight);
@@ -62,7 +71,7 @@ std::vector<std::uint8_t> dug_cells(const std::vector<double>& t, const SiteGrid
       const std::size_t nb[4] = {c - 1, c + 1, c - nx, c + nx};
       const bool ok[4] = {i > 0, i + 1 < nx, j > 0, j + 1 < ny};
       for (int k = 0; k < 4; ++k)
-        if (ok[k] && !dug[nb[k]] && t[nb[k]] > 0) {
+        if (ok[k] && !dug[nb[k]] && t[nb[k]] > 0.5 * lod[nb[k]]) {
           dug[nb[k]] = 1;
           next.push_back(nb[k]);
         }
@@ -70,6 +79,35 @@ std::vector<std::uint8_t> dug_cells(const std::vector<double>& t, const SiteGrid
     front.swap(next);
   }
   return dug;
+}
+
+// One line: how sure a unit's volume is, and what would make it surer (the
+// largest part of its uncertainty decides).
+std::string volume_advice(const UnitMeasures& m, bool extent_from_data) {
+  const double half = m.interval_high_m3 - m.volume_m3;
+  std::string line = fmt::format("+/- {:.4f} m3 ({:.1f} %) at {:.0f} %", half,
+                                 m.volume_m3 > 0 ? 100 * half / m.volume_m3 : 0.0, 100 * m.confidence);
+  const double parts[] = {m.random_sigma_m3, m.systematic_sigma_m3, m.fill_sigma_m3, m.extent_sigma_m3};
+  const int largest = int(std::max_element(std::begin(parts), std::end(parts)) - std::begin(parts));
+  switch (largest) {
+    case 0:
+      return line + fmt::format("; mostly the surfaces' own noise (level of detection {:.1f} mm): more, closer, "
+                                "overlapping photos would make it surer", 1000 * m.median_lod_m);
+    case 1:
+      if (m.stable_area_m2 > 0)
+        return line + fmt::format("; mostly the registration of its two surfaces (they differ by {:+.1f} mm on "
+                                  "undisturbed ground): more markers or check markers would make it surer",
+                                  1000 * m.stable_bias_m);
+      return line + "; mostly the registration of its two surfaces, with no undisturbed ground to compare them on: "
+                    "photograph some ground around the trench in every layer, or add check markers";
+    case 2:
+      return line + fmt::format("; mostly the gaps ({:.3f} m2 of its top or bottom interpolated): photos of the gaps "
+                                "would make it surer", m.filled_area_m2);
+    default:
+      return line + (extent_from_data ? "; mostly where its edge lies: a survey of the limit of excavation "
+                                        "(--outline or --footprint) would make it surer"
+                                      : "; mostly where its edge lies (thin deposits near the level of detection)");
+  }
 }
 
 }  // namespace
@@ -135,6 +173,14 @@ void VolumeOptions::validate() const {
   if (!(max_thickness_quantile > 0 && max_thickness_quantile <= 1))
     throw InputError(
         fmt::format("volume options: max_thickness_quantile = {} is not in (0, 1]", max_thickness_quantile));
+  if (!(confidence >= 0.5 && confidence <= 0.9999))
+    throw InputError(fmt::format("volume options: confidence = {} is not in 0.5..0.9999", confidence));
+  if (!(stable_buffer_m >= 0 && stable_buffer_m <= 5))
+    throw InputError(fmt::format("volume options: stable_buffer_m = {} is not in 0..5 m", stable_buffer_m));
+  if (!(normal_scale_m > 0 && normal_scale_m <= 5))
+    throw InputError(fmt::format("volume options: normal_scale_m = {} is not in (0, 5] m", normal_scale_m));
+  if (!(min_stable_area_m2 >= 0 && min_stable_area_m2 <= 1000))
+    throw InputError(fmt::format("volume options: min_stable_area_m2 = {} is not in 0..1000 m2", min_stable_area_m2));
   if (!(fill.closing_m >= 0 && fill.closing_m <= 10))
     throw InputError(fmt::format("volume options: fill.closing_m = {} is not in 0..10 m", fill.closing_m));
   if (!(fill.slope_error >= 0 && fill.slope_error <= 10))
@@ -166,6 +212,23 @@ std::vector<UnitSolid> build_unit_solids(const std::vector<LayerSurface>& layers
 
   std::vector<UnitSolid> solids;
   const double cell_area = grid.cell * grid.cell;
+  // A layer's height sigma per cell: the fused surface's where it has one, else
+  // the layer's noise; an interpolated cell adds slope_error x its distance to
+  // measured data to its layer's median sigma.
+  std::vector<double> base_sigma(layers.size());
+  for (std::size_t k = 0; k < layers.size(); ++k) {
+    std::vector<double> v;
+    if (layers[k].z.has_sigma())
+      for (std::size_t c = 0; c < layers[k].z.z.size(); ++c)
+        if (finite(layers[k].z.sigma[c]) && !layers[k].filled(c)) v.push_back(layers[k].z.sigma[c]);
+    base_sigma[k] = v.empty() ? layers[k].noise_m : quantile(v, 0.5);
+  }
+  auto cell_sigma = [&](std::size_t k, std::size_t c) {
+    const LayerSurface& l = layers[k];
+    if (l.filled(c)) return std::hypot(base_sigma[k], options.fill.slope_error * l.filled_distance_m[c]);
+    if (l.z.has_sigma() && finite(l.z.sigma[c])) return l.z.sigma[c];
+    return l.noise_m;
+  };
   for (const auto& unit : units) {
     std::vector<std::size_t> own, later;  // indices into layers
     std::size_t first = layers.size();
@@ -206,35 +269,106 @@ std::vector<UnitSolid> build_unit_solids(const std::vector<LayerSurface>& layers
         }
       if (bottom_of[c] >= 0) t[c] = layers[top_of[c]].z.z[c] - layers[later[bottom_of[c]]].z.z[c];
     }
-    // 2. Where the unit was dug.
-    std::vector<std::uint8_t> dug(n, 0);
-    if (footprint != options.footprints.end()) {
-      for (int j = 0; j < grid.ny; ++j)
-        for (int i = 0; i < grid.nx; ++i) {
-          const std::size_t c = std::size_t(j) * grid.nx + i;
-          dug[c] = finite(t[c]) && inside_polygon(footprint->second, grid.x(i), grid.y(j));
-        }
-    } else {
-      dug = dug_cells(t, grid, options);
+    // 2. The level of detection per cell: z x sigma of the difference (the two
+    // surfaces' per-cell sigmas and their relative offset), at least the threshold.
+    std::vector<double> sigma_d(n, kNaN);   // stated one-sigma of top - bottom, random part
+    std::vector<std::uint8_t> measured(n, 0);  // both surfaces measured (not interpolated)
+    bool per_cell = true;
+    double g_top2 = 0, g_bot2 = 0;  // georeference vertical error, area-weighted below
+    for (std::size_t c = 0; c < n; ++c) {
+      if (!finite(t[c])) continue;
+      const LayerSurface& top = layers[std::size_t(top_of[c])];
+      const LayerSurface& bottom = layers[later[std::size_t(bottom_of[c])]];
+      per_cell = per_cell && top.z.has_sigma() && bottom.z.has_sigma();
+      sigma_d[c] = std::hypot(cell_sigma(std::size_t(top_of[c]), c), cell_sigma(later[std::size_t(bottom_of[c])], c));
+      measured[c] = !top.filled(c) && !bottom.filled(c);
+    }
+    const double z = two_sided_normal_quantile(options.confidence);
+    double scale = 1, offset2 = 0;  // from the stable ground once judged
+    auto levels = [&] {
+      std::vector<double> lod(n, kNaN);
+      for (std::size_t c = 0; c < n; ++c)
+        if (finite(sigma_d[c]))
+          lod[c] = std::max(options.noise_threshold_m, z * std::sqrt(scale * scale * sigma_d[c] * sigma_d[c] + offset2));
+      return lod;
+    };
+    auto in_outline = [&](std::size_t c) {
+      return options.fill.outline.empty() ||
+             inside_polygon(options.fill.outline, grid.x(int(c % grid.nx)), grid.y(int(c / grid.nx)));
+    };
+    auto where_dug = [&](const std::vector<double>& lod) {
+      std::vector<std::uint8_t> d(n, 0);
+      if (footprint != options.footprints.end()) {
+        for (std::size_t c = 0; c < n; ++c)
+          d[c] = finite(t[c]) && inside_polygon(footprint->second, grid.x(int(c % grid.nx)), grid.y(int(c / grid.nx)));
+        return d;
+      }
+      d = dug_cells(t, lod, grid, options);
       // Nothing was dug outside the limit of excavation: noise or clutter on the
       // ground around the trench is not a deposit.
-      if (!options.fill.outline.empty())
-        for (int j = 0; j < grid.ny; ++j)
-          for (int i = 0; i < grid.nx; ++i) {
-            const std::size_t c = std::size_t(j) * grid.nx + i;
-            if (dug[c] && !inside_polygon(options.fill.outline, grid.x(i), grid.y(j))) dug[c] = 0;
-          }
+      for (std::size_t c = 0; c < n; ++c)
+        if (d[c] && !in_outline(c)) d[c] = 0;
+      return d;
+    };
+    // Georeference figures first (check-marker RMSE z: a shift of each surface).
+    {
+      std::size_t k = 0;
+      for (std::size_t c = 0; c < n; ++c)
+        if (finite(t[c])) {
+          g_top2 += std::pow(layers[std::size_t(top_of[c])].vertical_rmse_m, 2);
+          g_bot2 += std::pow(layers[later[std::size_t(bottom_of[c])]].vertical_rmse_m, 2);
+          ++k;
+        }
+      if (k > 0) offset2 = (g_top2 + g_bot2) / double(k);
     }
-    // 3. Measures.
+    std::vector<double> lod = levels();
+    std::vector<std::uint8_t> dug = where_dug(lod);
+    // 3. The stable ground judges the stated sigmas, the offset and the correlation.
+    StableGround ground;
+    ground.correlation_m = options.noise_correlation_m;
+    if (options.use_stable_ground) {
+      const int buffer = int(std::ceil(options.stable_buffer_m / grid.cell - 1e-9));
+      for (int pass = 0; pass < 2; ++pass) {
+        const std::vector<std::uint8_t> near = dilate(dug, grid.nx, grid.ny, buffer);
+        std::vector<std::uint8_t> stable(n, 0);
+        for (std::size_t c = 0; c < n; ++c) stable[c] = measured[c] && !near[c];
+        const std::size_t min_cells = std::size_t(std::ceil(options.min_stable_area_m2 / cell_area));
+        ground = volume_detail::judge_stable_ground(t, sigma_d, stable, grid, min_cells, options.noise_correlation_m);
+        if (!ground.used) break;
+        // Never believe the surfaces more than twice as good as they state: the
+        // stable ground lies around the trench, not in it.
+        scale = std::max(ground.scale, kMinNoiseScale);
+        offset2 = ground.bias_m * ground.bias_m + ground.bias_se_m * ground.bias_se_m;
+        lod = levels();
+        dug = where_dug(lod);
+      }
+    }
+    // 4. Measures.
     std::vector<std::size_t> bottom_count(later.size(), 0);
-    // Uncertainty inputs, area-weighted over the cells each surface supplies.
-    double n_top2 = 0, g_top2 = 0, n_bot2 = 0, g_bot2 = 0;
     double fill_error = 0;  // m3: sum over filled cells of slope_error x distance x cell area
+    double random2 = 0;     // sum over dug cells of cell area x (scaled sigma of the difference)^2
     std::size_t filled_cells = 0;
     UnitMeasures& m = s.measures;
     m.min_thickness_m = std::numeric_limits<double>::infinity();
     m.max_thickness_raw_m = -std::numeric_limits<double>::infinity();
-    std::vector<double> thickness;  // metres, of every dug cell: the robust maximum
+    std::vector<double> thickness, normal_thickness, lods;  // metres, of every dug cell
+    auto mid = [&](int i, int j) {  // mid-surface height of a dug cell, NaN elsewhere
+      if (i < 0 || j < 0 || i >= grid.nx || j >= grid.ny) return kNaN;
+      const std::size_t c = std::size_t(j) * grid.nx + i;
+      return dug[c] ? 0.5 * (layers[std::size_t(top_of[c])].z.z[c] + layers[later[std::size_t(bottom_of[c])]].z.z[c])
+                    : kNaN;
+    };
+    // Slope of the mid-surface along (di, dj) over up to `reach` dug cells either
+    // side (the normal at the scale of normal_scale_m, not of one noisy cell).
+    const int reach = std::max(1, int(std::lround(0.5 * options.normal_scale_m / grid.cell)));
+    auto slope = [&](int i, int j, int di, int dj) {
+      int a = 0, b = 0;
+      while (a < reach && finite(mid(i + (a + 1) * di, j + (a + 1) * dj))) ++a;
+      while (b < reach && finite(mid(i - (b + 1) * di, j - (b + 1) * dj))) ++b;
+      if (a + b == 0) return 0.0;
+      return (mid(i + a * di, j + a * dj) - mid(i - b * di, j - b * dj)) / ((a + b) * grid.cell);
+    };
+    double normal_sum = 0;  // m3: sum of thickness x cos(slope) x cell area
     for (std::size_t c = 0; c < n; ++c) {
       if (!dug[c]) continue;
       const LayerSurface& top = layers[std::size_t(top_of[c])];
@@ -244,13 +378,17 @@ std::vector<UnitSolid> build_unit_solids(const std::vector<LayerSurface>& layers
       ++bottom_count[std::size_t(bottom_of[c])];
       ++m.cells;
       m.volume_m3 += t[c] * cell_area;
+      (measured[c] ? m.measured_volume_m3 : m.filled_volume_m3) += t[c] * cell_area;
       m.min_thickness_m = std::min(m.min_thickness_m, t[c]);
       m.max_thickness_raw_m = std::max(m.max_thickness_raw_m, t[c]);
       thickness.push_back(t[c]);
-      n_top2 += top.noise_m * top.noise_m;
-      g_top2 += top.vertical_rmse_m * top.vertical_rmse_m;
-      n_bot2 += bottom.noise_m * bottom.noise_m;
-      g_bot2 += bottom.vertical_rmse_m * bottom.vertical_rmse_m;
+      lods.push_back(lod[c]);
+      random2 += cell_area * scale * scale * sigma_d[c] * sigma_d[c];
+      const int i = int(c % grid.nx), j = int(c / grid.nx);
+      const double gx = slope(i, j, 1, 0), gy = slope(i, j, 0, 1);
+      const double cos_slope = 1 / std::sqrt(1 + gx * gx + gy * gy);
+      normal_sum += t[c] * cos_slope * cell_area;
+      normal_thickness.push_back(t[c] * cos_slope);
       if (top.filled(c) || bottom.filled(c)) {
         ++filled_cells;
         const double dt = top.filled(c) ? top.filled_distance_m[c] : 0.0;
@@ -260,21 +398,57 @@ std::vector<UnitSolid> build_unit_solids(const std::vector<LayerSurface>& layers
     }
     for (std::size_t q = 0; q < later.size(); ++q)
       if (bottom_count[q] > 0) s.bottom_layers.push_back(layers[later[q]].layer);
+    m.confidence = options.confidence;
+    m.extent_method = footprint != options.footprints.end() ? "footprint"
+                      : options.fill.outline.empty()        ? "significance"
+                                                            : "significance within the outline";
+    m.per_cell_sigma = per_cell;
+    m.noise_scale = scale;
+    m.correlation_m = ground.correlation_m;
+    if (ground.used) {
+      m.stable_area_m2 = ground.area_m2;
+      m.stable_bias_m = ground.bias_m;
+      m.stable_nmad_m = ground.nmad_m;
+    }
     if (m.cells == 0) {
       m.min_thickness_m = m.max_thickness_raw_m = 0;
-      log::warn("volume: unit {}: no cell differs by more than {:.1f} mm between {} and the later surfaces",
-                unit, 1000 * options.noise_threshold_m, s.top_layer);
+      log::warn("volume: unit {}: no cell differs significantly ({:.0f} %) between {} and the later surfaces", unit,
+                100 * options.confidence, s.top_layer);
     } else {
       const double nc = double(m.cells);
       m.area_m2 = nc * cell_area;
       m.mean_thickness_m = m.volume_m3 / m.area_m2;
       m.max_thickness_m = quantile(thickness, options.max_thickness_quantile);
+      m.mean_normal_thickness_m = normal_sum / m.area_m2;
+      m.max_normal_thickness_m = quantile(normal_thickness, options.max_thickness_quantile);
+      m.median_lod_m = quantile(lods, 0.5);
       m.filled_area_m2 = double(filled_cells) * cell_area;
       m.filled_fraction = m.filled_area_m2 / m.area_m2;
       m.fill_sigma_m3 = fill_error;
-      const double patch = std::max(options.noise_correlation_m * options.noise_correlation_m, cell_area);
-      m.volume_sigma_m3 = std::sqrt(m.area_m2 * m.area_m2 * (g_top2 + g_bot2) / nc +
-                                    m.area_m2 * patch * (n_top2 + n_bot2) / nc + fill_error * fill_error);
+      // Random errors are correlated over about pi L^2 (Gaussian model), at least
+      // one cell, at most the unit.
+      const double corr_area = std::clamp(volume_detail::correlation_area_m2(m.correlation_m), cell_area, m.area_m2);
+      m.random_sigma_m3 = std::sqrt(corr_area * random2);
+      m.systematic_sigma_m3 = m.area_m2 * std::sqrt(offset2);
+      // Where the edge lies: the volume found with the level halved and doubled
+      // spans the choice; a uniform error over that span.
+      if (footprint == options.footprints.end()) {
+        auto volume_at = [&](double factor) {
+          std::vector<double> l = lod;
+          for (double& x : l) x *= factor;
+          const std::vector<std::uint8_t> d = where_dug(l);
+          double v = 0;
+          for (std::size_t c = 0; c < n; ++c)
+            if (d[c]) v += t[c] * cell_area;
+          return v;
+        };
+        m.extent_sigma_m3 = std::abs(volume_at(0.5) - volume_at(2.0)) / (2 * std::sqrt(3.0));
+      }
+      m.volume_sigma_m3 = std::sqrt(m.random_sigma_m3 * m.random_sigma_m3 + m.systematic_sigma_m3 * m.systematic_sigma_m3 +
+                                    fill_error * fill_error + m.extent_sigma_m3 * m.extent_sigma_m3);
+      m.interval_low_m3 = m.volume_m3 - z * m.volume_sigma_m3;
+      m.interval_high_m3 = m.volume_m3 + z * m.volume_sigma_m3;
+      m.advice = volume_advice(m, options.fill.outline.empty() && footprint == options.footprints.end());
       if (m.filled_fraction > options.fill.warn_fraction)
         log::warn("volume: unit {}: {:.0f} % of its area ({:.3f} of {:.3f} m2) has an interpolated top or bottom "
                   "(gaps in the dense surfaces); its volume is uncertain by +/- {:.4f} m3",

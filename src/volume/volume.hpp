@@ -109,15 +109,17 @@ struct VolumeOptions {
   double noise_threshold_m = 0.005;
   // Spatial correlation length of surface noise, metres: random errors average
   // over patches of this size, not over single cells (sigma_V formula below).
+  // Used when no stable ground can say it (see use_stable_ground).
   double noise_correlation_m = 0.05;
   // Optional footprint per unit code: a polygon in site-frame XY (metres). Inside,
   // every cell with both surfaces counts (signed thickness: noise does not bias
-  // the volume); outside, nothing. Without one, the noise threshold decides.
+  // the volume); outside, nothing. Without one, the significance test decides.
   std::map<std::string, std::vector<Eigen::Vector2d>> footprints;
-  // Without a footprint, a unit's solid is the cells thicker than the threshold,
-  // less isolated specks smaller than `min_dug_area_m2` (noise), grown by up to
-  // `edge_growth_m` into adjacent cells of positive thickness, so the thin edges
-  // of a unit (a feather edge, the foot of the trench side) are not chopped off.
+  // Without a footprint, a unit's solid is the cells thicker than their level of
+  // detection (see `confidence`), less isolated specks smaller than
+  // `min_dug_area_m2` (noise), grown by up to `edge_growth_m` into adjacent cells
+  // thicker than half their level, so the thin edges of a unit (a feather edge,
+  // the foot of the trench side) are not chopped off.
   double min_dug_area_m2 = 0.0025;  // 5 x 5 cm
   double edge_growth_m = 0.02;      // metres
   // The reported maximum thickness is this quantile of the dug cells' thickness
@@ -125,6 +127,20 @@ struct VolumeOptions {
   // keeps a few outlier cells (wall faces, pit edges) whose single-cell maximum is
   // metres off; UnitMeasures::max_thickness_raw_m keeps that maximum.
   double max_thickness_quantile = 0.99;
+  // Significance: a cell was dug where its thickness exceeds the level of
+  // detection, z x sigma of the difference of its two surfaces (z the two-sided
+  // normal quantile of `confidence`), and at least noise_threshold_m. The volume's
+  // interval is stated at the same confidence.
+  double confidence = 0.95;
+  // Stable ground (the cells neither unit's solid touches, at least
+  // `stable_buffer_m` from the dug area, where both surfaces were measured) judges
+  // the stated sigmas, the surfaces' relative offset and the correlation distance
+  // of their errors, when it covers at least `min_stable_area_m2`.
+  bool use_stable_ground = true;
+  // The local normal (thickness along it) is taken over this distance, metres.
+  double normal_scale_m = 0.05;
+  double stable_buffer_m = 0.10;
+  double min_stable_area_m2 = 0.05;
   GapFillOptions fill;
 
   // Throws InputError naming the first invalid field.
@@ -151,6 +167,32 @@ struct UnitMeasures {
   double filled_area_m2 = 0;
   double filled_fraction = 0;
   double fill_sigma_m3 = 0;
+
+  // The interval and its parts (m3). volume_sigma_m3 is the quadrature sum of:
+  // random (per-cell surface noise, correlated over correlation_m), systematic
+  // (the surfaces' relative vertical offset over the whole area), fill (above)
+  // and extent (the volumes found with the level of detection halved and
+  // doubled span where the edge lies; a uniform error over that span).
+  double confidence = 0.95;
+  double interval_low_m3 = 0, interval_high_m3 = 0;
+  double random_sigma_m3 = 0, systematic_sigma_m3 = 0, extent_sigma_m3 = 0;
+  double measured_volume_m3 = 0;  // over cells where both surfaces were measured
+  double filled_volume_m3 = 0;    // over cells where one of them was interpolated
+  std::string extent_method;      // "footprint", "significance", "significance within the outline"
+  double median_lod_m = 0;        // median level of detection over the dug cells, metres
+  // What the stable ground said (StableGround in significance.hpp); cells 0 = not used.
+  double stable_area_m2 = 0;
+  double stable_bias_m = 0;       // median top - bottom on stable ground
+  double stable_nmad_m = 0;
+  double noise_scale = 1;         // factor applied to the stated per-cell sigmas
+  double correlation_m = 0;       // correlation distance used for the random part
+  bool per_cell_sigma = false;    // the surfaces carried per-cell sigmas (fusion), else layer figures
+  // Thickness along the local normal of the unit's mid-surface (steep faces;
+  // slope over normal_scale_m): the mean and the p99 of thickness x cos(slope).
+  double mean_normal_thickness_m = 0;
+  double max_normal_thickness_m = 0;
+  // One line: how sure the figure is and what would make it surer.
+  std::string advice;
 };
 
 // The solid of one unit on the common grid: heights where the unit was dug, NaN

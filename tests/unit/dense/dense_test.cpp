@@ -14,7 +14,9 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <numbers>
+#include <random>
 
 namespace strata {
 namespace {
@@ -590,6 +592,51 @@ TEST(Dense, SmallFloatingPiecesOfTheFusedBandAreRemoved) {
   EXPECT_LT(double(removed), kFloaterPieceFraction * double(before));
   EXPECT_NEAR(top_at_origin(), 0.0, kFloaterVoxel) << "the floor under the floater should be the top surface now";
   EXPECT_NEAR(volume.top_surface(0.2, 0.1, kFloaterVoxel, 1, 1).z.at(0), 0.0, kFloaterVoxel);
+}
+
+// The fused surface states its height uncertainty per cell from the agreement of
+// the depth maps: maps that disagree by sigma (each one shifted as a whole, as a
+// view's error is) give a height sigma of about sigma / sqrt(views); noisier maps
+// a larger one; and a cell that fewer maps see, a larger one still.
+TEST(Dense, FusedHeightsCarryTheUncertaintyOfTheirDepthMaps) {
+  const std::vector<dense::PinholeCamera> cams = {
+      kFloaterRef, kFloaterNeighbours[0], kFloaterNeighbours[1], kFloaterNeighbours[2], kFloaterNeighbours[3],
+      looking_at_origin({0.2, 0.2, 1.0}), looking_at_origin({-0.2, -0.2, 1.0}), looking_at_origin({0.2, -0.2, 1.0})};
+  const std::vector<std::uint8_t> grey(std::size_t(kFloaterRef.width) * kFloaterRef.height * 3, 128);
+  auto fused_sigma = [&](double map_sigma, std::size_t views, unsigned seed) {
+    std::mt19937 rng(seed);
+    std::normal_distribution<double> shift(0, map_sigma);
+    dense::TsdfVolume volume(kFloaterVoxel, 6 * kFloaterVoxel);  // the band holds 3 sigma of the noisy maps
+    for (std::size_t k = 0; k < views; ++k) {
+      dense::DepthMap m = render_plane(cams[k], false);
+      const float d = float(shift(rng));
+      for (float& z : m.depth) z += d;
+      volume.integrate(cams[k], m, grey);
+    }
+    volume.finalise(0.2);
+    const HeightField hf = volume.top_surface(-0.05, -0.05, 0.01, 11, 11);
+    EXPECT_TRUE(hf.has_sigma());
+    std::vector<double> s;
+    for (std::size_t c = 0; c < hf.z.size(); ++c)
+      if (std::isfinite(hf.z[c])) s.push_back(hf.sigma[c]);
+    EXPECT_GT(s.size(), 60u);  // of 121 cells
+    std::nth_element(s.begin(), s.begin() + std::ptrdiff_t(s.size() / 2), s.end());
+    return s[s.size() / 2];
+  };
+  // Averaged over draws: the spread of 8 shifts is itself a random estimate.
+  double noisy = 0, quiet = 0, few = 0;
+  for (unsigned seed = 1; seed <= 6; ++seed) {
+    noisy += fused_sigma(0.02, 8, seed) / 6;
+    quiet += fused_sigma(0.005, 8, seed) / 6;
+    few += fused_sigma(0.02, 3, seed) / 6;
+  }
+  std::printf("fused height sigma: 8 maps of 20 mm %.2f mm (20 / sqrt 8 = %.2f), of 5 mm %.2f mm; 3 maps of 20 mm "
+              "%.2f mm\n", 1000 * noisy, 20 / std::sqrt(8.0), 1000 * quiet, 1000 * few);
+  const double expected = 0.02 / std::sqrt(8.0);
+  EXPECT_GT(noisy, 0.5 * expected);
+  EXPECT_LT(noisy, 2.0 * expected);
+  EXPECT_GT(noisy, 2.0 * quiet) << "four times the disagreement should show";
+  EXPECT_GT(few, noisy) << "three views know the height less well than eight";
 }
 
 }  // namespace

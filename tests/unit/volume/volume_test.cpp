@@ -173,15 +173,26 @@ TEST(VolumeAnalytic, NothingOutsideTheTrenchOutlineCountsAsDug) {
 }
 
 TEST(VolumeAnalytic, UncertaintyGrowsWithGeoreferenceError) {
+  // Without stable ground to compare the layers on, the georeference figures
+  // (check-marker RMSE z) are each surface's possible shift.
   const double cell = 0.01;
   std::vector<LayerSurface> layers{analytic_layer("L1", "1", cell, 0), analytic_layer("L2", "2", cell, 1)};
-  const double s0 = build_unit_solids(layers, VolumeOptions{})[0].measures.volume_sigma_m3;
+  VolumeOptions o;
+  o.use_stable_ground = false;
+  const double s0 = build_unit_solids(layers, o)[0].measures.volume_sigma_m3;
   for (auto& l : layers) l.vertical_rmse_m = 0.005;
-  const double s1 = build_unit_solids(layers, VolumeOptions{})[0].measures.volume_sigma_m3;
+  const UnitMeasures m1 = build_unit_solids(layers, o)[0].measures;
   EXPECT_GT(s0, 0);
   // A = 1 m2: the two surfaces' shifts give sqrt(2) x 5 mm x 1 m2 = 7.1 dm3 at least.
-  EXPECT_GT(s1, 0.007);
-  EXPECT_LT(s1, 0.008);
+  EXPECT_GT(m1.volume_sigma_m3, 0.007);
+  EXPECT_LT(m1.volume_sigma_m3, 0.008);
+  EXPECT_NEAR(m1.systematic_sigma_m3, std::sqrt(2.0) * 0.005 * m1.area_m2, 1e-9);
+  // With the undisturbed ground around the trench, the layers are compared where
+  // they must agree: here they agree exactly, so the georeference figures no
+  // longer widen the interval.
+  const UnitMeasures m2 = build_unit_solids(layers, VolumeOptions{})[0].measures;
+  EXPECT_GT(m2.stable_area_m2, 1.0);
+  EXPECT_LT(m2.systematic_sigma_m3, 1e-6);
 }
 
 TEST(VolumeAnalytic, RobustMaxThicknessIgnoresOutlierSpikes) {

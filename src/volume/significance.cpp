@@ -1,0 +1,142 @@
+// Level of detection and stable-ground statistics of surface differences.
+#include "volume/significance.hpp"
+
+#include "core/error.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+namespace strata::volume_detail {
+namespace {
+
+constexpr double kMadToSigma = 1.4826;
+// Standardised differences beyond this are clipped before the variogram: a few
+// outlier cells (spikes of a dense surface) must not set the correlation.
+constexpr double kClip = 4.0;
+
+double median_of(std::vector<double> v) {
+  if (v.empty()) return 0;
+  const auto mid = v.begin() + std::ptrdiff_t(v.size() / 2);
+  std::nth_element(v.begin(), mid, v.end());
+  return *mid;
+}
+
+double nmad_of(const std::vector<double>& v, double centre) {
+  std::vector<double> dev;
+  dev.reserve(v.size());
+  for (double x : v) dev.push_back(std::abs(x - centre));
+  return kMadToSigma * median_of(std::move(dev));
+}
+
+// One-dimensional running "any set within r": the row or column pass of dilate().
+void dilate_line(const std::uint8_t* in, std::uint8_t* out, int n, std::ptrdiff_t stride, int r) {
+  int count = 0;  // set cells in the window [k - r, k + r]
+  for (int k = 0; k < std::min(r, n); ++k) count += in[k * stride] != 0;
+  for (int k = 0; k < n; ++k) {
+    if (k + r < n) count += in[(k + r) * stride] != 0;
+    if (k - r - 1 >= 0) count -= in[(k - r - 1) * stride] != 0;
+    out[k * stride] = count > 0;
+  }
+}
+
+}  // namespace
+
+double correlation_area_m2(double correlation_m) { return std::numbers::pi * correlation_m * correlation_m; }
+
+double two_sided_normal_quantile(double confidence) {
+  STRATA_CHECK(confidence > 0 && confidence < 1, "confidence {} is not in (0, 1)", confidence);
+  // P(|N| <= z) = erf(z / sqrt 2): increasing in z, found by bisection.
+  double lo = 0, hi = 40;
+  for (int it = 0; it < 200 && hi - lo > 1e-12; ++it) {
+    const double mid = 0.5 * (lo + hi);
+    (std::erf(mid / std::numbers::sqrt2) < confidence ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi);
+}
+
+std::vector<std::uint8_t> dilate(const std::vector<std::uint8_t>& mask, int nx, int ny, int radius_cells) {
+  if (radius_cells <= 0) return mask;
+  std::vector<std::uint8_t> rows(mask.size()), out(mask.size());
+  for (int j = 0; j < ny; ++j)
+    dilate_line(mask.data() + std::size_t(j) * nx, rows.data() + std::size_t(j) * nx, nx, 1, radius_cells);
+  for (int i = 0; i < nx; ++i) dilate_line(rows.data() + i, out.data() + i, ny, nx, radius_cells);
+  return out;
+}
+
+StableGround judge_stable_ground(const std::vector<double>& difference, const std::vector<double>& sigma,
+                                 const std::vector<std::uint8_t>& stable, const SiteGrid& grid,
+                                 std::size_t min_cells, double fallback_correlation_m) {
+  StableGround s;
+  s.correlation_m = fallback_correlation_m;
+  const std::size_t n = grid.size();
+  std::vector<double> d, z;
+  for (std::size_t c = 0; c < n; ++c)
+    if (stable[c] && std::isfinite(difference[c]) && sigma[c] > 0) d.push_back(difference[c]);
+  s.cells = d.size();
+  s.area_m2 = double(s.cells) * grid.cell * grid.cell;
+  if (s.cells < std::max<std::size_t>(min_cells, 2)) return s;
+  s.used = true;
+  s.bias_m = median_of(d);
+  s.nmad_m = nmad_of(d, s.bias_m);
+  // Standardised differences: the stated sigmas' judge.
+  std::vector<double> u(n, std::numeric_limits<double>::quiet_NaN());
+  for (std::size_t c = 0; c < n; ++c)
+    if (stable[c] && std::isfinite(difference[c]) && sigma[c] > 0) {
+      u[c] = (difference[c] - s.bias_m) / sigma[c];
+      z.push_back(u[c]);
+    }
+  s.scale = nmad_of(z, 0.0);
+  if (!(s.scale > 0)) s.scale = 0;  // noise-free surfaces (synthetic truth)
+  // Correlation of the standardised differences (scaled to unit spread, clipped)
+  // along rows and columns at growing lags: rho(h) = 1 - gamma(h) / variance;
+  // the correlation distance L is where rho falls to 1/e.
+  if (s.scale > 0) {
+    double var = 0;
+    std::size_t count = 0;
+    for (double& x : u)
+      if (std::isfinite(x)) {
+        x = std::clamp(x / s.scale, -kClip, kClip);
+        var += x * x;
+        ++count;
+      }
+    var /= double(count);
+    const int lags[] = {1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256};
+    double prev_h = 0, prev_rho = 1;
+    bool found = false;
+    for (int h : lags) {
+      if (h >= std::max(grid.nx, grid.ny)) break;
+      double sum = 0;
+      std::size_t pairs = 0;
+      for (int j = 0; j < grid.ny; ++j)
+        for (int i = 0; i < grid.nx; ++i) {
+          const double a = u[std::size_t(j) * grid.nx + i];
+          if (!std::isfinite(a)) continue;
+          if (i + h < grid.nx) {
+            const double b = u[std::size_t(j) * grid.nx + i + h];
+            if (std::isfinite(b)) sum += (a - b) * (a - b), ++pairs;
+          }
+          if (j + h < grid.ny) {
+            const double b = u[std::size_t(j + h) * grid.nx + i];
+            if (std::isfinite(b)) sum += (a - b) * (a - b), ++pairs;
+          }
+        }
+      if (pairs < 100 || !(var > 0)) break;
+      const double rho = 1 - 0.5 * sum / double(pairs) / var;
+      if (rho < std::exp(-1.0)) {
+        const double t = (prev_rho - std::exp(-1.0)) / std::max(prev_rho - rho, 1e-12);
+        s.correlation_m = (prev_h + t * (h - prev_h)) * grid.cell;
+        found = true;
+        break;
+      }
+      prev_h = h;
+      prev_rho = rho;
+    }
+    if (!found && prev_h > 0) s.correlation_m = prev_h * grid.cell;  // correlated beyond the longest lag read
+  }
+  const double corr_area = std::max(grid.cell * grid.cell, correlation_area_m2(s.correlation_m));
+  s.bias_se_m = s.nmad_m * std::sqrt(std::min(1.0, corr_area / s.area_m2));
+  return s;
+}
+
+}  // namespace strata::volume_detail

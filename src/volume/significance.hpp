@@ -1,0 +1,52 @@
+#pragma once
+// Internal to src/volume: the statistics that make a surface difference a
+// measurement (Wheaton et al. 2010, DEMs of difference; Rolstad et al. 2009 and
+// Hugonnet et al. 2022, errors estimated on stable terrain):
+// - the two-sided normal quantile of a confidence level (the level of detection
+//   is z x sigma of the difference);
+// - the ground that did not change between two surfaces (around the unit, where
+//   neither surface was interpolated) as the judge of their stated uncertainty:
+//   its median difference is the surfaces' relative offset, the spread of its
+//   standardised differences scales the per-cell sigmas, and its variogram gives
+//   the distance over which their errors are correlated.
+#include "volume/volume.hpp"
+
+#include <cstdint>
+#include <vector>
+
+namespace strata::volume_detail {
+
+// z with P(|N(0,1)| <= z) = confidence, for confidence in (0, 1).
+double two_sided_normal_quantile(double confidence);
+
+// The area over which errors correlated over `correlation_m` (the distance at
+// which their correlation falls to 1/e) act as one: the integral of a Gaussian
+// correlation model over the plane, pi L^2. (An exponential model would give
+// 2 pi L^2; the errors of fused depth maps are smooth over their matching
+// windows, which the Gaussian model describes better.)
+double correlation_area_m2(double correlation_m);
+
+// What the stable ground between a unit's top and bottom surfaces says.
+struct StableGround {
+  std::size_t cells = 0;       // cells used
+  double area_m2 = 0;
+  double bias_m = 0;           // median of top - bottom: their relative vertical offset
+  double bias_se_m = 0;        // its standard error (correlated cells, see below)
+  double nmad_m = 0;           // 1.4826 x median absolute deviation of the differences
+  double scale = 1;            // NMAD of (difference - bias) / stated sigma: >1 = sigmas too small
+  double correlation_m = 0;    // e-folding distance of the standardised differences' correlation
+  bool used = false;           // enough cells to judge (else the georeference figures are used)
+};
+
+// `difference`: top - bottom per cell (NaN where unknown); `sigma`: the stated
+// one-sigma of that difference per cell; `stable`: the cells that may serve
+// (both surfaces measured, not dug, away from the dug area). Needs `min_cells`;
+// `fallback_correlation_m` is kept when the variogram cannot be read.
+StableGround judge_stable_ground(const std::vector<double>& difference, const std::vector<double>& sigma,
+                                 const std::vector<std::uint8_t>& stable, const SiteGrid& grid,
+                                 std::size_t min_cells, double fallback_correlation_m);
+
+// Sets every cell within `radius_cells` (square neighbourhood) of a set cell.
+std::vector<std::uint8_t> dilate(const std::vector<std::uint8_t>& mask, int nx, int ny, int radius_cells);
+
+}  // namespace strata::volume_detail
