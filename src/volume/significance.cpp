@@ -14,6 +14,9 @@ constexpr double kMadToSigma = 1.4826;
 // Standardised differences beyond this are clipped before the variogram: a few
 // outlier cells (spikes of a dense surface) must not set the correlation.
 constexpr double kClip = 4.0;
+// Bins of stated sigma for the heteroscedastic factor, and the cells a bin needs.
+constexpr std::size_t kSigmaBins = 8;
+constexpr std::size_t kMinCellsPerBin = 500;
 
 double median_of(std::vector<double> v) {
   if (v.empty()) return 0;
@@ -64,6 +67,46 @@ std::vector<std::uint8_t> dilate(const std::vector<std::uint8_t>& mask, int nx, 
   return out;
 }
 
+std::vector<double> box_mean(const std::vector<double>& values, int nx, int ny, int radius_cells) {
+  // Separable running sums of the finite values and of their count.
+  const std::size_t n = values.size();
+  std::vector<double> sum(n, 0), count(n, 0), row_sum(n, 0), row_count(n, 0);
+  for (std::size_t c = 0; c < n; ++c)
+    if (std::isfinite(values[c])) sum[c] = values[c], count[c] = 1;
+  auto pass = [](const std::vector<double>& in, std::vector<double>& out, int len, int lines, std::ptrdiff_t stride,
+                 std::ptrdiff_t line_stride, int r) {
+    for (int l = 0; l < lines; ++l) {
+      const std::ptrdiff_t base = l * line_stride;
+      double acc = 0;
+      for (int k = 0; k < std::min(r, len); ++k) acc += in[std::size_t(base + k * stride)];
+      for (int k = 0; k < len; ++k) {
+        if (k + r < len) acc += in[std::size_t(base + (k + r) * stride)];
+        if (k - r - 1 >= 0) acc -= in[std::size_t(base + (k - r - 1) * stride)];
+        out[std::size_t(base + k * stride)] = acc;
+      }
+    }
+  };
+  pass(sum, row_sum, nx, ny, 1, nx, radius_cells);
+  pass(count, row_count, nx, ny, 1, nx, radius_cells);
+  pass(row_sum, sum, ny, nx, nx, 1, radius_cells);
+  pass(row_count, count, ny, nx, nx, 1, radius_cells);
+  std::vector<double> mean(n, std::numeric_limits<double>::quiet_NaN());
+  for (std::size_t c = 0; c < n; ++c)
+    if (count[c] > 0.5) mean[c] = sum[c] / count[c];
+  return mean;
+}
+
+double StableGround::factor(double stated_sigma_m) const {
+  if (bin_sigma_m.empty()) return scale;
+  if (stated_sigma_m <= bin_sigma_m.front()) return bin_factor.front();
+  if (stated_sigma_m >= bin_sigma_m.back()) return bin_factor.back();
+  const auto it = std::upper_bound(bin_sigma_m.begin(), bin_sigma_m.end(), stated_sigma_m);
+  const std::size_t k = std::size_t(it - bin_sigma_m.begin());
+  const double span = bin_sigma_m[k] - bin_sigma_m[k - 1];
+  const double w = span > 0 ? (stated_sigma_m - bin_sigma_m[k - 1]) / span : 0.0;
+  return (1 - w) * bin_factor[k - 1] + w * bin_factor[k];
+}
+
 StableGround judge_stable_ground(const std::vector<double>& difference, const std::vector<double>& sigma,
                                  const std::vector<std::uint8_t>& stable, const SiteGrid& grid,
                                  std::size_t min_cells, double fallback_correlation_m) {
@@ -79,6 +122,35 @@ StableGround judge_stable_ground(const std::vector<double>& difference, const st
   s.used = true;
   s.bias_m = median_of(d);
   s.nmad_m = nmad_of(d, s.bias_m);
+  // How much the offset varies around the unit: the medians of the four
+  // quadrants about the stable cells' centroid. A warp or tilt of one surface
+  // against the other shows as a spread of these; the unit inside may see any
+  // of them.
+  {
+    double cx = 0, cy = 0;
+    for (std::size_t c = 0; c < n; ++c)
+      if (stable[c] && std::isfinite(difference[c]) && sigma[c] > 0) {
+        cx += grid.x(int(c % std::size_t(grid.nx)));
+        cy += grid.y(int(c / std::size_t(grid.nx)));
+      }
+    cx /= double(s.cells);
+    cy /= double(s.cells);
+    std::vector<double> quadrant[4];
+    for (std::size_t c = 0; c < n; ++c)
+      if (stable[c] && std::isfinite(difference[c]) && sigma[c] > 0) {
+        const bool east = grid.x(int(c % std::size_t(grid.nx))) > cx, north = grid.y(int(c / std::size_t(grid.nx))) > cy;
+        quadrant[(east ? 1 : 0) + (north ? 2 : 0)].push_back(difference[c]);
+      }
+    std::vector<double> medians;
+    for (auto& q : quadrant)
+      if (q.size() >= std::max<std::size_t>(min_cells / 4, 2)) medians.push_back(median_of(q));
+    if (medians.size() >= 2) {
+      double mean = 0, var = 0;
+      for (double m : medians) mean += m / double(medians.size());
+      for (double m : medians) var += (m - mean) * (m - mean) / double(medians.size() - 1);
+      s.offset_spread_m = std::sqrt(var);
+    }
+  }
   // Standardised differences: the stated sigmas' judge.
   std::vector<double> u(n, std::numeric_limits<double>::quiet_NaN());
   for (std::size_t c = 0; c < n; ++c)
@@ -88,15 +160,38 @@ StableGround judge_stable_ground(const std::vector<double>& difference, const st
     }
   s.scale = nmad_of(z, 0.0);
   if (!(s.scale > 0)) s.scale = 0;  // noise-free surfaces (synthetic truth)
+  // The factor per bin of stated sigma.
+  {
+    std::vector<std::pair<double, double>> by_sigma;  // (stated sigma, difference - bias)
+    for (std::size_t c = 0; c < n; ++c)
+      if (stable[c] && std::isfinite(difference[c]) && sigma[c] > 0) by_sigma.emplace_back(sigma[c], difference[c] - s.bias_m);
+    // By stated sigma only: within equal sigmas the cells keep their grid order
+    // (sorting by the difference too would split a bin's spread between bins).
+    std::stable_sort(by_sigma.begin(), by_sigma.end(),
+                     [](const auto& a, const auto& b) { return a.first < b.first; });
+    const std::size_t bins = std::min<std::size_t>(kSigmaBins, by_sigma.size() / kMinCellsPerBin);
+    for (std::size_t b = 0; b < bins; ++b) {
+      const std::size_t lo = b * by_sigma.size() / bins, hi = (b + 1) * by_sigma.size() / bins;
+      std::vector<double> stated, dev;
+      for (std::size_t k = lo; k < hi; ++k) {
+        stated.push_back(by_sigma[k].first);
+        dev.push_back(by_sigma[k].second);
+      }
+      const double median_sigma = median_of(stated);
+      s.bin_sigma_m.push_back(median_sigma);
+      s.bin_factor.push_back(nmad_of(dev, 0.0) / median_sigma);
+    }
+  }
   // Correlation of the standardised differences (scaled to unit spread, clipped)
   // along rows and columns at growing lags: rho(h) = 1 - gamma(h) / variance;
   // the correlation distance L is where rho falls to 1/e.
   if (s.scale > 0) {
     double var = 0;
     std::size_t count = 0;
-    for (double& x : u)
-      if (std::isfinite(x)) {
-        x = std::clamp(x / s.scale, -kClip, kClip);
+    for (std::size_t c = 0; c < n; ++c)
+      if (double& x = u[c]; std::isfinite(x)) {
+        const double f = s.factor(sigma[c]);
+        x = f > 0 ? std::clamp(x / f, -kClip, kClip) : 0.0;
         var += x * x;
         ++count;
       }

@@ -32,8 +32,16 @@ struct StableGround {
   double area_m2 = 0;
   double bias_m = 0;           // median of top - bottom: their relative vertical offset
   double bias_se_m = 0;        // its standard error (correlated cells, see below)
+  double offset_spread_m = 0;  // standard deviation of the four quadrants' medians about the unit
   double nmad_m = 0;           // 1.4826 x median absolute deviation of the differences
   double scale = 1;            // NMAD of (difference - bias) / stated sigma: >1 = sigmas too small
+  // The same, as a function of the stated sigma (heteroscedasticity, as Hugonnet
+  // et al. 2022 bin by a quality predictor): the stable cells in bins of equal
+  // count by stated sigma, each bin's median stated sigma and NMAD / that median.
+  std::vector<double> bin_sigma_m, bin_factor;
+  // The factor for a cell of this stated sigma: linear between bins, the end
+  // bins' factor beyond them; `scale` when there are no bins.
+  double factor(double stated_sigma_m) const;
   double correlation_m = 0;    // e-folding distance of the standardised differences' correlation
   bool used = false;           // enough cells to judge (else the georeference figures are used)
 };
@@ -45,6 +53,10 @@ struct StableGround {
 StableGround judge_stable_ground(const std::vector<double>& difference, const std::vector<double>& sigma,
                                  const std::vector<std::uint8_t>& stable, const SiteGrid& grid,
                                  std::size_t min_cells, double fallback_correlation_m);
+
+// Mean of the finite values within `radius_cells` (square neighbourhood) of
+// every cell; NaN where there is none.
+std::vector<double> box_mean(const std::vector<double>& values, int nx, int ny, int radius_cells);
 
 // Sets every cell within `radius_cells` (square neighbourhood) of a set cell.
 std::vector<std::uint8_t> dilate(const std::vector<std::uint8_t>& mask, int nx, int ny, int radius_cells);

@@ -298,6 +298,7 @@ nlohmann::ordered_json unit_measures_json(const UnitSolid& s) {
            {{"area_m2", m.stable_area_m2},
             {"bias_m", m.stable_bias_m},
             {"nmad_m", m.stable_nmad_m},
+            {"offset_spread_m", m.stable_offset_spread_m},
             {"noise_scale", m.noise_scale},
             {"correlation_m", m.correlation_m},
             {"per_cell_sigma", m.per_cell_sigma}}},

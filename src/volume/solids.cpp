@@ -27,8 +27,9 @@ using volume_detail::StableGround;
 using volume_detail::two_sided_normal_quantile;
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-// The least factor the stable ground may apply to the stated per-cell sigmas.
-constexpr double kMinNoiseScale = 0.5;
+// The least factor the stable ground may apply to the stated per-cell sigmas
+// (the full-size example measured 0.29-0.41 per bin: fused sigmas run high).
+constexpr double kMinNoiseScale = 0.25;
 
 bool finite(double v) { return std::isfinite(v); }
 
@@ -42,23 +43,69 @@ double quantile(std::vector<double>& values, double q) {
   return values[std::size_t(k)];
 }
 
-// Where a unit without a footprint was dug, from its thickness per cell (NaN where
-// a surface is missing) and its level of detection per cell: cells thicker than
-// that level, less 8-connected specks smaller than min_dug_area_m2, grown by up to
-// edge_growth_m into 4-adjacent cells thicker than half their level (the thin
-// edges the level would chop off; about one sigma, so noise does not grow it).
-std::vector<std::uint8_t> dug_cells(const std::vector<double>& t, const std::vector<double>& lod, const SiteGrid& g,
-                                    const VolumeOptions& o) {
+// The regions of cells where `sign` x thickness exceeds the level, in
+// 8-connected regions of at least min_dug_area_m2 that hold a core (hysteresis,
+// as Canny's edges: a cell whose thickness averaged over core_scale_m still
+// exceeds its level; noise makes patches a few cm across that pass the per-cell
+// test and vanish when averaged over 10 cm, while a deposit keeps its mean).
+// Returns the mask; the kept regions in `out` when given.
+std::vector<std::uint8_t> significant_regions(const std::vector<double>& t, const std::vector<double>& lod,
+                                              const SiteGrid& g, const VolumeOptions& o, double sign,
+                                              Components* out = nullptr) {
   const std::size_t n = g.size();
   const int nx = g.nx, ny = g.ny;
-  std::vector<std::uint8_t> dug(n, 0);
-  for (std::size_t c = 0; c < n; ++c) dug[c] = t[c] > lod[c];  // false for NaN
+  std::vector<double> st(n);
+  for (std::size_t c = 0; c < n; ++c) st[c] = sign * t[c];
+  std::vector<std::uint8_t> mask(n, 0);
+  for (std::size_t c = 0; c < n; ++c) mask[c] = st[c] > lod[c];  // false for NaN
   const std::size_t min_cells = std::size_t(std::ceil(o.min_dug_area_m2 / (g.cell * g.cell)));
-  if (min_cells > 1) {
-    const Components specks = connected_components(dug, nx, ny, Connectivity::eight);
-    for (std::size_t k = 0; k < specks.count(); ++k)
-      if (specks.size(k) < min_cells)
-        for (auto c = specks.begin(k); c != specks.end(k); ++c) dug[*c] = 0;
+  const int core_radius = int(std::lround(0.5 * o.core_scale_m / g.cell));
+  const std::vector<double> mean = core_radius > 0 ? volume_detail::box_mean(st, nx, ny, core_radius) : st;
+  Components regions = connected_components(mask, nx, ny, Connectivity::eight);
+  for (std::size_t k = 0; k < regions.count(); ++k) {
+    const bool keep = regions.size(k) >= std::max<std::size_t>(min_cells, 1) &&
+                      std::any_of(regions.begin(k), regions.end(k), [&](std::size_t c) { return mean[c] > lod[c]; });
+    if (!keep)
+      for (auto c = regions.begin(k); c != regions.end(k); ++c) mask[*c] = 0;
+  }
+  if (out) *out = connected_components(mask, nx, ny, Connectivity::eight);
+  return mask;
+}
+
+// Where a unit without a footprint was dug, from its thickness per cell (NaN where
+// a surface is missing) and its level of detection per cell: significant_regions,
+// less the regions no larger than what noise makes (below), grown by up to
+// edge_growth_m into 4-adjacent cells thicker than half their level (the thin
+// edges the level would chop off; about one sigma, so noise does not grow it).
+// The null: noise makes regions of either sign alike, an excavation only
+// positive ones; so with `null_from_negative`, a positive region whose volume is
+// no larger than the largest negative region's is noise (that bound is at most 1 %
+// of the largest positive region's volume, so one raised feature, a spoil heap,
+// cannot take away a unit's real parts).
+std::vector<std::uint8_t> dug_cells(const std::vector<double>& t, const std::vector<double>& lod, const SiteGrid& g,
+                                    const VolumeOptions& o, bool null_from_negative = false) {
+  const std::size_t n = g.size();
+  const int nx = g.nx, ny = g.ny;
+  Components found;
+  std::vector<std::uint8_t> dug = significant_regions(t, lod, g, o, +1, &found);
+  if (null_from_negative) {
+    const double a = g.cell * g.cell;
+    auto volumes = [&](const Components& r, double sign) {
+      std::vector<double> v(r.count(), 0.0);
+      for (std::size_t k = 0; k < r.count(); ++k)
+        for (auto c = r.begin(k); c != r.end(k); ++c) v[k] += sign * t[*c] * a;
+      return v;
+    };
+    Components negative;
+    significant_regions(t, lod, g, o, -1, &negative);
+    const std::vector<double> pos = volumes(found, +1), neg = volumes(negative, -1);
+    if (!pos.empty() && !neg.empty()) {
+      const double bound = std::min(*std::max_element(neg.begin(), neg.end()),
+                                    0.01 * *std::max_element(pos.begin(), pos.end()));
+      for (std::size_t k = 0; k < found.count(); ++k)
+        if (pos[k] <= bound)
+          for (auto c = found.begin(k); c != found.end(k); ++c) dug[*c] = 0;
+    }
   }
   const int steps = int(std::floor(o.edge_growth_m / g.cell + 1e-9));
   std::vector<std::size_t> front, next;
@@ -79,6 +126,25 @@ std::vector<std::uint8_t> dug_cells(const std::vector<double>& t, const std::vec
     front.swap(next);
   }
   return dug;
+}
+
+// Adds to `dug` the holes it encloses (8-connected dug cells around, not
+// reaching the grid's border) that hold no measured cell: a gap of the surfaces
+// in the middle of a unit belongs to it; an island where both surfaces were
+// measured and agree (a stone left standing) does not.
+void add_unmeasured_holes(std::vector<std::uint8_t>& dug, const std::vector<double>& t,
+                          const std::vector<std::uint8_t>& measured, const SiteGrid& g) {
+  std::vector<std::uint8_t> open(dug.size());
+  for (std::size_t c = 0; c < dug.size(); ++c) open[c] = !dug[c];
+  const Components holes = connected_components(open, g.nx, g.ny, Connectivity::four);
+  for (std::size_t k = 0; k < holes.count(); ++k) {
+    const bool keep_out = std::any_of(holes.begin(k), holes.end(k), [&](std::size_t c) {
+      const int i = int(c % std::size_t(g.nx)), j = int(c / std::size_t(g.nx));
+      return measured[c] || !std::isfinite(t[c]) || i == 0 || j == 0 || i + 1 == g.nx || j + 1 == g.ny;
+    });
+    if (!keep_out)
+      for (auto c = holes.begin(k); c != holes.end(k); ++c) dug[*c] = 1;
+  }
 }
 
 // One line: how sure a unit's volume is, and what would make it surer (the
@@ -177,6 +243,10 @@ void VolumeOptions::validate() const {
     throw InputError(fmt::format("volume options: confidence = {} is not in 0.5..0.9999", confidence));
   if (!(stable_buffer_m >= 0 && stable_buffer_m <= 5))
     throw InputError(fmt::format("volume options: stable_buffer_m = {} is not in 0..5 m", stable_buffer_m));
+  if (!(core_scale_m >= 0 && core_scale_m <= 5))
+    throw InputError(fmt::format("volume options: core_scale_m = {} is not in 0..5 m", core_scale_m));
+  if (!(reliable_fill_m >= 0 && reliable_fill_m <= 10))
+    throw InputError(fmt::format("volume options: reliable_fill_m = {} is not in 0..10 m", reliable_fill_m));
   if (!(normal_scale_m > 0 && normal_scale_m <= 5))
     throw InputError(fmt::format("volume options: normal_scale_m = {} is not in (0, 5] m", normal_scale_m));
   if (!(min_stable_area_m2 >= 0 && min_stable_area_m2 <= 1000))
@@ -283,13 +353,30 @@ std::vector<UnitSolid> build_unit_solids(const std::vector<LayerSurface>& layers
       sigma_d[c] = std::hypot(cell_sigma(std::size_t(top_of[c]), c), cell_sigma(later[std::size_t(bottom_of[c])], c));
       measured[c] = !top.filled(c) && !bottom.filled(c);
     }
+    // The thickness where the extent may be decided from the data alone: both
+    // surfaces measured, or interpolated no further than reliable_fill_m from
+    // measured data (a fill across the trench edge mixes the trench floor into
+    // the ground around it).
+    std::vector<double> eligible_t = t;
+    for (std::size_t c = 0; c < n; ++c) {
+      if (measured[c] || !finite(t[c])) continue;
+      const LayerSurface& top = layers[std::size_t(top_of[c])];
+      const LayerSurface& bottom = layers[later[std::size_t(bottom_of[c])]];
+      const double d = std::max(top.filled(c) ? double(top.filled_distance_m[c]) : 0.0,
+                                bottom.filled(c) ? double(bottom.filled_distance_m[c]) : 0.0);
+      if (d > options.reliable_fill_m) eligible_t[c] = kNaN;
+    }
     const double z = two_sided_normal_quantile(options.confidence);
-    double scale = 1, offset2 = 0;  // from the stable ground once judged
+    // Per cell, the factor on the stated sigma (from the stable ground once judged)
+    // and the squared relative offset of the surfaces.
+    std::vector<double> factor(n, 1.0);
+    double offset2 = 0;
     auto levels = [&] {
       std::vector<double> lod(n, kNaN);
       for (std::size_t c = 0; c < n; ++c)
         if (finite(sigma_d[c]))
-          lod[c] = std::max(options.noise_threshold_m, z * std::sqrt(scale * scale * sigma_d[c] * sigma_d[c] + offset2));
+          lod[c] = std::max(options.noise_threshold_m,
+                            z * std::sqrt(std::pow(factor[c] * sigma_d[c], 2) + offset2));
       return lod;
     };
     auto in_outline = [&](std::size_t c) {
@@ -303,11 +390,28 @@ std::vector<UnitSolid> build_unit_solids(const std::vector<LayerSurface>& layers
           d[c] = finite(t[c]) && inside_polygon(footprint->second, grid.x(int(c % grid.nx)), grid.y(int(c / grid.nx)));
         return d;
       }
-      d = dug_cells(t, lod, grid, options);
-      // Nothing was dug outside the limit of excavation: noise or clutter on the
-      // ground around the trench is not a deposit.
+      if (!options.fill.outline.empty()) {
+        d = dug_cells(t, lod, grid, options);
+        // Nothing was dug outside the limit of excavation: noise or clutter on the
+        // ground around the trench is not a deposit.
+        for (std::size_t c = 0; c < n; ++c)
+          if (d[c] && !in_outline(c)) d[c] = 0;
+        return d;
+      }
+      // Without the limit, the extent is what the measurements show: cells where
+      // both surfaces were measured or reliably filled (near measured data), then
+      // the holes it encloses that hold no measurement (a gap in the middle).
+      d = dug_cells(eligible_t, lod, grid, options, true);
+      // Interpolated cells beyond that distance join where they are significant
+      // inside the morphological closing of that extent (a gap straddling the
+      // unit's edge closes as the edge runs on), or in a hole it encloses.
+      const int r = int(std::ceil(options.fill.closing_m / grid.cell - 1e-9));
+      std::vector<std::uint8_t> closed = dilate(d, grid.nx, grid.ny, r);
+      for (auto& x : closed) x = !x;
+      closed = dilate(closed, grid.nx, grid.ny, r);
       for (std::size_t c = 0; c < n; ++c)
-        if (d[c] && !in_outline(c)) d[c] = 0;
+        if (!closed[c] && !d[c] && !measured[c] && t[c] > lod[c]) d[c] = 1;
+      add_unmeasured_holes(d, t, measured, grid);
       return d;
     };
     // Georeference figures first (check-marker RMSE z: a shift of each surface).
@@ -335,10 +439,18 @@ std::vector<UnitSolid> build_unit_solids(const std::vector<LayerSurface>& layers
         const std::size_t min_cells = std::size_t(std::ceil(options.min_stable_area_m2 / cell_area));
         ground = volume_detail::judge_stable_ground(t, sigma_d, stable, grid, min_cells, options.noise_correlation_m);
         if (!ground.used) break;
-        // Never believe the surfaces more than twice as good as they state: the
+        // Never believe the surfaces more than four times as good as they state: the
         // stable ground lies around the trench, not in it.
-        scale = std::max(ground.scale, kMinNoiseScale);
-        offset2 = ground.bias_m * ground.bias_m + ground.bias_se_m * ground.bias_se_m;
+        for (std::size_t c = 0; c < n; ++c)
+          if (finite(sigma_d[c])) factor[c] = std::max(ground.factor(sigma_d[c]), kMinNoiseScale);
+        std::string bins;
+        for (std::size_t b = 0; b < ground.bin_sigma_m.size(); ++b)
+          bins += fmt::format(" {:.1f} mm x {:.2f}", 1000 * ground.bin_sigma_m[b], ground.bin_factor[b]);
+        log::debug("volume: unit {}: stable ground {:.2f} m2, offset {:+.2f} mm (quadrants +/- {:.2f}), NMAD {:.2f} mm, L {:.1f} mm; stated "
+                   "sigma -> factor:{}",
+                   unit, ground.area_m2, 1000 * ground.bias_m, 1000 * ground.offset_spread_m, 1000 * ground.nmad_m, 1000 * ground.correlation_m, bins);
+        offset2 = ground.bias_m * ground.bias_m + ground.bias_se_m * ground.bias_se_m +
+                  ground.offset_spread_m * ground.offset_spread_m;
         lod = levels();
         dug = where_dug(lod);
       }
@@ -351,7 +463,7 @@ std::vector<UnitSolid> build_unit_solids(const std::vector<LayerSurface>& layers
     UnitMeasures& m = s.measures;
     m.min_thickness_m = std::numeric_limits<double>::infinity();
     m.max_thickness_raw_m = -std::numeric_limits<double>::infinity();
-    std::vector<double> thickness, normal_thickness, lods;  // metres, of every dug cell
+    std::vector<double> thickness, normal_thickness, lods, factors;  // of every dug cell
     auto mid = [&](int i, int j) {  // mid-surface height of a dug cell, NaN elsewhere
       if (i < 0 || j < 0 || i >= grid.nx || j >= grid.ny) return kNaN;
       const std::size_t c = std::size_t(j) * grid.nx + i;
@@ -383,7 +495,8 @@ std::vector<UnitSolid> build_unit_solids(const std::vector<LayerSurface>& layers
       m.max_thickness_raw_m = std::max(m.max_thickness_raw_m, t[c]);
       thickness.push_back(t[c]);
       lods.push_back(lod[c]);
-      random2 += cell_area * scale * scale * sigma_d[c] * sigma_d[c];
+      random2 += cell_area * std::pow(factor[c] * sigma_d[c], 2);
+      factors.push_back(factor[c]);
       const int i = int(c % grid.nx), j = int(c / grid.nx);
       const double gx = slope(i, j, 1, 0), gy = slope(i, j, 0, 1);
       const double cos_slope = 1 / std::sqrt(1 + gx * gx + gy * gy);
@@ -403,12 +516,13 @@ std::vector<UnitSolid> build_unit_solids(const std::vector<LayerSurface>& layers
                       : options.fill.outline.empty()        ? "significance"
                                                             : "significance within the outline";
     m.per_cell_sigma = per_cell;
-    m.noise_scale = scale;
+    m.noise_scale = factors.empty() ? 1.0 : quantile(factors, 0.5);
     m.correlation_m = ground.correlation_m;
     if (ground.used) {
       m.stable_area_m2 = ground.area_m2;
       m.stable_bias_m = ground.bias_m;
       m.stable_nmad_m = ground.nmad_m;
+      m.stable_offset_spread_m = ground.offset_spread_m;
     }
     if (m.cells == 0) {
       m.min_thickness_m = m.max_thickness_raw_m = 0;

@@ -121,7 +121,11 @@ struct VolumeOptions {
   // thicker than half their level, so the thin edges of a unit (a feather edge,
   // the foot of the trench side) are not chopped off.
   double min_dug_area_m2 = 0.0025;  // 5 x 5 cm
-  double edge_growth_m = 0.02;      // metres
+  // A region of significant cells counts only when its thickness averaged over
+  // a square of this side still exceeds the level somewhere (hysteresis: the
+  // noise patches of the ground around a trench do not), metres; 0 = off.
+  double core_scale_m = 0.10;
+  double edge_growth_m = 0.0;      // metres
   // The reported maximum thickness is this quantile of the dug cells' thickness
   // (the thickness exceeded over only 1 % of the unit's area): a dense surface
   // keeps a few outlier cells (wall faces, pit edges) whose single-cell maximum is
@@ -137,6 +141,10 @@ struct VolumeOptions {
   // the stated sigmas, the surfaces' relative offset and the correlation distance
   // of their errors, when it covers at least `min_stable_area_m2`.
   bool use_stable_ground = true;
+  // Without a trench outline, an interpolated cell may decide the extent only
+  // this close to measured data, metres (beyond, only inside the closing of the
+  // extent so found, by fill.closing_m, or in a hole it encloses).
+  double reliable_fill_m = 0.05;
   // The local normal (thickness along it) is taken over this distance, metres.
   double normal_scale_m = 0.05;
   double stable_buffer_m = 0.10;
@@ -184,7 +192,8 @@ struct UnitMeasures {
   double stable_area_m2 = 0;
   double stable_bias_m = 0;       // median top - bottom on stable ground
   double stable_nmad_m = 0;
-  double noise_scale = 1;         // factor applied to the stated per-cell sigmas
+  double stable_offset_spread_m = 0;  // spread of the offset between the four quadrants around the unit
+  double noise_scale = 1;         // median factor applied to the dug cells' stated sigmas
   double correlation_m = 0;       // correlation distance used for the random part
   bool per_cell_sigma = false;    // the surfaces carried per-cell sigmas (fusion), else layer figures
   // Thickness along the local normal of the unit's mid-surface (steep faces;

@@ -133,6 +133,17 @@ TEST(VolumeSignificance, DilateGrowsASquare) {
   EXPECT_EQ(set, 25);
 }
 
+TEST(VolumeSignificance, BoxMeanSkipsMissingCells) {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  // 4 x 3 grid, row-major.
+  const std::vector<double> v{1, 2, nan, 4, 5, 6, 7, 8, nan, nan, nan, 12};
+  const auto m = volume_detail::box_mean(v, 4, 3, 1);
+  EXPECT_DOUBLE_EQ(m[0], (1 + 2 + 5 + 6) / 4.0);
+  EXPECT_DOUBLE_EQ(m[5], (1 + 2 + 5 + 6 + 7) / 5.0);  // neighbours of (1, 1) with a value
+  EXPECT_DOUBLE_EQ(m[11], (7 + 8 + 12) / 3.0);
+  EXPECT_TRUE(std::isnan(volume_detail::box_mean({nan, nan}, 2, 1, 1)[0]));
+}
+
 // A unit that covers only half of the trench, with no outline or footprint: its
 // extent comes from the significance of the difference alone.
 TEST(VolumeSignificance, AUnitCoveringHalfTheTrench) {

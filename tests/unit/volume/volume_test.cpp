@@ -575,9 +575,34 @@ TEST_F(SyntheticVolumes, GapsAreFilledAndVolumesHoldUp) {
       EXPECT_EQ(s.measures.filled_fraction, 0);
     }
   }
-  const GapFillSummary f = fill_surface_gaps(layers, VolumeOptions{});
-  EXPECT_GT(f.domain_area_m2, 12.0);  // at least the 4 x 3 m trench
-  const auto solids = build_unit_solids(layers, VolumeOptions{});
+  // Without the limit of excavation, the extent comes from the measurements:
+  // a gap wider than reliable_fill_m that straddles a unit's edge is counted only
+  // as far as the closing of the measured extent reaches, so this hard case (up
+  // to 30 % of every layer punched, bands along every steep face, a 25 cm ring
+  // of ground around the trench) keeps its volumes within 2 %, not 1 %.
+  {
+    auto derived = layers;
+    fill_surface_gaps(derived, VolumeOptions{});
+    for (const auto& s : build_unit_solids(derived, VolumeOptions{})) {
+      const TruthUnit& t = truth_.at(s.unit);
+      fmt::print("no outline: unit {} volume {:.5f} (truth {:.5f}, {:+.3f} %), area {:.3f} (truth {:.3f})\n", s.unit,
+                 s.measures.volume_m3, t.volume, 100 * (s.measures.volume_m3 / t.volume - 1), s.measures.area_m2,
+                 t.area);
+      EXPECT_NEAR(s.measures.volume_m3, t.volume, 0.02 * t.volume);
+    }
+  }
+  // With it (as the example gives it): the trench sides lie 0.25 m inside the
+  // truth rasters.
+  VolumeOptions o;
+  {
+    const HeightField& z = layers.front().z;
+    const double x0 = z.x0 - 0.5 * z.cell + 0.25, x1 = z.x0 + (z.nx - 0.5) * z.cell - 0.25;
+    const double y0 = z.y0 - 0.5 * z.cell + 0.25, y1 = z.y0 + (z.ny - 0.5) * z.cell - 0.25;
+    o.fill.outline = {{x0, y0}, {x1, y0}, {x1, y1}, {x0, y1}};
+  }
+  const GapFillSummary f = fill_surface_gaps(layers, o);
+  EXPECT_GT(f.domain_area_m2, 11.9);  // the 4 x 3 m trench
+  const auto solids = build_unit_solids(layers, o);
   ASSERT_EQ(solids.size(), 3u);
   for (std::size_t u = 0; u < solids.size(); ++u) {
     const auto& s = solids[u];
