@@ -231,6 +231,10 @@ TEST_F(ImporterTest, MalformedMetashapeFilesNameTheElement) {
             std::string::npos);
   EXPECT_NE(refused("none.xml", "<document><chunk/></document>\n").find("no <calibration> element"),
             std::string::npos);
+  // An image size beyond int (it was converted unchecked before, undefined behaviour).
+  EXPECT_NE(refused("huge.xml", "<calibration><width>4e12</width><height>120</height><f>150</f></calibration>\n")
+                .find("<calibration>/<width> 4000000000000 must be a positive whole number of pixels"),
+            std::string::npos);
   // A tiny skew (well under a tenth of a pixel at the edge) is dropped with a note.
   test::write_text(scratch() / "tiny.xml", metashape_xml("frame", "  <f>150</f>\n  <b2>0.01</b2>\n"));
   const auto c = read_calibration_file(scratch() / "tiny.xml");
