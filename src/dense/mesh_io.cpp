@@ -285,8 +285,9 @@ PlyContents read_ply(const std::filesystem::path& path) {
     has_x |= p.name == "x";
     has_y |= p.name == "y";
     has_z |= p.name == "z";
-    if (p.name == "red") has_colour = true;
-    if (p.name == "nx") has_normal = true;
+    // Any one channel makes room for all three (a file may lack "red" but have "green").
+    has_colour |= p.name == "red" || p.name == "green" || p.name == "blue";
+    has_normal |= p.name == "nx" || p.name == "ny" || p.name == "nz";
     vertex_bytes += ply_type_size(p.type);
   }
   if (n_vertices > 0 && !(has_x && has_y && has_z)) throw fail("the vertices have no x, y and z");

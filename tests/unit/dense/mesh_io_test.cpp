@@ -103,6 +103,12 @@ TEST(DenseMeshIo, PlyReaderRefusesCountsAndIndicesTheFileDoesNotHold) {
   EXPECT_NE(error_of(far).find("face 1 names vertex 99, but there are 4 vertices"), std::string::npos);
   EXPECT_NE(error_of(good.substr(0, good.find("end_header"))).find("no end_header"), std::string::npos);
   EXPECT_EQ(error_of(good), "accepted");
+  // Colour without "red" (it wrote past the empty colour array).
+  test::write_text(dir / "green.ply", replaced("property uchar red\n", "property uchar alpha\n"));
+  const PlyContents green = read_ply(dir / "green.ply");
+  ASSERT_EQ(green.mesh.colours.size(), 4u);
+  EXPECT_EQ(green.mesh.colours[0][0], 0);
+  EXPECT_EQ(green.mesh.colours[0][1], 0);  // small_mesh's first vertex is pure red
 }
 
 TEST(DenseMeshIo, ObjHasVerticesFacesAndOffset) {
