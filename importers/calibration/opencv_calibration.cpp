@@ -16,6 +16,8 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cstring>
+#include <fstream>
 
 namespace fs = std::filesystem;
 
@@ -178,9 +180,25 @@ std::string parse_error_message(const fs::path& file, const cv::Exception& e) {
                      where(file), e.err);
 }
 
+// OpenCV 4.6's XML parser dereferences a null pointer on a NUL byte inside the
+// document (corpus/calibration/crash_xml_nul_bytes.xml), and no YAML, XML or JSON
+// text holds one: refused before OpenCV sees the file.
+void require_text(const fs::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw InputError(fmt::format("{}: cannot be read", where(file)));
+  char buf[4096];
+  while (in.read(buf, sizeof buf) || in.gcount() > 0) {
+    if (std::memchr(buf, '\0', std::size_t(in.gcount()))) {
+      throw InputError(fmt::format("{}: holds NUL bytes: not a text file (OpenCV's YAML, XML or JSON)",
+                                   where(file)));
+    }
+  }
+}
+
 }  // namespace
 
 CalibrationFile read_opencv(const fs::path& file) {
+  require_text(file);
   cv::FileStorage storage;
   try {
     if (!storage.open(file.string(), cv::FileStorage::READ)) {

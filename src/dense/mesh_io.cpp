@@ -306,9 +306,11 @@ PlyContents read_ply(const std::filesystem::path& path) {
                            n_faces));
   }
   auto& m = out.mesh;
-  m.vertices.resize(n_vertices);
-  if (has_colour) m.colours.resize(n_vertices);
-  if (has_normal) m.normals.resize(n_vertices);
+  // Eigen's fixed-size vectors are not zeroed by resize(): a channel or component
+  // the file lacks reads as 0.
+  m.vertices.assign(n_vertices, Eigen::Vector3d::Zero());
+  if (has_colour) m.colours.assign(n_vertices, Rgb8::Zero());
+  if (has_normal) m.normals.assign(n_vertices, Eigen::Vector3f::Zero());
   for (std::size_t i = 0; i < n_vertices; ++i) {
     for (const auto& p : vertex_props) {
       const double v = read_as_double(p.type);

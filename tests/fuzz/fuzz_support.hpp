@@ -27,12 +27,13 @@ const std::filesystem::path& scratch_dir();
 // Writes the input to scratch_dir()/name (replacing it) and returns the path.
 std::filesystem::path write_input(const std::string& name, const std::uint8_t* data, std::size_t size);
 
+// Throws FuzzFailure unless the error's message names `file_name`.
+void require_names_file(const std::exception& e, std::string_view file_name);
+
 // Runs parse(). Returns true when it returned, false when it refused the input with
 // a strata::Error whose message names `file_name` (the file the user would have to
 // fix). Throws FuzzFailure for a refusal that does not name it; every other
 // exception passes through.
-void require_names_file(const std::exception& e, std::string_view file_name);
-
 template <typename Parse>
 bool accepts(Parse&& parse, std::string_view file_name) {
   try {

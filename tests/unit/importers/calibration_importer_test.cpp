@@ -139,6 +139,11 @@ TEST_F(ImporterTest, MalformedOpenCvFilesNameTheElement) {
   e = error_of([&] { read_calibration_file(scratch() / "text.yml"); });
   EXPECT_NE(e.find("text.yml: <camera_matrix> has a size that is not a whole number"), std::string::npos) << e;
 
+  // A NUL byte inside the document (OpenCV 4.6's XML parser crashed on it).
+  test::write_text(scratch() / "nul.xml", std::string("<?xml version=\0\0\"1\"?><opencv_storage/>\n", 39));
+  e = error_of([&] { read_calibration_file(scratch() / "nul.xml"); });
+  EXPECT_NE(e.find("nul.xml: holds NUL bytes: not a text file"), std::string::npos) << e;
+
   const cv::Mat D3 = (cv::Mat_<double>(1, 3) << -0.2, 0.07, 0);
   e = error_of([&] { read_calibration_file(write_opencv(scratch() / "three.yml", kWidth, kHeight, K, D3, false)); });
   EXPECT_NE(e.find("<distortion_coefficients> has 3 values"), std::string::npos) << e;
