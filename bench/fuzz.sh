@@ -39,6 +39,7 @@ for dir in tests/fuzz/corpus/*/; do
 done
 
 stamp=$(date -u +%Y%m%dT%H%M%SZ)
+commit=$(git rev-parse --short HEAD)$(git diff --quiet HEAD -- . ':!bench/results' || echo "+changes")
 results=bench/results
 mkdir -p "$results"
 work=$(mktemp -d /tmp/strata-fuzz.XXXXXX)
@@ -76,7 +77,8 @@ for t in "${targets[@]}"; do
     echo "fuzz: $t FAILED (exit $status), see $keep" >&2
   fi
   if [[ $merge -eq 1 && $status -eq 0 ]]; then
-    TMPDIR=$work/$t/tmp "$exe" -merge=1 "$corpus" "$work/$t/new" >"$work/$t/merge.log" 2>&1
+    # Edges only (no hit counts): a few dozen inputs per target rather than hundreds.
+    TMPDIR=$work/$t/tmp "$exe" -merge=1 -use_counters=0 "$corpus" "$work/$t/new" >"$work/$t/merge.log" 2>&1
   fi
   summaries+=("$(python3 - "$t" "$work/$t/log" "$elapsed" "$status" "$work/$t/crashes" "$corpus" <<'PY'
 import json, os, re, sys
@@ -106,11 +108,10 @@ PY
 done
 
 out=$results/fuzz-$stamp.json
-python3 - "$out" "$seconds" "${summaries[@]}" <<'PY'
-import json, subprocess, sys
-out, seconds, *rows = sys.argv[1:]
+python3 - "$out" "$seconds" "$commit" "${summaries[@]}" <<'PY'
+import json, sys
+out, seconds, commit, *rows = sys.argv[1:]
 rows = [json.loads(r) for r in rows]
-commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip()
 doc = {"seconds_per_target": int(seconds), "commit": commit, "sanitizers": "address,undefined",
        "targets": rows, "crashed": [r["target"] for r in rows if r["crashes"] or r["exit_status"]]}
 json.dump(doc, open(out, "w"), indent=2)
