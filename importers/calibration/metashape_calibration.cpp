@@ -30,6 +30,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <sstream>
@@ -125,7 +126,7 @@ int image_size(CPLXMLNode* cal, const char* element, const fs::path& file) {
     throw InputError(fmt::format("{}: <calibration>/<{}> is missing", where(file), element));
   }
   const double v = number(cal, path, file, std::nullopt);
-  if (v <= 0 || v != std::floor(v)) {
+  if (v <= 0 || v != std::floor(v) || v > std::numeric_limits<int>::max()) {
     throw InputError(fmt::format("{}: <calibration>/<{}> {} must be a positive whole number of pixels",
                                  where(file), element, v));
   }

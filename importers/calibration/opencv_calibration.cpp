@@ -16,6 +16,8 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cstring>
+#include <fstream>
 
 namespace fs = std::filesystem;
 
@@ -34,6 +36,29 @@ cv::Mat read_matrix(const cv::FileStorage& storage, const char* key, const fs::p
   if (node.empty() || node.isNone()) {
     if (required) throw InputError(fmt::format("{}: <{}> is missing", where(file), key));
     return {};
+  }
+  // OpenCV allocates the matrix its header declares before it reads the data: a
+  // header of 2^31 columns asks for 16 GB. The data must hold that many values.
+  if (node.isMap()) {
+    double declared = 1;  // values, whatever the channels
+    const cv::FileNode sizes = node["sizes"];  // an opencv-nd-matrix
+    std::vector<cv::FileNode> dims;
+    if (sizes.isSeq()) {
+      for (auto it = sizes.begin(); it != sizes.end(); ++it) dims.push_back(*it);
+    } else {
+      dims = {node["rows"], node["cols"]};
+    }
+    for (const cv::FileNode& d : dims) {
+      if (!d.isInt() || int(d) < 0) {
+        throw InputError(fmt::format("{}: <{}> has a size that is not a whole number", where(file), key));
+      }
+      declared *= int(d);
+    }
+    const cv::FileNode data = node["data"];
+    const double held = data.isSeq() ? double(data.size()) : 0;
+    if (declared > held) {
+      throw InputError(fmt::format("{}: <{}> declares {} values but holds {}", where(file), key, declared, held));
+    }
   }
   cv::Mat m;
   try {
@@ -155,9 +180,25 @@ std::string parse_error_message(const fs::path& file, const cv::Exception& e) {
                      where(file), e.err);
 }
 
+// OpenCV 4.6's XML parser dereferences a null pointer on a NUL byte inside the
+// document (corpus/calibration/crash_xml_nul_bytes.xml), and no YAML, XML or JSON
+// text holds one: refused before OpenCV sees the file.
+void require_text(const fs::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw InputError(fmt::format("{}: cannot be read", where(file)));
+  char buf[4096];
+  while (in.read(buf, sizeof buf) || in.gcount() > 0) {
+    if (std::memchr(buf, '\0', std::size_t(in.gcount()))) {
+      throw InputError(fmt::format("{}: holds NUL bytes: not a text file (OpenCV's YAML, XML or JSON)",
+                                   where(file)));
+    }
+  }
+}
+
 }  // namespace
 
 CalibrationFile read_opencv(const fs::path& file) {
+  require_text(file);
   cv::FileStorage storage;
   try {
     if (!storage.open(file.string(), cv::FileStorage::READ)) {
@@ -165,14 +206,31 @@ CalibrationFile read_opencv(const fs::path& file) {
     }
   } catch (const cv::Exception& e) {
     throw InputError(parse_error_message(file, e));
+  } catch (const InputError&) {
+    throw;
+  } catch (const std::exception& e) {
+    // OpenCV 4.6's YAML parser can fail with a standard exception (std::length_error
+    // on a mapping key that is empty: corpus/calibration/crash_yaml_empty_key.yml).
+    throw InputError(fmt::format("{}: not a valid OpenCV YAML or XML file ({})", where(file), e.what()));
   }
   CalibrationFile out;
   out.format = "opencv";
   Intrinsics& k = out.intrinsics;
-  k.width = read_size(storage, "image_width", file);
-  k.height = read_size(storage, "image_height", file);
-  read_camera_matrix(read_matrix(storage, "camera_matrix", file, true), file, k);
-  read_distortion(read_matrix(storage, "distortion_coefficients", file, false), says_fisheye(storage), file, out);
+  // OpenCV asserts (cv::Exception) where a node is not what it asks for, e.g. a
+  // top level that is a list: the same refusal as a file it cannot parse.
+  try {
+    if (!storage.root().isMap()) {
+      throw InputError(fmt::format("{}: the top level is not a map of names (image_width, camera_matrix, ...)",
+                                   where(file)));
+    }
+    k.width = read_size(storage, "image_width", file);
+    k.height = read_size(storage, "image_height", file);
+    read_camera_matrix(read_matrix(storage, "camera_matrix", file, true), file, k);
+    read_distortion(read_matrix(storage, "distortion_coefficients", file, false), says_fisheye(storage), file,
+                    out);
+  } catch (const cv::Exception& e) {
+    throw InputError(fmt::format("{}: not a calibration OpenCV can read ({})", where(file), e.err));
+  }
   return out;
 }
 

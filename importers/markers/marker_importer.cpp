@@ -236,13 +236,16 @@ MarkerImportSummary import_markers(Project& project, const MarkerImportOptions& 
     if (!options.crs.empty()) source_crs = options.crs;
   }
   const std::string stage = "importer.markers." + summary.format;
+  // A CRS PROJ knows may still have no transformation to the site CRS (e.g. a
+  // projection string without a datum): both are refused naming the file.
+  std::optional<CrsTransform> to_site;
   try {
     describe_crs(source_crs);
+    to_site.emplace(source_crs, site.crs);
   } catch (const CrsError& e) {
     throw CrsError(fmt::format("{}: {}: {}", stage, file.string(), e.what()));
   }
   summary.source_crs = source_crs;
-  const CrsTransform to_site(source_crs, site.crs);
 
   // Resolve every observed image before writing anything.
   std::optional<std::int64_t> layer_id;
@@ -283,7 +286,7 @@ MarkerImportSummary import_markers(Project& project, const MarkerImportOptions& 
   for (auto& [name, m] : markers) {
     const std::string at = where(stage.c_str(), file, m.line);
     try {
-      m.record.position = to_site.apply(m.record.position);
+      m.record.position = to_site->apply(m.record.position);
     } catch (const CrsError& e) {
       throw CrsError(fmt::format("{}: {}", at, e.what()));
     }

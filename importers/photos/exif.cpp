@@ -6,6 +6,7 @@
 #include <exiv2/exiv2.hpp>
 
 #include <cmath>
+#include <limits>
 
 namespace strata {
 namespace {
@@ -18,6 +19,12 @@ std::optional<double> number(const Exiv2::ExifData& exif, const char* key) {
   const double v = double(r.first) / double(r.second);
   if (!std::isfinite(v) || v <= 0) return std::nullopt;
   return v;
+}
+
+// A count (pixels, a unit code) as int; none when it is not one (EXIF rationals reach 2^31).
+std::optional<int> whole(std::optional<double> v) {
+  if (!v || *v > std::numeric_limits<int>::max()) return std::nullopt;
+  return int(*v);
 }
 
 std::string text(const Exiv2::ExifData& exif, const char* key) {
@@ -44,12 +51,12 @@ PhotoMetadata read_photo_metadata(const std::filesystem::path& path) {
     m.model = text(exif, "Exif.Image.Model");
     m.focal_mm = number(exif, "Exif.Photo.FocalLength");
     m.focal_35mm = number(exif, "Exif.Photo.FocalLengthIn35mmFilm");
-    if (auto w = number(exif, "Exif.Photo.PixelXDimension")) m.exif_width = int(*w);
-    if (auto h = number(exif, "Exif.Photo.PixelYDimension")) m.exif_height = int(*h);
+    m.exif_width = whole(number(exif, "Exif.Photo.PixelXDimension"));
+    m.exif_height = whole(number(exif, "Exif.Photo.PixelYDimension"));
     m.focal_plane_x_res = number(exif, "Exif.Photo.FocalPlaneXResolution");
-    if (auto unit = number(exif, "Exif.Photo.FocalPlaneResolutionUnit")) {
+    if (auto unit = whole(number(exif, "Exif.Photo.FocalPlaneResolutionUnit"))) {
       // EXIF: 2 = inch, 3 = centimetre, 4 = millimetre, 5 = micrometre.
-      const int u = int(*unit);
+      const int u = *unit;
       if (u == 2) m.focal_plane_unit_mm = 25.4;
       if (u == 3) m.focal_plane_unit_mm = 10.0;
       if (u == 4) m.focal_plane_unit_mm = 1.0;

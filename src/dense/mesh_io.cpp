@@ -8,9 +8,13 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <bit>
+#include <charconv>
+#include <cmath>
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <sstream>
 
 namespace strata {
@@ -159,10 +163,35 @@ void write_obj(const std::filesystem::path& path, const DenseMesh& mesh, const E
   });
 }
 
+namespace {
+
+// Bytes of one value of a PLY scalar type; 0 for a name that is not one.
+std::size_t ply_type_size(const std::string& t) {
+  if (t == "double" || t == "float64") return 8;
+  if (t == "float" || t == "float32" || t == "int" || t == "int32" || t == "uint" || t == "uint32") return 4;
+  if (t == "short" || t == "ushort" || t == "int16" || t == "uint16") return 2;
+  if (t == "uchar" || t == "uint8" || t == "char" || t == "int8") return 1;
+  return 0;
+}
+
+// A colour channel stored as another type than uchar: clamped to 0..255.
+std::uint8_t colour_channel(double v) {
+  if (!(v > 0)) return 0;
+  return v >= 255 ? 255 : static_cast<std::uint8_t>(v);
+}
+
+}  // namespace
+
+// The header declares the counts; the data must then hold them. Counts and indices
+// are checked before they size an allocation or index a vertex: the file may come
+// from another program, or be damaged.
 PlyContents read_ply(const std::filesystem::path& path) {
   const std::string stage = "reader.ply";
   std::ifstream f(path, std::ios::binary);
   if (!f) throw IoError(fmt::format("{}: {}: cannot open", stage, path.string()));
+  auto fail = [&](const std::string& what) {
+    return IoError(fmt::format("{}: {}: {}", stage, path.string(), what));
+  };
   PlyContents out;
   struct Property {
     std::string name, type;
@@ -173,14 +202,20 @@ PlyContents read_ply(const std::filesystem::path& path) {
   std::string current;
   std::string line;
   int line_no = 0;
-  bool binary_le = false;
+  bool binary_le = false, header_ended = false;
+  auto require_type = [&](const std::string& t) {
+    if (ply_type_size(t) == 0) throw fail(fmt::format("line {}: unsupported type '{}'", line_no, t));
+  };
   while (std::getline(f, line)) {
     ++line_no;
     out.header.push_back(line);
     std::istringstream ls(line);
     std::string key;
     ls >> key;
-    if (key == "end_header") break;
+    if (key == "end_header") {
+      header_ended = true;
+      break;
+    }
     if (key == "format") {
       std::string fmt_name;
       ls >> fmt_name;
@@ -195,42 +230,45 @@ PlyContents read_ply(const std::filesystem::path& path) {
         ls >> out.crs;
       }
     } else if (key == "element") {
+      std::string count_text;
+      ls >> current >> count_text;
       std::size_t count = 0;
-      ls >> current >> count;
-      if (current == "vertex") n_vertices = count;
-      if (current == "face") n_faces = count;
+      const auto [end, ec] = std::from_chars(count_text.data(), count_text.data() + count_text.size(), count);
+      if (ec != std::errc() || end != count_text.data() + count_text.size()) {
+        throw fail(fmt::format("line {}: element count '{}' is not a number", line_no, count_text));
+      }
+      if (current == "vertex") {
+        n_vertices = count;
+      } else if (current == "face") {
+        n_faces = count;
+      } else if (count > 0) {
+        throw fail(fmt::format("line {}: element '{}' is not supported (vertex and face only)", line_no, current));
+      }
     } else if (key == "property") {
       std::string type;
       ls >> type;
-      if (type == "list") {
+      if (type == "list" && current == "face") {
         std::string name;
         ls >> face_count_type >> face_index_type >> name;
-      } else if (current == "vertex") {
+        require_type(face_count_type);
+        require_type(face_index_type);
+      } else if (type != "list" && current == "vertex") {
         Property p;
         p.type = type;
         ls >> p.name;
+        require_type(p.type);
         vertex_props.push_back(p);
-      } else {
-        throw IoError(fmt::format("{}: {}:{}: unsupported property", stage, path.string(), line_no));
+      } else if (current == "vertex" || current == "face") {
+        throw fail(fmt::format("line {}: unsupported property", line_no));
       }
     }
   }
-  if (!binary_le) {
-    throw IoError(fmt::format("{}: {}: only binary_little_endian PLY is supported", stage, path.string()));
-  }
-  auto size_of = [&](const std::string& t) -> std::size_t {
-    if (t == "double" || t == "float64") return 8;
-    if (t == "float" || t == "float32" || t == "int" || t == "int32" || t == "uint" || t == "uint32") return 4;
-    if (t == "uchar" || t == "uint8" || t == "char" || t == "int8") return 1;
-    if (t == "short" || t == "ushort" || t == "int16" || t == "uint16") return 2;
-    throw IoError(fmt::format("{}: {}: unsupported type {}", stage, path.string(), t));
-  };
+  if (!header_ended) throw fail("no end_header line: not a PLY file, or cut short");
+  if (!binary_le) throw fail("only binary_little_endian PLY is supported");
   auto read_as_double = [&](const std::string& t) -> double {
     char b[8];
-    const std::size_t n = size_of(t);
-    if (!f.read(b, static_cast<std::streamsize>(n))) {
-      throw IoError(fmt::format("{}: {}: file ends early", stage, path.string()));
-    }
+    const std::size_t n = ply_type_size(t);
+    if (!f.read(b, static_cast<std::streamsize>(n))) throw fail("file ends early");
     if (t == "double" || t == "float64") { double v; std::memcpy(&v, b, 8); return v; }
     if (t == "float" || t == "float32") { float v; std::memcpy(&v, b, 4); return v; }
     if (t == "int" || t == "int32") { std::int32_t v; std::memcpy(&v, b, 4); return v; }
@@ -240,25 +278,48 @@ PlyContents read_ply(const std::filesystem::path& path) {
     if (t == "char" || t == "int8") return static_cast<std::int8_t>(b[0]);
     return static_cast<std::uint8_t>(b[0]);
   };
-  bool has_colour = false, has_normal = false;
+  bool has_colour = false, has_normal = false, has_x = false, has_y = false, has_z = false;
+  std::size_t vertex_bytes = 0;
   for (const auto& p : vertex_props) {
     if (p.name == "x") out.double_coordinates = (p.type == "double" || p.type == "float64");
-    if (p.name == "red") has_colour = true;
-    if (p.name == "nx") has_normal = true;
+    has_x |= p.name == "x";
+    has_y |= p.name == "y";
+    has_z |= p.name == "z";
+    // Any one channel makes room for all three (a file may lack "red" but have "green").
+    has_colour |= p.name == "red" || p.name == "green" || p.name == "blue";
+    has_normal |= p.name == "nx" || p.name == "ny" || p.name == "nz";
+    vertex_bytes += ply_type_size(p.type);
+  }
+  if (n_vertices > 0 && !(has_x && has_y && has_z)) throw fail("the vertices have no x, y and z");
+  if (n_faces > 0 && face_count_type.empty()) throw fail("the faces have no vertex index list");
+  // The declared counts must fit in what follows the header (a face holds at least
+  // its count and three indices).
+  const auto data_start = f.tellg();
+  f.seekg(0, std::ios::end);
+  const auto data_bytes = static_cast<std::size_t>(f.tellg() - data_start);
+  f.seekg(data_start);
+  const std::size_t face_bytes =
+      n_faces > 0 ? ply_type_size(face_count_type) + 3 * ply_type_size(face_index_type) : 0;
+  if (n_vertices > data_bytes / std::max<std::size_t>(vertex_bytes, 1) ||
+      (face_bytes > 0 && n_faces > (data_bytes - n_vertices * vertex_bytes) / face_bytes)) {
+    throw fail(fmt::format("the header declares {} vertices and {} faces, more than the file holds", n_vertices,
+                           n_faces));
   }
   auto& m = out.mesh;
-  m.vertices.resize(n_vertices);
-  if (has_colour) m.colours.resize(n_vertices);
-  if (has_normal) m.normals.resize(n_vertices);
+  // Eigen's fixed-size vectors are not zeroed by resize(): a channel or component
+  // the file lacks reads as 0.
+  m.vertices.assign(n_vertices, Eigen::Vector3d::Zero());
+  if (has_colour) m.colours.assign(n_vertices, Rgb8::Zero());
+  if (has_normal) m.normals.assign(n_vertices, Eigen::Vector3f::Zero());
   for (std::size_t i = 0; i < n_vertices; ++i) {
     for (const auto& p : vertex_props) {
       const double v = read_as_double(p.type);
       if (p.name == "x") m.vertices[i].x() = v;
       else if (p.name == "y") m.vertices[i].y() = v;
       else if (p.name == "z") m.vertices[i].z() = v;
-      else if (p.name == "red") m.colours[i][0] = static_cast<std::uint8_t>(v);
-      else if (p.name == "green") m.colours[i][1] = static_cast<std::uint8_t>(v);
-      else if (p.name == "blue") m.colours[i][2] = static_cast<std::uint8_t>(v);
+      else if (p.name == "red") m.colours[i][0] = colour_channel(v);
+      else if (p.name == "green") m.colours[i][1] = colour_channel(v);
+      else if (p.name == "blue") m.colours[i][2] = colour_channel(v);
       else if (p.name == "nx") m.normals[i][0] = static_cast<float>(v);
       else if (p.name == "ny") m.normals[i][1] = static_cast<float>(v);
       else if (p.name == "nz") m.normals[i][2] = static_cast<float>(v);
@@ -266,13 +327,19 @@ PlyContents read_ply(const std::filesystem::path& path) {
   }
   m.faces.reserve(n_faces);
   for (std::size_t i = 0; i < n_faces; ++i) {
-    const auto count = static_cast<int>(read_as_double(face_count_type));
+    const double count = read_as_double(face_count_type);
     if (count != 3) {
-      throw IoError(fmt::format("{}: {}: face {} has {} vertices, only triangles are supported", stage,
-                                path.string(), i, count));
+      throw fail(fmt::format("face {} has {} vertices, only triangles are supported", i, count));
     }
     std::array<int, 3> tri{};
-    for (int k = 0; k < 3; ++k) tri[k] = static_cast<int>(read_as_double(face_index_type));
+    for (int k = 0; k < 3; ++k) {
+      const double index = read_as_double(face_index_type);
+      if (!(index >= 0 && index < static_cast<double>(n_vertices)) || index != std::floor(index) ||
+          index > std::numeric_limits<int>::max()) {
+        throw fail(fmt::format("face {} names vertex {}, but there are {} vertices", i, index, n_vertices));
+      }
+      tri[k] = static_cast<int>(index);
+    }
     m.faces.push_back(tri);
   }
   return out;

@@ -17,19 +17,27 @@ Database::Database(const std::filesystem::path& path, bool create) : path_(path)
     throw IoError(fmt::format("{}: cannot open database: {}", path.string(), msg));
   }
   sqlite3_extended_result_codes(db_, 1);
-  exec("PRAGMA foreign_keys = ON");
-  // Switching to WAL needs the database to itself. It is done once (the mode is
-  // stored in the file); when another program (QGIS, GDAL) has meanwhile set another
-  // mode and holds the file open, carry on in that mode rather than fail: it only
-  // costs concurrency.
-  if (query_text("PRAGMA journal_mode").value_or("") != "wal") {
-    sqlite3_busy_timeout(db_, 0);
-    if (sqlite3_exec(db_, "PRAGMA journal_mode = WAL", nullptr, nullptr, nullptr) != SQLITE_OK)
-      log::warn("{}: in use by another program; staying in its journal mode ({})", path.string(),
-                sqlite3_errmsg(db_));
+  // SQLite reads the file only now: a file that is not a database (or a damaged one)
+  // fails here, and the destructor of a half-made object does not run.
+  try {
+    exec("PRAGMA foreign_keys = ON");
+    // Switching to WAL needs the database to itself. It is done once (the mode is
+    // stored in the file); when another program (QGIS, GDAL) has meanwhile set another
+    // mode and holds the file open, carry on in that mode rather than fail: it only
+    // costs concurrency.
+    if (query_text("PRAGMA journal_mode").value_or("") != "wal") {
+      sqlite3_busy_timeout(db_, 0);
+      if (sqlite3_exec(db_, "PRAGMA journal_mode = WAL", nullptr, nullptr, nullptr) != SQLITE_OK)
+        log::warn("{}: in use by another program; staying in its journal mode ({})", path.string(),
+                  sqlite3_errmsg(db_));
+    }
+    sqlite3_busy_timeout(db_, 10000);
+    exec("PRAGMA synchronous = NORMAL");
+  } catch (...) {
+    sqlite3_close_v2(db_);
+    db_ = nullptr;
+    throw;
   }
-  sqlite3_busy_timeout(db_, 10000);
-  exec("PRAGMA synchronous = NORMAL");
 }
 
 Database::~Database() { sqlite3_close_v2(db_); }

@@ -6,8 +6,11 @@
 #include "project/gpkg.hpp"
 
 #include <algorithm>
+#include <charconv>
 #include <chrono>
 #include <cmath>
+#include <map>
+#include <set>
 #include <string_view>
 #include <vector>
 
@@ -29,13 +32,69 @@ int migration_number(std::string_view file) {
   return n;
 }
 
+bool has_meta_table(Database& db) {
+  return db.query_int("SELECT count(*) FROM sqlite_master WHERE type='table' AND name='strata_meta'")
+             .value_or(0) > 0;
+}
+
+// 0 for a database without strata's tables (one being created). A version that is
+// not a whole number comes from a damaged or foreign file: refused, not guessed.
 int current_version(Database& db) {
-  const bool has_meta =
-      db.query_int("SELECT count(*) FROM sqlite_master WHERE type='table' AND name='strata_meta'")
-          .value_or(0) > 0;
-  if (!has_meta) return 0;
-  auto v = db.query_text("SELECT value FROM strata_meta WHERE key='schema_version'");
-  return v ? std::stoi(*v) : 0;
+  if (!has_meta_table(db)) return 0;
+  const auto v = db.query_text("SELECT value FROM strata_meta WHERE key='schema_version'");
+  if (v) {
+    int n = 0;
+    const auto [end, ec] = std::from_chars(v->data(), v->data() + v->size(), n);
+    if (ec == std::errc() && end == v->data() + v->size() && n >= 1) return n;
+  }
+  throw IoError(fmt::format("{}: the schema version in strata_meta is {}; the file is damaged or was not made "
+                            "by strata",
+                            db.path().string(), v ? "'" + *v + "', not a version number" : "missing"));
+}
+
+// The columns of a table; empty when there is no such table.
+std::set<std::string> columns_of(Database& db, const std::string& table) {
+  auto st = db.prepare("SELECT name FROM pragma_table_info(?)");
+  st.bind(1, table);
+  std::set<std::string> names;
+  while (st.step()) names.insert(st.get_text(0));
+  return names;
+}
+
+// Every table strata's migrations create, with its columns: what this build expects
+// of a project at the latest schema (read once from an in-memory database).
+const std::map<std::string, std::set<std::string>>& expected_tables() {
+  static const std::map<std::string, std::set<std::string>> expected = [] {
+    Database db(":memory:", true);
+    apply_migrations(db);
+    std::map<std::string, std::set<std::string>> tables;
+    auto st = db.prepare("SELECT name FROM sqlite_master WHERE type='table' AND name NOT LIKE 'sqlite\\_%' ESCAPE '\\'");
+    while (st.step()) tables[st.get_text(0)];
+    for (auto& [table, columns] : tables) columns = columns_of(db, table);
+    return tables;
+  }();
+  return expected;
+}
+
+// A project that another program altered (a table dropped, a column renamed) is
+// refused at open with what is missing, rather than failing later in some command.
+// Extra tables and columns (QGIS styles, GeoPackage extensions) are fine.
+void require_strata_tables(Database& db) {
+  for (const auto& [table, expected] : expected_tables()) {
+    const std::set<std::string> found = columns_of(db, table);
+    if (found.empty()) {
+      throw IoError(fmt::format("{}: strata's table '{}' is missing; the file was altered by another program "
+                                "or is damaged",
+                                db.path().string(), table));
+    }
+    for (const auto& column : expected) {
+      if (!found.count(column)) {
+        throw IoError(fmt::format("{}: strata's table '{}' has no column '{}'; the file was altered by another "
+                                  "program or is damaged",
+                                  db.path().string(), table, column));
+      }
+    }
+  }
 }
 
 std::string now_iso() {
@@ -145,11 +204,16 @@ Project Project::open(const fs::path& dir) {
   if (app_id != 1196444487) {
     throw InputError(fmt::format("{}: not a GeoPackage made by strata", db_path.string()));
   }
+  // Project::create writes strata_meta before the file gets its name: a GeoPackage
+  // without it was made by another program, and migrating it would fail half-way.
+  if (!has_meta_table(*db)) {
+    throw InputError(fmt::format("{}: a GeoPackage, but not a strata project (it has no strata_meta table)",
+                                 db_path.string()));
+  }
   const int before = current_version(*db);
   const int applied = apply_migrations(*db);
-  if (applied > 0 && before > 0) {
-    log::info("upgraded project schema from version {} to {}", before, latest_schema_version());
-  }
+  if (applied > 0) log::info("upgraded project schema from version {} to {}", before, latest_schema_version());
+  require_strata_tables(*db);
   Project p(dir, std::move(db));
   if (applied > 0) register_feature_tables(p.db(), p.site().srs_id);
   return p;

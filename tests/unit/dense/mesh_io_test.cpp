@@ -68,6 +68,49 @@ TEST(DenseMeshIo, PlyLocalFloatCarriesOffsetComment) {
   }
 }
 
+// A PLY from another program, or a damaged copy: counts that the data cannot hold,
+// faces naming vertices that do not exist, a header without its end are refused with
+// reader.ply's error before they size an allocation or index a vertex (found by
+// fuzzing, tests/fuzz/corpus/ply).
+TEST(DenseMeshIo, PlyReaderRefusesCountsAndIndicesTheFileDoesNotHold) {
+  test::ScratchDir dir("dense_ply_bad");
+  write_ply(dir / "good.ply", small_mesh(), ExportFrame{});
+  const std::string good = test::read_text(dir / "good.ply");
+  auto error_of = [&](const std::string& bytes) -> std::string {
+    test::write_text(dir / "bad.ply", bytes);
+    try {
+      read_ply(dir / "bad.ply");
+    } catch (const IoError& e) {
+      return e.what();
+    }
+    return "accepted";
+  };
+  auto replaced = [&](const std::string& from, const std::string& to) {
+    std::string s = good;
+    const auto at = s.find(from);
+    EXPECT_NE(at, std::string::npos) << from;
+    return s.replace(at, from.size(), to);
+  };
+  EXPECT_NE(error_of(replaced("element vertex 4", "element vertex 400000000000")).find("more than the file holds"),
+            std::string::npos);
+  EXPECT_NE(error_of(replaced("element face 2", "element face 9000000000")).find("more than the file holds"),
+            std::string::npos);
+  EXPECT_NE(error_of(replaced("element vertex 4", "element vertex -1")).find("element count '-1' is not a number"),
+            std::string::npos);
+  // The last index of the last face (int32, little-endian) names vertex 99 of 4.
+  std::string far = good;
+  far.replace(far.size() - 4, 4, std::string("\x63\0\0\0", 4));
+  EXPECT_NE(error_of(far).find("face 1 names vertex 99, but there are 4 vertices"), std::string::npos);
+  EXPECT_NE(error_of(good.substr(0, good.find("end_header"))).find("no end_header"), std::string::npos);
+  EXPECT_EQ(error_of(good), "accepted");
+  // Colour without "red" (it wrote past the empty colour array).
+  test::write_text(dir / "green.ply", replaced("property uchar red\n", "property uchar alpha\n"));
+  const PlyContents green = read_ply(dir / "green.ply");
+  ASSERT_EQ(green.mesh.colours.size(), 4u);
+  EXPECT_EQ(green.mesh.colours[0][0], 0);
+  EXPECT_EQ(green.mesh.colours[0][1], 0);  // small_mesh's first vertex is pure red
+}
+
 TEST(DenseMeshIo, ObjHasVerticesFacesAndOffset) {
   test::ScratchDir dir("dense_obj");
   ExportFrame frame;

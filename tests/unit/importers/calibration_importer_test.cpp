@@ -126,6 +126,24 @@ TEST_F(ImporterTest, MalformedOpenCvFilesNameTheElement) {
   e = error_of([&] { read_calibration_file(write_opencv(scratch() / "rational.yml", kWidth, kHeight, K, D8, false)); });
   EXPECT_NE(e.find("<distortion_coefficients> k4 = 0.01"), std::string::npos) << e;
 
+  // A matrix header larger than its data (OpenCV allocated the 16 GB it declares
+  // before reading the data; found by fuzzing, tests/fuzz/corpus/calibration).
+  test::write_text(scratch() / "huge.yml",
+                   "%YAML:1.0\n---\nimage_width: 160\nimage_height: 120\ncamera_matrix: !!opencv-matrix\n"
+                   "   rows: 3\n   cols: 2147483647\n   dt: d\n   data: [ 150., 0., 79.5 ]\n");
+  e = error_of([&] { read_calibration_file(scratch() / "huge.yml"); });
+  EXPECT_NE(e.find("huge.yml: <camera_matrix> declares 6442450941 values but holds 3"), std::string::npos) << e;
+  test::write_text(scratch() / "text.yml",
+                   "%YAML:1.0\n---\nimage_width: 160\nimage_height: 120\ncamera_matrix: !!opencv-matrix\n"
+                   "   rows: 3\n   cols: three\n   dt: d\n   data: [ 150., 0., 79.5 ]\n");
+  e = error_of([&] { read_calibration_file(scratch() / "text.yml"); });
+  EXPECT_NE(e.find("text.yml: <camera_matrix> has a size that is not a whole number"), std::string::npos) << e;
+
+  // A NUL byte inside the document (OpenCV 4.6's XML parser crashed on it).
+  test::write_text(scratch() / "nul.xml", std::string("<?xml version=\0\0\"1\"?><opencv_storage/>\n", 39));
+  e = error_of([&] { read_calibration_file(scratch() / "nul.xml"); });
+  EXPECT_NE(e.find("nul.xml: holds NUL bytes: not a text file"), std::string::npos) << e;
+
   const cv::Mat D3 = (cv::Mat_<double>(1, 3) << -0.2, 0.07, 0);
   e = error_of([&] { read_calibration_file(write_opencv(scratch() / "three.yml", kWidth, kHeight, K, D3, false)); });
   EXPECT_NE(e.find("<distortion_coefficients> has 3 values"), std::string::npos) << e;
@@ -230,6 +248,10 @@ TEST_F(ImporterTest, MalformedMetashapeFilesNameTheElement) {
   EXPECT_NE(refused("broken.xml", "<calibration><f>150</f>\n<width>160</calibration>\n").find("not a valid XML file"),
             std::string::npos);
   EXPECT_NE(refused("none.xml", "<document><chunk/></document>\n").find("no <calibration> element"),
+            std::string::npos);
+  // An image size beyond int (it was converted unchecked before, undefined behaviour).
+  EXPECT_NE(refused("huge.xml", "<calibration><width>4e12</width><height>120</height><f>150</f></calibration>\n")
+                .find("<calibration>/<width> 4000000000000 must be a positive whole number of pixels"),
             std::string::npos);
   // A tiny skew (well under a tenth of a pixel at the edge) is dropped with a note.
   test::write_text(scratch() / "tiny.xml", metashape_xml("frame", "  <f>150</f>\n  <b2>0.01</b2>\n"));

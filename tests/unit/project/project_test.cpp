@@ -115,6 +115,49 @@ TEST(Project, Migration7KeepsObservationIdsAndRenamesManualToClicked) {
   EXPECT_EQ(db.query_int("SELECT count(*) FROM observations"), 0);
 }
 
+// A project.gpkg someone else made or changed is refused at open with one line
+// naming the file and what is wrong (found by fuzzing, tests/fuzz/corpus/project):
+// a schema version that is not a number, a GeoPackage of another program, a table
+// or a column of strata's that is gone.
+TEST(Project, RefusesAlteredOrForeignDatabasesWithOneClearError) {
+  test::ScratchDir dir("hostile");
+  const auto site = dir / "site";
+  Project::create(site, {"EPSG:32636", "Trench 7", std::nullopt});
+  const auto db_path = site / "project.gpkg";
+  std::filesystem::copy_file(db_path, dir / "good.gpkg");
+  auto error_after = [&](const std::string& sql) -> std::string {
+    std::filesystem::copy_file(dir / "good.gpkg", db_path, std::filesystem::copy_options::overwrite_existing);
+    {
+      Database db(db_path, false);
+      db.exec(sql);
+    }
+    try {
+      Project::open(site);
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find(db_path.string()), std::string::npos) << e.what();
+      return e.what();
+    }
+    return "opened";
+  };
+  EXPECT_NE(error_after("UPDATE strata_meta SET value = 'seven' WHERE key = 'schema_version'")
+                .find("the schema version in strata_meta is 'seven', not a version number"),
+            std::string::npos);
+  EXPECT_NE(error_after("DELETE FROM strata_meta").find("the schema version in strata_meta is missing"),
+            std::string::npos);
+  EXPECT_NE(error_after("DROP TABLE strata_meta").find("a GeoPackage, but not a strata project"), std::string::npos);
+  EXPECT_NE(error_after("DROP TABLE site").find("strata's table 'site' is missing"), std::string::npos);
+  EXPECT_NE(error_after("ALTER TABLE markers RENAME COLUMN kind TO role")
+                .find("strata's table 'markers' has no column 'kind'"),
+            std::string::npos);
+  EXPECT_NE(error_after("UPDATE strata_meta SET value = '99' WHERE key = 'schema_version'")
+                .find("schema version 99 is newer than this strata understands"),
+            std::string::npos);
+  // What other programs add (a QGIS style table, a column) is no reason to refuse.
+  EXPECT_EQ(error_after("CREATE TABLE layer_styles (id INTEGER PRIMARY KEY, styleQML TEXT); "
+                        "ALTER TABLE units ADD COLUMN excavator TEXT"),
+            "opened");
+}
+
 TEST(Project, RefusesGeographicAndUnknownCrsAndLeavesNothingBehind) {
   test::ScratchDir dir("g");
   EXPECT_THROW(Project::create(dir / "a", {"EPSG:4326", "", std::nullopt}), CrsError);
