@@ -107,7 +107,15 @@ std::vector<Eigen::Vector2d> read_footprint(const fs::path& path, const Eigen::V
         poly = g->toMultiPolygon()->getGeometryRef(0);
       if (poly && poly->getExteriorRing()) {
         const OGRLinearRing* r = poly->getExteriorRing();
-        for (int i = 0; i < r->getNumPoints(); ++i) ring.emplace_back(r->getX(i) - origin.x(), r->getY(i) - origin.y());
+        for (int i = 0; i < r->getNumPoints(); ++i) {
+          if (!std::isfinite(r->getX(i)) || !std::isfinite(r->getY(i))) {
+            OGRFeature::DestroyFeature(f);
+            GDALClose(GDALDataset::ToHandle(ds));
+            throw InputError(fmt::format("reader.footprint: {}: vertex {} of the polygon is not a finite coordinate",
+                                         path.string(), i + 1));
+          }
+          ring.emplace_back(r->getX(i) - origin.x(), r->getY(i) - origin.y());
+        }
       }
       OGRFeature::DestroyFeature(f);
       if (!ring.empty()) break;

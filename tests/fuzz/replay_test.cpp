@@ -56,11 +56,5 @@ TEST_P(CorpusReplay, EveryInputIsAcceptedOrRefusedCleanly) {
 INSTANTIATE_TEST_SUITE_P(FuzzReplay, CorpusReplay, ::testing::ValuesIn(kTargets),
                          [](const ::testing::TestParamInfo<Target>& info) { return std::string(info.param.name); });
 
-// Inputs that show a bug in code outside this change (known_bugs/README.md): disabled
-// until it is fixed; then the input moves into corpus/<target>/ and the test goes.
-TEST(FuzzKnownBug, DISABLED_FootprintAcceptsAnOutlineWithInfiniteCoordinates) {
-  replay(kFuzzDir / "known_bugs" / "footprint", footprint);
-}
-
 }  // namespace
 }  // namespace strata::fuzz
