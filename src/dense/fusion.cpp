@@ -453,7 +453,10 @@ HeightField TsdfVolume::top_surface(double x0, double y0, double cell, int nx, i
     const auto k = col_index(i, j);
     return k < 0 ? -std::numeric_limits<float>::infinity() : column[static_cast<std::size_t>(k)];
   };
-  auto sigma_at = [&](int i, int j) -> double { return column_sigma[static_cast<std::size_t>(col_index(i, j))]; };
+  auto sigma_at = [&](int i, int j) -> double {  // called only where col_at is finite, so inside the box
+    const auto k = col_index(i, j);
+    return k < 0 ? std::numeric_limits<double>::quiet_NaN() : column_sigma[static_cast<std::size_t>(k)];
+  };
   if (with_sigma) hf.sigma.assign(hf.z.size(), std::numeric_limits<double>::quiet_NaN());
   // Bilinear over the four surrounding columns when all have a crossing, else the
   // nearest column's (edges of the surface, vertical walls).

@@ -32,15 +32,26 @@ double nmad_of(const std::vector<double>& v, double centre) {
   return kMadToSigma * median_of(std::move(dev));
 }
 
-// One-dimensional running "any set within r": the row or column pass of dilate().
-void dilate_line(const std::uint8_t* in, std::uint8_t* out, int n, std::ptrdiff_t stride, int r) {
-  int count = 0;  // set cells in the window [k - r, k + r]
-  for (int k = 0; k < std::min(r, n); ++k) count += in[k * stride] != 0;
-  for (int k = 0; k < n; ++k) {
-    if (k + r < n) count += in[(k + r) * stride] != 0;
-    if (k - r - 1 >= 0) count -= in[(k - r - 1) * stride] != 0;
-    out[k * stride] = count > 0;
-  }
+// Sum of the values within `r` cells (square neighbourhood) of every cell:
+// running sums along rows, then along columns. Shared by dilate() and box_mean().
+std::vector<double> window_sums(const std::vector<double>& in, int nx, int ny, int r) {
+  std::vector<double> rows(in.size()), out(in.size());
+  auto pass = [r](const std::vector<double>& from, std::vector<double>& to, int len, int lines, std::ptrdiff_t stride,
+                  std::ptrdiff_t line_stride) {
+    for (int l = 0; l < lines; ++l) {
+      const std::ptrdiff_t base = l * line_stride;
+      double acc = 0;
+      for (int k = 0; k < std::min(r, len); ++k) acc += from[std::size_t(base + k * stride)];
+      for (int k = 0; k < len; ++k) {
+        if (k + r < len) acc += from[std::size_t(base + (k + r) * stride)];
+        if (k - r - 1 >= 0) acc -= from[std::size_t(base + (k - r - 1) * stride)];
+        to[std::size_t(base + k * stride)] = acc;
+      }
+    }
+  };
+  pass(in, rows, nx, ny, 1, nx);
+  pass(rows, out, ny, nx, nx, 1);
+  return out;
 }
 
 }  // namespace
@@ -60,36 +71,19 @@ double two_sided_normal_quantile(double confidence) {
 
 std::vector<std::uint8_t> dilate(const std::vector<std::uint8_t>& mask, int nx, int ny, int radius_cells) {
   if (radius_cells <= 0) return mask;
-  std::vector<std::uint8_t> rows(mask.size()), out(mask.size());
-  for (int j = 0; j < ny; ++j)
-    dilate_line(mask.data() + std::size_t(j) * nx, rows.data() + std::size_t(j) * nx, nx, 1, radius_cells);
-  for (int i = 0; i < nx; ++i) dilate_line(rows.data() + i, out.data() + i, ny, nx, radius_cells);
+  const std::vector<double> count = window_sums(std::vector<double>(mask.begin(), mask.end()), nx, ny, radius_cells);
+  std::vector<std::uint8_t> out(mask.size());
+  for (std::size_t c = 0; c < mask.size(); ++c) out[c] = count[c] > 0.5;
   return out;
 }
 
 std::vector<double> box_mean(const std::vector<double>& values, int nx, int ny, int radius_cells) {
-  // Separable running sums of the finite values and of their count.
   const std::size_t n = values.size();
-  std::vector<double> sum(n, 0), count(n, 0), row_sum(n, 0), row_count(n, 0);
+  std::vector<double> finite_values(n, 0), ones(n, 0);
   for (std::size_t c = 0; c < n; ++c)
-    if (std::isfinite(values[c])) sum[c] = values[c], count[c] = 1;
-  auto pass = [](const std::vector<double>& in, std::vector<double>& out, int len, int lines, std::ptrdiff_t stride,
-                 std::ptrdiff_t line_stride, int r) {
-    for (int l = 0; l < lines; ++l) {
-      const std::ptrdiff_t base = l * line_stride;
-      double acc = 0;
-      for (int k = 0; k < std::min(r, len); ++k) acc += in[std::size_t(base + k * stride)];
-      for (int k = 0; k < len; ++k) {
-        if (k + r < len) acc += in[std::size_t(base + (k + r) * stride)];
-        if (k - r - 1 >= 0) acc -= in[std::size_t(base + (k - r - 1) * stride)];
-        out[std::size_t(base + k * stride)] = acc;
-      }
-    }
-  };
-  pass(sum, row_sum, nx, ny, 1, nx, radius_cells);
-  pass(count, row_count, nx, ny, 1, nx, radius_cells);
-  pass(row_sum, sum, ny, nx, nx, 1, radius_cells);
-  pass(row_count, count, ny, nx, nx, 1, radius_cells);
+    if (std::isfinite(values[c])) finite_values[c] = values[c], ones[c] = 1;
+  const std::vector<double> sum = window_sums(finite_values, nx, ny, radius_cells);
+  const std::vector<double> count = window_sums(ones, nx, ny, radius_cells);
   std::vector<double> mean(n, std::numeric_limits<double>::quiet_NaN());
   for (std::size_t c = 0; c < n; ++c)
     if (count[c] > 0.5) mean[c] = sum[c] / count[c];

@@ -48,10 +48,14 @@ double quantile(std::vector<double>& values, double q) {
 // as Canny's edges: a cell whose thickness averaged over core_scale_m still
 // exceeds its level; noise makes patches a few cm across that pass the per-cell
 // test and vanish when averaged over 10 cm, while a deposit keeps its mean).
-// Returns the mask; the kept regions in `out` when given.
+// Returns the mask; with `volumes`, each kept region's cells and volume (m3).
+struct KeptRegion {
+  std::vector<std::size_t> cells;
+  double volume_m3 = 0;
+};
 std::vector<std::uint8_t> significant_regions(const std::vector<double>& t, const std::vector<double>& lod,
                                               const SiteGrid& g, const VolumeOptions& o, double sign,
-                                              Components* out = nullptr) {
+                                              std::vector<KeptRegion>* kept = nullptr) {
   const std::size_t n = g.size();
   const int nx = g.nx, ny = g.ny;
   std::vector<double> st(n);
@@ -61,14 +65,18 @@ std::vector<std::uint8_t> significant_regions(const std::vector<double>& t, cons
   const std::size_t min_cells = std::size_t(std::ceil(o.min_dug_area_m2 / (g.cell * g.cell)));
   const int core_radius = int(std::lround(0.5 * o.core_scale_m / g.cell));
   const std::vector<double> mean = core_radius > 0 ? volume_detail::box_mean(st, nx, ny, core_radius) : st;
-  Components regions = connected_components(mask, nx, ny, Connectivity::eight);
+  const Components regions = connected_components(mask, nx, ny, Connectivity::eight);
   for (std::size_t k = 0; k < regions.count(); ++k) {
     const bool keep = regions.size(k) >= std::max<std::size_t>(min_cells, 1) &&
                       std::any_of(regions.begin(k), regions.end(k), [&](std::size_t c) { return mean[c] > lod[c]; });
-    if (!keep)
+    if (!keep) {
       for (auto c = regions.begin(k); c != regions.end(k); ++c) mask[*c] = 0;
+    } else if (kept) {
+      KeptRegion r{{regions.begin(k), regions.end(k)}, 0.0};
+      for (std::size_t c : r.cells) r.volume_m3 += st[c] * g.cell * g.cell;
+      kept->push_back(std::move(r));
+    }
   }
-  if (out) *out = connected_components(mask, nx, ny, Connectivity::eight);
   return mask;
 }
 
@@ -86,25 +94,18 @@ std::vector<std::uint8_t> dug_cells(const std::vector<double>& t, const std::vec
                                     const VolumeOptions& o, bool null_from_negative = false) {
   const std::size_t n = g.size();
   const int nx = g.nx, ny = g.ny;
-  Components found;
-  std::vector<std::uint8_t> dug = significant_regions(t, lod, g, o, +1, &found);
+  std::vector<KeptRegion> positive, negative;
+  std::vector<std::uint8_t> dug = significant_regions(t, lod, g, o, +1, null_from_negative ? &positive : nullptr);
   if (null_from_negative) {
-    const double a = g.cell * g.cell;
-    auto volumes = [&](const Components& r, double sign) {
-      std::vector<double> v(r.count(), 0.0);
-      for (std::size_t k = 0; k < r.count(); ++k)
-        for (auto c = r.begin(k); c != r.end(k); ++c) v[k] += sign * t[*c] * a;
-      return v;
-    };
-    Components negative;
     significant_regions(t, lod, g, o, -1, &negative);
-    const std::vector<double> pos = volumes(found, +1), neg = volumes(negative, -1);
-    if (!pos.empty() && !neg.empty()) {
-      const double bound = std::min(*std::max_element(neg.begin(), neg.end()),
-                                    0.01 * *std::max_element(pos.begin(), pos.end()));
-      for (std::size_t k = 0; k < found.count(); ++k)
-        if (pos[k] <= bound)
-          for (auto c = found.begin(k); c != found.end(k); ++c) dug[*c] = 0;
+    if (!positive.empty() && !negative.empty()) {
+      auto by_volume = [](const KeptRegion& a, const KeptRegion& b) { return a.volume_m3 < b.volume_m3; };
+      const double bound =
+          std::min(std::max_element(negative.begin(), negative.end(), by_volume)->volume_m3,
+                   0.01 * std::max_element(positive.begin(), positive.end(), by_volume)->volume_m3);
+      for (const KeptRegion& r : positive)
+        if (r.volume_m3 <= bound)
+          for (std::size_t c : r.cells) dug[c] = 0;
     }
   }
   const int steps = int(std::floor(o.edge_growth_m / g.cell + 1e-9));
@@ -446,9 +447,10 @@ std::vector<UnitSolid> build_unit_solids(const std::vector<LayerSurface>& layers
         std::string bins;
         for (std::size_t b = 0; b < ground.bin_sigma_m.size(); ++b)
           bins += fmt::format(" {:.1f} mm x {:.2f}", 1000 * ground.bin_sigma_m[b], ground.bin_factor[b]);
-        log::debug("volume: unit {}: stable ground {:.2f} m2, offset {:+.2f} mm (quadrants +/- {:.2f}), NMAD {:.2f} mm, L {:.1f} mm; stated "
-                   "sigma -> factor:{}",
-                   unit, ground.area_m2, 1000 * ground.bias_m, 1000 * ground.offset_spread_m, 1000 * ground.nmad_m, 1000 * ground.correlation_m, bins);
+        log::debug("volume: unit {}: stable ground {:.2f} m2, offset {:+.2f} mm (quadrants +/- {:.2f}), NMAD {:.2f} "
+                   "mm, L {:.1f} mm; stated sigma -> factor:{}",
+                   unit, ground.area_m2, 1000 * ground.bias_m, 1000 * ground.offset_spread_m, 1000 * ground.nmad_m,
+                   1000 * ground.correlation_m, bins);
         offset2 = ground.bias_m * ground.bias_m + ground.bias_se_m * ground.bias_se_m +
                   ground.offset_spread_m * ground.offset_spread_m;
         lod = levels();

@@ -78,6 +78,14 @@ LayerSurface layer(const std::string& name, const std::string& unit, const std::
   return l;
 }
 
+// The two surfaces of one dug unit A: the undisturbed ground (layer L1), and the
+// ground less `depth` after A was removed (layer L2, unit B below it).
+std::vector<LayerSurface> dug_scene(const std::function<double(double, double)>& depth, unsigned top_seed,
+                                    unsigned bottom_seed, const Noise& noise) {
+  return {layer("L1", "A", [](double, double) { return 0.0; }, top_seed, noise),
+          layer("L2", "B", depth, bottom_seed, noise)};
+}
+
 // Sum of a depth function over the grid's cells: the truth the raster can hold.
 double truth_volume(const std::function<double(double, double)>& thickness, double* area = nullptr) {
   const SiteGrid g = scene_grid();
@@ -151,8 +159,7 @@ TEST(VolumeSignificance, AUnitCoveringHalfTheTrench) {
   auto unit_a = [](double x, double y) {  // 0.2 m deep over the west half, nothing elsewhere
     return in_box(x, y, kT0, 1.25, kT0, kT1) ? 0.20 + 0.03 * std::sin(4 * y) : 0.0;
   };
-  std::vector<LayerSurface> layers{layer("L1", "A", [](double, double) { return 0.0; }, 1, noise),
-                                   layer("L2", "B", unit_a, 2, noise)};
+  std::vector<LayerSurface> layers = dug_scene(unit_a, 1, 2, noise);
   const auto solids = build_unit_solids(layers, VolumeOptions{});
   ASSERT_EQ(solids.size(), 1u);
   double area = 0;
@@ -170,8 +177,7 @@ TEST(VolumeSignificance, AUnitCoveringHalfTheTrench) {
 TEST(VolumeSignificance, AThinUnitBesideNoise) {
   const Noise noise;
   auto thin = [](double x, double y) { return in_box(x, y, 0.8, 1.8, 0.8, 1.8) ? 0.02 : 0.0; };
-  std::vector<LayerSurface> layers{layer("L1", "A", [](double, double) { return 0.0; }, 3, noise),
-                                   layer("L2", "B", thin, 4, noise)};
+  std::vector<LayerSurface> layers = dug_scene(thin, 3, 4, noise);
   const auto solids = build_unit_solids(layers, VolumeOptions{});
   ASSERT_EQ(solids.size(), 1u);
   double area = 0;
@@ -196,8 +202,7 @@ TEST(VolumeSignificance, APitWithVerticalWalls) {
     const double r = std::hypot(x - 1.25, y - 1.25);
     return r < 0.25 ? 0.40 : 0.10;  // the pit: 0.3 m deeper, vertical walls
   };
-  std::vector<LayerSurface> layers{layer("L1", "A", [](double, double) { return 0.0; }, 5, noise),
-                                   layer("L2", "B", thickness, 6, noise)};
+  std::vector<LayerSurface> layers = dug_scene(thickness, 5, 6, noise);
   const auto solids = build_unit_solids(layers, VolumeOptions{});
   ASSERT_EQ(solids.size(), 1u);
   double area = 0;
@@ -214,8 +219,7 @@ TEST(VolumeSignificance, APitWithVerticalWalls) {
 TEST(VolumeSignificance, ASurfaceWithAGapInTheMiddle) {
   const Noise noise;
   auto planar = [](double x, double y) { return in_box(x, y, kT0, kT1, kT0, kT1) ? 0.15 : 0.0; };
-  std::vector<LayerSurface> layers{layer("L1", "A", [](double, double) { return 0.0; }, 7, noise),
-                                   layer("L2", "B", planar, 8, noise)};
+  std::vector<LayerSurface> layers = dug_scene(planar, 7, 8, noise);
   const SiteGrid g = scene_grid();
   std::size_t holes = 0;
   for (int j = 0; j < kN; ++j)
@@ -264,8 +268,7 @@ TEST(VolumeSignificance, StableGroundJudgesTheStatedSigmasAndTheOffset) {
   Noise noise;
   noise.stated = 0.001;  // the surfaces claim 1 mm; they have 2 mm
   auto dug = [](double x, double y) { return in_box(x, y, kT0, kT1, kT0, kT1) ? 0.25 : 0.0; };
-  std::vector<LayerSurface> layers{layer("L1", "A", [](double, double) { return 0.0; }, 11, noise),
-                                   layer("L2", "B", dug, 12, noise)};
+  std::vector<LayerSurface> layers = dug_scene(dug, 11, 12, noise);
   for (double& z : layers[1].z.z) z += 0.003;  // the second layer registered 3 mm high
   const auto solids = build_unit_solids(layers, VolumeOptions{});
   ASSERT_EQ(solids.size(), 1u);
@@ -292,8 +295,7 @@ TEST(VolumeSignificance, TheIntervalCoversTheTruthAsOftenAsItSays) {
   int inside = 0, runs = 0;
   double mean_abs_z = 0;
   for (unsigned seed = 100; seed < 116; ++seed, ++runs) {
-    std::vector<LayerSurface> layers{layer("L1", "A", [](double, double) { return 0.0; }, seed, noise),
-                                     layer("L2", "B", dug, seed + 1000, noise)};
+    std::vector<LayerSurface> layers = dug_scene(dug, seed, seed + 1000, noise);
     const UnitMeasures m = build_unit_solids(layers, VolumeOptions{})[0].measures;
     inside += m.interval_low_m3 <= truth && truth <= m.interval_high_m3;
     mean_abs_z += std::abs(m.volume_m3 - truth) / m.volume_sigma_m3 / 16;
