@@ -124,7 +124,7 @@ class Project:
 
     def prepare(self, log):
         t = time.time()
-        self.run(["synth", self.data, "--size", "small", "--stages", "1", "--photos", "12", "--width", "800",
+        self.run(["synth", self.data, "--size", "small", "--stages", "1", "--photos", "14", "--width", "800",
                   "--seed", "5"])
         log(f"synthetic data in {time.time() - t:.0f} s")
         shutil.rmtree(self.site, ignore_errors=True)
