@@ -1,6 +1,7 @@
 #include "exporters/cameras/camera_export.hpp"
 
 #include "core/error.hpp"
+#include "core/fault.hpp"
 
 #include <Eigen/Geometry>
 #include <fmt/format.h>
@@ -34,6 +35,7 @@ class AtomicFile {
     std::fclose(f_);
     f_ = nullptr;
     if (!ok) throw IoError(fmt::format("exporter: {}: write failed", path_.string()));
+    fault::point("export.cameras.temp_written");
     fs::rename(tmp_, path_);
   }
 

@@ -1,6 +1,7 @@
 #include "importers/markers/marker_importer.hpp"
 
 #include "core/error.hpp"
+#include "core/fault.hpp"
 #include "crs/crs.hpp"
 #include "importers/markers/delimited.hpp"
 #include "project/gpkg.hpp"
@@ -280,6 +281,7 @@ MarkerImportSummary import_markers(Project& project, const MarkerImportOptions& 
                                  layer_id ? " (layer " + options.layer + ")" : ""));
   }
   observations = std::move(kept);
+  fault::point("import.markers.parsed");
 
   Transaction tx(db);
   std::map<std::string, std::int64_t> marker_ids;
@@ -309,6 +311,7 @@ MarkerImportSummary import_markers(Project& project, const MarkerImportOptions& 
       marker_ids[name] = upsert_marker(db, m.record, site.srs_id);
       summary.markers_new++;
     }
+    fault::point("import.markers.marker_written");
   }
   for (std::size_t i = 0; i < observations.size(); ++i) {
     ObservationRecord o;
@@ -317,10 +320,12 @@ MarkerImportSummary import_markers(Project& project, const MarkerImportOptions& 
     o.pixel = observations[i].pixel;
     o.source = "clicked";
     (upsert_observation(db, o) ? summary.observations_new : summary.observations_updated)++;
+    fault::point("import.markers.observation_written");
   }
   update_contents_extent(db, "markers", "e", "n");
   const auto all = list_markers(db);
   if (!all.empty()) project.set_origin_if_unset(all.front().position);
+  fault::point("import.markers.before_commit");
   tx.commit();
   return summary;
 }

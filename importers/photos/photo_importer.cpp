@@ -1,6 +1,7 @@
 #include "importers/photos/photo_importer.hpp"
 
 #include "core/error.hpp"
+#include "core/fault.hpp"
 #include "core/hash.hpp"
 #include "core/log.hpp"
 #include "core/progress.hpp"
@@ -130,6 +131,7 @@ PhotoImportSummary import_photos(Project& project, const PhotoImportOptions& opt
         kStage, summary.bad.size(), files.size(), list));
   }
 
+  fault::point("import.photos.checked");
   Transaction tx(db);
   MediaBatch media(project.media_dir());
   for (const auto& c : good) {
@@ -166,6 +168,7 @@ PhotoImportSummary import_photos(Project& project, const PhotoImportOptions& opt
     im.name = name;
     im.sha256 = c.sha;
     im.media_path = media.store(c.path, c.sha);
+    fault::point("import.photos.media_stored");
     im.bytes = std::int64_t(fs::file_size(c.path));
     im.width = c.meta.width;
     im.height = c.meta.height;
@@ -173,9 +176,12 @@ PhotoImportSummary import_photos(Project& project, const PhotoImportOptions& opt
     im.captured_at = c.meta.captured_at;
     im.exif_ok = prior.focal_px.has_value();
     insert_image(db, im);
+    fault::point("import.photos.row_inserted");
     ++summary.imported;
   }
+  fault::point("import.photos.before_commit");
   tx.commit();
+  fault::point("import.photos.after_commit");
   media.commit();
   return summary;
 }

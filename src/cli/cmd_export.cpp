@@ -1,6 +1,7 @@
 // strata export ...
 #include "cli/commands.hpp"
 #include "core/error.hpp"
+#include "core/fault.hpp"
 #include "core/hash.hpp"
 #include "core/log.hpp"
 #include "exporters/cameras/camera_export.hpp"
@@ -91,6 +92,7 @@ void register_export_commands(CLI::App& app) {
       }
       const std::string tmp = *out + ".tmp";
       std::filesystem::copy_file(src, tmp, std::filesystem::copy_options::overwrite_existing);
+      fault::point("export.copy.temp_written");
       std::filesystem::rename(tmp, *out);
       log::info("wrote {}", *out);
     });

@@ -1,6 +1,7 @@
 // strata unit, relation, matrix, layer
 #include "cli/commands.hpp"
 #include "core/error.hpp"
+#include "core/fault.hpp"
 #include "core/log.hpp"
 #include "project/project.hpp"
 #include "project/records.hpp"
@@ -75,6 +76,7 @@ void register_stratigraphy_commands(CLI::App& app) {
       Project p = Project::open(*dir);
       Transaction tx(p.db());
       insert_unit(p.db(), *rec);
+      fault::point("stratigraphy.unit_before_commit");
       tx.commit();
       fmt::print("unit {} added ({})\n", rec->code, rec->type);
     });
@@ -124,6 +126,7 @@ void register_stratigraphy_commands(CLI::App& app) {
       matrix.add(r);  // throws with the cycle
       Transaction tx(p.db());
       const bool added = insert_relation(p.db(), {0, r.unit_a, to_string(r.kind), r.unit_b}) != 0;
+      fault::point("stratigraphy.relation_before_commit");
       tx.commit();
       fmt::print("{} {} {} {}\n", r.unit_a, to_string(r.kind), r.unit_b,
                  added ? "recorded" : "was already recorded");
@@ -197,6 +200,7 @@ void register_stratigraphy_commands(CLI::App& app) {
       }
       Transaction tx(p.db());
       insert_layer(p.db(), l);
+      fault::point("stratigraphy.layer_before_commit");
       tx.commit();
       fmt::print("layer {} added (unit {})\n", l.name, l.unit);
     });

@@ -2,6 +2,7 @@
 #include "cli/commands.hpp"
 #include "cli/common.hpp"
 #include "core/error.hpp"
+#include "core/fault.hpp"
 #include "core/log.hpp"
 #include "project/project.hpp"
 #include "volume/raster_io.hpp"
@@ -120,7 +121,9 @@ void register_volume(CLI::App& app) {
     Project p = Project::open(a->dir);
     const SiteModel m = load_site_model(p, o);
     if (!unit->empty()) require_solid(m, *unit);
+    fault::point("volume.model_loaded");
     const VoxelSummary v = store_site_volumes(p, m, o);
+    fault::point("volume.stored");
     nlohmann::ordered_json list = nlohmann::ordered_json::array();
     for (const auto& s : m.solids)
       if (unit->empty() || s.unit == *unit) list.push_back(measures_json(s, v));

@@ -200,7 +200,7 @@ void Progress::draw(bool final) {
   out_.write(format_progress_line(label_, done, total_, elapsed) + "\n");
 }
 
-// ---- cancellation and faults ----------------------------------------------------------
+// ---- cancellation ----------------------------------------------------------
 
 void install_cancel_handler() {
   std::signal(SIGINT, on_signal);
@@ -210,11 +210,6 @@ void request_cancel() { g_cancel = true; }
 bool cancel_requested() { return g_cancel; }
 void check_cancelled() {
   if (g_cancel) throw Cancelled();
-}
-
-void fault_point(const char* name) {
-  const char* at = std::getenv("STRATA_FAULT_AT");
-  if (at && std::string_view(at) == name) std::raise(SIGKILL);
 }
 
 }  // namespace strata

@@ -87,9 +87,4 @@ bool cancel_requested();
 // Throws strata::Cancelled when a stop was requested.
 void check_cancelled();
 
-// Fault injection for the resume tests: when the environment variable
-// STRATA_FAULT_AT names this point, the process kills itself with SIGKILL there,
-// exactly as a crash or a pulled plug would (no destructors, no rollback code).
-void fault_point(const char* name);
-
 }  // namespace strata

@@ -5,6 +5,7 @@
 // The maths lives in the other files of this module; this one orders the steps,
 // times them, and reports progress.
 #include "core/error.hpp"
+#include "core/fault.hpp"
 #include "core/hash.hpp"
 #include "core/log.hpp"
 #include "core/progress.hpp"
@@ -151,6 +152,7 @@ DenseSummary run_dense(const DenseOptions& options, const Reconstruction& rec,
   if (pm.scale == 0) pm.scale = choose_scale(rec, neighbours, refs, pm.target_gsd_m);
   summary.depth_scale = pm.scale;
   summary.view_selection = figures(sw);
+  fault::point("process.dense.views_selected");
   log::info("dense: {} of {} images have source views; depth maps at scale {}", refs.size(), n, pm.scale);
 
   auto camera_of = [&](int i) {
@@ -186,6 +188,7 @@ DenseSummary run_dense(const DenseOptions& options, const Reconstruction& rec,
       ViewImage cached;
       if (!options.reuse_cache || !dense::read_view_image(image_file(i), key, cached)) {
         dense::write_view_image(image_file(i), dense::undistort_image(image_paths[i], intr, im.pose, pm.scale), key);
+        fault::point("process.dense.image_undistorted");
       }
       progress.step();
     }
@@ -229,6 +232,7 @@ DenseSummary run_dense(const DenseOptions& options, const Reconstruction& rec,
         for (const auto& s : src) src_ptr.push_back(&s);
         map = dense::patch_match(ref, src_ptr, nb.depth_min, nb.depth_max, pm);
         dense::write_depth_map(raw_file(i), map, key);
+        fault::point("process.dense.depth_map_written");
       }
       const std::size_t valid = map.valid_count();
       valid_sum += static_cast<double>(valid) / (static_cast<double>(map.width) * map.height);
@@ -243,6 +247,7 @@ DenseSummary run_dense(const DenseOptions& options, const Reconstruction& rec,
   }
   summary.valid_depth_fraction = valid_sum / static_cast<double>(refs.size());
   summary.depth_maps = figures(sw);
+  fault::point("process.dense.depth_maps_done");
 
   // ---- 4. geometric consistency (reads raw maps of the reference and its sources) --
   sw = Stopwatch();
@@ -275,6 +280,7 @@ DenseSummary run_dense(const DenseOptions& options, const Reconstruction& rec,
         for (std::size_t k = 0; k < maps.size(); ++k) nbs.push_back({&maps[k], &cams[k]});
         filtered = dense::filter_consistent(ref, camera_of(i), nbs, cons);
         dense::write_depth_map(filtered_file(i), filtered, key);
+        fault::point("process.dense.filtered_map_written");
       }
       kept_sum += static_cast<double>(filtered.valid_count()) /
                   (static_cast<double>(filtered.width) * filtered.height);
@@ -313,6 +319,7 @@ DenseSummary run_dense(const DenseOptions& options, const Reconstruction& rec,
   summary.floating_voxels_removed = volume.remove_small_components(fo.min_component_fraction);
   summary.active_voxels = volume.active_voxels();
   summary.fusion = figures(sw);
+  fault::point("process.dense.fusion_done");
   log::info("dense: voxel {:.1f} mm, {} active voxels ({} in small floating pieces removed)", voxel * 1e3,
             summary.active_voxels, summary.floating_voxels_removed);
   if (summary.active_voxels == 0) throw ProcessingError("dense: fusion left no observed voxel");
@@ -330,6 +337,7 @@ DenseSummary run_dense(const DenseOptions& options, const Reconstruction& rec,
   summary.mesh_faces = mesh.faces.size();
   summary.points = points.vertices.size();
   summary.meshing = figures(sw);
+  fault::point("process.dense.mesh_done");
 
   // ---- 7. writers ---------------------------------------------------------------------
   sw = Stopwatch();
@@ -340,14 +348,17 @@ DenseSummary run_dense(const DenseOptions& options, const Reconstruction& rec,
   };
   volume.write(out_dir / "surface.vdb", site_origin, frame.crs);
   record("surface", out_dir / "surface.vdb");
+  fault::point("process.dense.surface_written");
   write_ply(out_dir / "mesh.ply", mesh, frame);
   record("mesh", out_dir / "mesh.ply");
+  fault::point("process.dense.mesh_written");
   if (options.mesh.write_obj) {
     write_obj(out_dir / "mesh.obj", mesh, frame);
     record("mesh_obj", out_dir / "mesh.obj");
   }
   write_ply(out_dir / "points.ply", points, frame);
   record("points", out_dir / "points.ply");
+  fault::point("process.dense.points_written");
   summary.writing = figures(sw);
 
   // ---- 8. quality: completeness over the area, distance to the sparse points ---------

@@ -2,6 +2,7 @@
 // little-endian arrays behind a small header with a version and a content key.
 // The cache is deletable (design.md): a missing or stale file is recomputed.
 #include "core/error.hpp"
+#include "core/fault.hpp"
 #include "dense/internal.hpp"
 
 #include <fmt/format.h>
@@ -64,6 +65,7 @@ void write_file_atomically(const std::filesystem::path& path, const std::string&
     std::filesystem::remove(tmp, ec);
     throw;
   }
+  fault::point(stage == "dense.cache" ? "process.dense.cache_temp_written" : "process.dense.product_temp_written");
   std::filesystem::rename(tmp, path, ec);
   if (ec) {
     std::filesystem::remove(tmp, ec);

@@ -1,6 +1,7 @@
 #include "features/cache_io.hpp"
 
 #include "core/error.hpp"
+#include "core/fault.hpp"
 #include "core/log.hpp"
 
 #include <atomic>
@@ -105,6 +106,7 @@ void write_file_atomic(const std::filesystem::path& path, const std::string& byt
       throw IoError(fmt::format("features cache: cannot write {}", tmp.string()));
     }
   }
+  fault::point("process.features.file_temp_written");
   std::filesystem::rename(tmp, path, ec);
   if (ec) {
     std::error_code ignored;

@@ -1,6 +1,7 @@
 #include "features/extraction.hpp"
 
 #include "core/error.hpp"
+#include "core/fault.hpp"
 #include "core/hash.hpp"
 #include "core/log.hpp"
 #include "core/progress.hpp"
@@ -184,6 +185,7 @@ std::vector<ImageKeypoints> extract_features(const FeatureExtractionOptions& opt
     } else {
       stored = compute_features(options, image);
       features::write_features(file, *stored);
+      fault::point("process.features.image_done");
       ++extracted;
     }
     kp.points = std::move(stored->points);

@@ -1,6 +1,7 @@
 #include "features/matching.hpp"
 
 #include "core/error.hpp"
+#include "core/fault.hpp"
 #include "core/hash.hpp"
 #include "core/log.hpp"
 #include "core/progress.hpp"
@@ -334,6 +335,7 @@ std::vector<PairMatches> match_pairs(const MatchingOptions& options,
                            prior(b));
     const double dt_verify = t_verify.seconds();
     features::write_matches(features::matches_file(cache_dir, pair_key(a, b)), verified);
+    fault::point("process.matching.pair_done");
     results[p] = std::move(verified);
     {
       std::lock_guard lock(time_mutex);

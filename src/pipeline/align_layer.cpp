@@ -1,6 +1,7 @@
 #include "pipeline/align_layer.hpp"
 
 #include "core/error.hpp"
+#include "core/fault.hpp"
 #include "core/hash.hpp"
 #include "core/log.hpp"
 #include "core/progress.hpp"
@@ -160,13 +161,14 @@ AlignResult align_layer(Project& project, const std::string& layer_name, const A
   FeatureExtractionSummary fs;
   const auto keypoints = extract_features(options.features, feature_images, cache, &fs);
   timings["features_s"] = fs.seconds;
-  fault_point("align.after_features");
+  fault::point("process.features.done");
   check_cancelled();
   PairSelectionSummary ps;
   const auto pairs = select_pairs(options.pairs, keypoints, cache, times, &ps);
   MatchingSummary ms;
   const auto matches = match_pairs(options.matching, keypoints, pairs, priors, cache, &ms);
   timings["matching_s"] = ps.seconds + ms.seconds;
+  fault::point("process.matching.done");
   log::info("layer {}: {} keypoints in {} photos, {} of {} pairs verified", layer.name, fs.keypoints,
             records.size(), ms.verified, pairs.size());
   check_cancelled();
@@ -194,6 +196,7 @@ AlignResult align_layer(Project& project, const std::string& layer_name, const A
     }
     progress.finish();
     timings["targets_s"] = sw.seconds();
+    fault::point("process.targets.done");
     if (!unknown_ids.empty()) {
       std::string ids;
       for (int id : unknown_ids) ids += (ids.empty() ? "" : ", ") + std::to_string(id);
@@ -213,7 +216,7 @@ AlignResult align_layer(Project& project, const std::string& layer_name, const A
       },
       is, focal_search);
   timings["sfm_s"] = is.seconds;
-  fault_point("align.after_sfm");
+  fault::point("process.sfm.done");
   if (is.registered < 2) {
     throw ProcessingError(fmt::format(
         "layer {}: only {} of {} photos could be aligned; the photos overlap too little or show too "
@@ -290,6 +293,7 @@ AlignResult align_layer(Project& project, const std::string& layer_name, const A
     gs = georeference(options.georef, constraints, observations, keypoints, rec);
   }
   timings["georeference_s"] = gs.seconds;
+  fault::point("process.georeference.done");
 
   // ---- quality
   const ReconstructionQuality q = measure_quality(rec, keypoints);
@@ -373,6 +377,7 @@ AlignResult align_layer(Project& project, const std::string& layer_name, const A
       .bind_all(layer.id)
       .run();
   for (const auto& o : detected) upsert_observation(db, o);
+  fault::point("process.align.observations_replaced");
   StoredAlignment stored;
   stored.rec = rec;
   stored.images = records;
@@ -380,8 +385,9 @@ AlignResult align_layer(Project& project, const std::string& layer_name, const A
   stored.quality = quality;
   stored.inputs_key = inputs_key;
   store_alignment(db, layer, site, stored, residuals);
-  fault_point("align.before_commit");
+  fault::point("process.align.before_commit");
   tx.commit();
+  fault::point("process.align.after_commit");
   result.quality = quality;
   return result;
 }

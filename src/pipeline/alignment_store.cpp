@@ -1,6 +1,7 @@
 #include "pipeline/alignment_store.hpp"
 
 #include "core/error.hpp"
+#include "core/fault.hpp"
 #include "project/gpkg.hpp"
 
 #include <cstring>
@@ -39,6 +40,7 @@ std::int64_t store_alignment(Database& db, const LayerRecord& layer, const SiteI
       .bind_all(layer.id, a.inputs_key, a.rec.georeferenced ? 1 : 0, a.quality.dump())
       .run();
   const std::int64_t rid = db.last_insert_id();
+  fault::point("process.align.reconstruction_inserted");
 
   for (std::size_t g = 0; g < a.rec.groups.size(); ++g) {
     const Intrinsics& k = a.rec.groups[g].intrinsics;
@@ -72,6 +74,7 @@ std::int64_t store_alignment(Database& db, const LayerRecord& layer, const SiteI
     }
     pose_st.run();
   }
+  fault::point("process.align.poses_written");
   std::vector<std::uint8_t> blob;
   blob.reserve(a.rec.points.size() * kPointBytes);
   for (const auto& p : a.rec.points) {
@@ -93,6 +96,7 @@ std::int64_t store_alignment(Database& db, const LayerRecord& layer, const SiteI
   pts.bind(1, rid).bind(2, std::int64_t(a.rec.points.size()));
   pts.bind_blob(3, blob);
   pts.run();
+  fault::point("process.align.points_written");
 
   auto res = db.prepare(
       "INSERT INTO marker_residuals(reconstruction_id, marker_id, role, triangulated, de, dn, dz, "

@@ -1,6 +1,7 @@
 #include "pipeline/dense_layer.hpp"
 
 #include "core/error.hpp"
+#include "core/fault.hpp"
 #include "core/hash.hpp"
 #include "core/log.hpp"
 #include "core/progress.hpp"
@@ -115,16 +116,31 @@ DenseLayerResult dense_layer(Project& project, const std::string& layer_name, co
                 {"fusion", step(s.fusion)},                 {"meshing", step(s.meshing)},
                 {"writing", step(s.writing)},               {"total", step(s.total)}};
 
-  fault_point("dense.before_swap");
-  const fs::path old_dir = final_dir.string() + ".old";
-  fs::remove_all(old_dir);
-  if (fs::exists(final_dir)) fs::rename(final_dir, old_dir);
-  fs::rename(tmp_dir, final_dir);
-  try {
+  // The files are replaced in three steps, so that no record ever names a file that
+  // is not the one it describes, whenever the process dies: the previous surface's
+  // records go first (committed), then the folders are swapped, then the new
+  // records are committed. A crash in between costs the record of the previous
+  // surface, which the next run recomputes (from the depth-map cache).
+  const std::string rel_dense = (fs::path(layer_product_dir(layer.name)) / "dense").string() + "/";
+  {
     Transaction tx(db);
     db.prepare("DELETE FROM reconstructions WHERE layer_id = ? AND stage IN ('dense', 'products')")
         .bind_all(layer.id)
         .run();
+    db.prepare("DELETE FROM products WHERE layer_id = ? AND substr(path, 1, length(?)) = ?")
+        .bind_all(layer.id, rel_dense, rel_dense)
+        .run();
+    tx.commit();
+  }
+  fault::point("process.dense.records_retracted");
+  const fs::path old_dir = final_dir.string() + ".old";
+  fs::remove_all(old_dir);
+  if (fs::exists(final_dir)) fs::rename(final_dir, old_dir);
+  fault::point("process.dense.old_moved_aside");
+  fs::rename(tmp_dir, final_dir);
+  fault::point("process.dense.swapped");
+  try {
+    Transaction tx(db);
     db.prepare(
           "INSERT INTO reconstructions(layer_id, stage, created_at, inputs_key, georeferenced, quality_json) "
           "VALUES (?, 'dense', strftime('%Y-%m-%dT%H:%M:%SZ','now'), ?, ?, ?)")
@@ -137,9 +153,11 @@ DenseLayerResult dense_layer(Project& project, const std::string& layer_name, co
       r.path = (fs::path(layer_product_dir(layer.name)) / "dense" / p.path.filename()).string();
       record_product(db, project.dir(), r);
     }
+    fault::point("process.dense.before_commit");
     tx.commit();
+    fault::point("process.dense.after_commit");
   } catch (...) {
-    // Put the previous products back so files and database agree.
+    // Put the previous files back (no longer recorded: the next run remakes them).
     std::error_code ec;
     fs::remove_all(final_dir, ec);
     if (fs::exists(old_dir)) fs::rename(old_dir, final_dir, ec);

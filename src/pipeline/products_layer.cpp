@@ -1,6 +1,7 @@
 #include "pipeline/products_layer.hpp"
 
 #include "core/error.hpp"
+#include "core/fault.hpp"
 #include "core/hash.hpp"
 #include "core/log.hpp"
 #include "core/progress.hpp"
@@ -169,6 +170,18 @@ ProductsLayerResult products_layer(Project& project, const std::string& layer_na
   const std::string rel_dir = layer_product_dir(layer.name);
   const fs::path out_dir = project.dir() / rel_dir;
   fs::create_directories(out_dir);
+  // The files below are replaced in place: first their records go (committed), so
+  // that no record names a file being rewritten whenever the process dies; the new
+  // records are committed once every file (and raster table) is complete.
+  {
+    Transaction tx(db);
+    db.prepare("DELETE FROM reconstructions WHERE layer_id = ? AND stage = 'products'").bind_all(layer.id).run();
+    db.prepare("DELETE FROM products WHERE layer_id = ? AND kind IN ('dtm', 'ortho', 'dtm_sigma')")
+        .bind_all(layer.id)
+        .run();
+    tx.commit();
+  }
+  fault::point("process.products.records_retracted");
 
   // DTM
   Stopwatch w;
@@ -176,6 +189,7 @@ ProductsLayerResult products_layer(Project& project, const std::string& layer_na
   const DtmStatistics stats = dtm_statistics(dtm, site.origin.z());
   if (stats.valid_cells == 0) throw ProcessingError(fmt::format("layer {}: the surface gives an empty DTM", layer.name));
   write_dtm_geotiff(out_dir / "dtm.tif", dtm, geo, options.geotiff);
+  fault::point("process.products.dtm_written");
   // Its per-cell height uncertainty (one sigma, metres) beside it, from the
   // agreement of the fused depth maps; read by `strata volume` and the report.
   nlohmann::json sigma_q;
@@ -184,6 +198,7 @@ ProductsLayerResult products_layer(Project& project, const std::string& layer_na
     RasterGeoreference sigma_geo = geo;
     sigma_geo.origin.z() = 0;  // metres of uncertainty, not heights
     write_dtm_geotiff(out_dir / "dtm_sigma.tif", sigma, sigma_geo, options.geotiff);
+    fault::point("process.products.sigma_written");
     std::vector<float> v;
     for (float x : dtm.sigma)
       if (std::isfinite(x)) v.push_back(x);
@@ -209,6 +224,7 @@ ProductsLayerResult products_layer(Project& project, const std::string& layer_na
   OrthoSummary os;
   const RgbaRaster ortho = build_orthophoto(ortho_dtm.z.empty() ? dtm : ortho_dtm, views, options.ortho, &os);
   write_rgba_geotiff(out_dir / "ortho.tif", ortho, geo, options.geotiff);
+  fault::point("process.products.ortho_written");
   steps["ortho"] = step_json(w);
   check_cancelled();
 
@@ -238,6 +254,7 @@ ProductsLayerResult products_layer(Project& project, const std::string& layer_na
   const std::vector<ContourLine> contours = dtm_contours(dtm, site.origin, options.contours);
   const Footprint footprint = dtm_footprint(dtm, site.origin, options.min_footprint_area_m2);
   steps["vectors"] = step_json(w);
+  fault::point("process.products.vectors_done");
 
   const auto [sparse_median, sparse_n] = median_sparse_distance(dtm, alignment->rec);
   double gain_min = 1, gain_max = 1;
@@ -263,10 +280,23 @@ ProductsLayerResult products_layer(Project& project, const std::string& layer_na
   q["footprint"] = {{"area_m2", footprint.area_m2}, {"perimeter_m", footprint.perimeter_m},
                     {"polygons", footprint.polygons.size()}};
 
+  // Raster tables through GDAL's own connection, with no strata transaction open;
+  // before the records, so that a run killed while GDAL writes them is not taken
+  // as complete (the next run replaces the tables).
+  if (options.gpkg_rasters) {
+    Stopwatch g;
+    write_gpkg_raster(project.database_path(), out_dir / "dtm.tif", raster_table_name("dtm", layer.name),
+                      GpkgRasterKind::gridded_coverage, fmt::format("DTM of layer {} (metres, {})", layer.name, site.crs));
+    fault::point("process.products.gpkg_dtm_written");
+    write_gpkg_raster(project.database_path(), out_dir / "ortho.tif", raster_table_name("ortho", layer.name),
+                      GpkgRasterKind::tiles_png, fmt::format("true orthophoto of layer {}", layer.name));
+    fault::point("process.products.gpkg_ortho_written");
+    steps["gpkg_rasters"] = step_json(g);
+  }
+
   // Record everything in one transaction.
   {
     Transaction tx(db);
-    db.prepare("DELETE FROM reconstructions WHERE layer_id = ? AND stage = 'products'").bind_all(layer.id).run();
     steps["total"] = step_json(total);
     q["steps"] = steps;
     db.prepare(
@@ -285,20 +315,13 @@ ProductsLayerResult products_layer(Project& project, const std::string& layer_na
       r.path = rel_dir + "/" + file;
       r.params_json = params.dump();
       record_product(db, project.dir(), r);
+      fault::point("process.products.product_recorded");
     }
     store_site_plan(db, site.srs_id, layer.name, options.contours.interval_m, contours, footprint);
     register_site_plan_views(db, site.srs_id);
+    fault::point("process.products.before_commit");
     tx.commit();
-  }
-
-  // Raster tables through GDAL's own connection, with no strata transaction open.
-  if (options.gpkg_rasters) {
-    Stopwatch g;
-    write_gpkg_raster(project.database_path(), out_dir / "dtm.tif", raster_table_name("dtm", layer.name),
-                      GpkgRasterKind::gridded_coverage, fmt::format("DTM of layer {} (metres, {})", layer.name, site.crs));
-    write_gpkg_raster(project.database_path(), out_dir / "ortho.tif", raster_table_name("ortho", layer.name),
-                      GpkgRasterKind::tiles_png, fmt::format("true orthophoto of layer {}", layer.name));
-    q["steps"]["gpkg_rasters"] = step_json(g);
+    fault::point("process.products.after_commit");
   }
   log::info("layer {}: DTM {} x {} at {} m, orthophoto coverage {:.1f} %, {} contour lines", layer.name,
             dtm.grid.width, dtm.grid.height, dtm.grid.cell, 100 * os.coverage, contours.size());

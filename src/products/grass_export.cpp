@@ -1,6 +1,7 @@
 #include "products/grass_export.hpp"
 
 #include "core/error.hpp"
+#include "core/fault.hpp"
 #include "core/log.hpp"
 #include "products/raster_io.hpp"
 #include "project/records.hpp"
@@ -41,13 +42,28 @@ void write_vectors(const fs::path& gpkg, const fs::path& out, const std::vector<
   for (auto& a : args) argv.push_back(a.data());
   argv.push_back(nullptr);
   GDALVectorTranslateOptions* opt = GDALVectorTranslateOptionsNew(argv.data(), nullptr);
-  fs::remove(out);
+  // Through a temporary name: a folder never holds a half-written site_plan.gpkg.
+  const fs::path tmp = out.string() + ".tmp.gpkg";
+  fs::remove(tmp);
   int usage_error = 0;
-  GDALDatasetH dst = GDALVectorTranslate(out.string().c_str(), nullptr, 1, &src, opt, &usage_error);
+  GDALDatasetH dst = GDALVectorTranslate(tmp.string().c_str(), nullptr, 1, &src, opt, &usage_error);
   GDALVectorTranslateOptionsFree(opt);
   GDALClose(src);
-  if (!dst) throw IoError(fmt::format("exporter.grass: {}: {}", out.string(), CPLGetLastErrorMsg()));
+  if (!dst) {
+    std::error_code ec;
+    fs::remove(tmp, ec);
+    throw IoError(fmt::format("exporter.grass: {}: {}", out.string(), CPLGetLastErrorMsg()));
+  }
   GDALClose(dst);
+  fs::rename(tmp, out);
+}
+
+// Copies (or writes) through a temporary name in the same folder, renamed into place
+// when complete.
+void copy_atomically(const fs::path& src, const fs::path& dst) {
+  const fs::path tmp = dst.string() + ".tmp";
+  fs::copy_file(src, tmp, fs::copy_options::overwrite_existing);
+  fs::rename(tmp, dst);
 }
 
 }  // namespace
@@ -78,7 +94,8 @@ GrassExportSummary export_grass(Project& project, const fs::path& out) {
         continue;
       }
       const std::string file = fmt::format("{}_{}.tif", base, kind);
-      fs::copy_file(src, out / file, fs::copy_options::overwrite_existing);
+      copy_atomically(src, out / file);
+      fault::point("export.grass.raster_copied");
       sum.files.push_back(out / file);
       const std::string map = fmt::format("{}_{}", base, kind);
       if (std::string(kind) == "dtm") {
@@ -109,6 +126,7 @@ GrassExportSummary export_grass(Project& project, const fs::path& out) {
   std::string vectors_sh;
   if (!tables.empty()) {
     write_vectors(project.database_path(), out / "site_plan.gpkg", tables);
+    fault::point("export.grass.vectors_written");
     sum.files.push_back(out / "site_plan.gpkg");
     for (const auto& t : tables) {
       vectors_sh += fmt::format("v.in.ogr --overwrite --quiet input=site_plan.gpkg layer={0} output={0}\n", t);
@@ -134,14 +152,19 @@ GrassExportSummary export_grass(Project& project, const fs::path& out) {
       "g.region res={5} -a\n"
       "g.region -p\n",
       site.name, site.crs, rasters_sh, colours_sh, vectors_sh, fmt::format("{}", cell), list);
+  // The script last, through a temporary name like every file here: whenever the
+  // process dies, each file in the folder is whole (the old one or the new one).
   sum.script = out / "import.sh";
+  const fs::path tmp = sum.script.string() + ".tmp";
   {
-    std::ofstream f(sum.script, std::ios::binary | std::ios::trunc);
+    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
     f << script;
     if (!f) throw IoError(fmt::format("exporter.grass: {}: cannot write", sum.script.string()));
   }
-  fs::permissions(sum.script, fs::perms::owner_exec | fs::perms::group_exec | fs::perms::others_exec,
+  fs::permissions(tmp, fs::perms::owner_exec | fs::perms::group_exec | fs::perms::others_exec,
                   fs::perm_options::add);
+  fault::point("export.grass.script_temp_written");
+  fs::rename(tmp, sum.script);
   return sum;
 }
 

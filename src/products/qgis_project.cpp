@@ -1,6 +1,7 @@
 #include "products/qgis_project.hpp"
 
 #include "core/error.hpp"
+#include "core/fault.hpp"
 #include "crs/crs.hpp"
 #include "products/zip_writer.hpp"
 #include "project/records.hpp"
@@ -346,6 +347,7 @@ void write_qgis_project(const QgisProjectInput& in, const fs::path& out) {
     f << xml;
     if (!f) throw IoError(fmt::format("exporter.qgis: {}: cannot write", out.string()));
   }
+  fault::point("export.qgis.temp_written");
   fs::rename(tmp, out);
 }
 

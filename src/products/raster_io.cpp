@@ -1,6 +1,7 @@
 #include "products/raster_io.hpp"
 
 #include "core/error.hpp"
+#include "core/fault.hpp"
 #include "core/log.hpp"
 
 #include <cpl_conv.h>
@@ -87,6 +88,7 @@ void write_copy(GDALDataset* src, const fs::path& path, const GeoTiffOptions& o,
     throw IoError(fmt::format("writer.geotiff: {}: {}", path.string(), last_gdal_error()));
   }
   out.reset();  // flush and close before the rename
+  fault::point("products.geotiff.temp_written");
   std::error_code ec;
   fs::rename(tmp, path, ec);
   if (ec) throw IoError(fmt::format("writer.geotiff: {}: {}", path.string(), ec.message()));
@@ -207,6 +209,7 @@ void write_gpkg_raster(const fs::path& gpkg, const fs::path& source_tif, const s
     drop_gpkg_raster_table(db, table);
     tx.commit();
   }
+  fault::point("products.gpkg_raster.table_dropped");
   DatasetPtr src(GDALDataset::FromHandle(GDALOpen(source_tif.string().c_str(), GA_ReadOnly)));
   if (!src) throw IoError(fmt::format("writer.gpkg_raster: {}: {}", source_tif.string(), last_gdal_error()));
   GDALDriver* drv = GetGDALDriverManager()->GetDriverByName("GPKG");

@@ -1,6 +1,7 @@
 #include "products/zip_writer.hpp"
 
 #include "core/error.hpp"
+#include "core/fault.hpp"
 
 #include <fmt/format.h>
 
@@ -104,6 +105,7 @@ void write_zip_stored(const std::filesystem::path& path, const std::vector<ZipEn
     f.write(reinterpret_cast<const char*>(out.data()), std::streamsize(out.size()));
     if (!f) throw IoError(fmt::format("writer.zip: {}: cannot write", path.string()));
   }
+  fault::point("export.qgz.temp_written");
   std::error_code ec;
   std::filesystem::rename(tmp, path, ec);
   if (ec) throw IoError(fmt::format("writer.zip: {}: {}", path.string(), ec.message()));

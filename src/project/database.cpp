@@ -1,6 +1,7 @@
 #include "project/database.hpp"
 
 #include "core/error.hpp"
+#include "core/fault.hpp"
 #include "core/log.hpp"
 
 #include <sqlite3.h>
@@ -154,8 +155,10 @@ Transaction::~Transaction() {
 }
 
 void Transaction::commit() {
+  fault::point("db.before_commit");
   db_.exec("COMMIT");
   done_ = true;
+  fault::point("db.after_commit");
 }
 
 }  // namespace strata

@@ -1,6 +1,7 @@
 #include "project/media.hpp"
 
 #include "core/error.hpp"
+#include "core/fault.hpp"
 
 #include <algorithm>
 #include <cctype>
@@ -37,6 +38,7 @@ std::string MediaBatch::store(const fs::path& source, const std::string& sha256)
     throw IoError(fmt::format("{}: cannot copy into the media store: {}", source.string(), ec.message()));
   }
   fs::permissions(tmp, fs::perms::owner_read | fs::perms::group_read | fs::perms::others_read, ec);
+  fault::point("import.photos.media_part_written");
   fs::rename(tmp, target, ec);
   if (ec) {
     fs::remove(tmp, ec);

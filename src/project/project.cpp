@@ -1,6 +1,7 @@
 #include "project/project.hpp"
 
 #include "core/error.hpp"
+#include "core/fault.hpp"
 #include "core/log.hpp"
 #include "crs/crs.hpp"
 #include "project/gpkg.hpp"
@@ -134,6 +135,7 @@ int apply_migrations(Database& db) {
     db.prepare("INSERT OR REPLACE INTO strata_meta(key, value) VALUES ('schema_version', ?)")
         .bind_all(std::to_string(n))
         .run();
+    fault::point("db.migration_applied");
     tx.commit();
     ++applied;
   }
@@ -161,6 +163,7 @@ Project Project::create(const fs::path& dir, const CreateOptions& options) {
     fs::remove(tmp);
     {
       auto db = std::make_unique<Database>(tmp, true);
+      fault::point("init.database_created");
       // GeoPackage identification (OGC 12-128, requirements 2 and 3).
       db->exec("PRAGMA application_id = 1196444487");  // 'GPKG'
       db->exec("PRAGMA user_version = 10200");          // GeoPackage 1.2.0
@@ -177,6 +180,7 @@ Project Project::create(const fs::path& dir, const CreateOptions& options) {
                     options.origin ? 1 : 0, now_iso())
           .run();
       register_feature_tables(*db, srs_id);
+      fault::point("init.before_commit");
       tx.commit();
       db->exec("PRAGMA wal_checkpoint(TRUNCATE)");
     }

@@ -1,6 +1,7 @@
 #include "report/html_util.hpp"
 
 #include "core/error.hpp"
+#include "core/fault.hpp"
 
 #include <fmt/format.h>
 #include <gdal_priv.h>
@@ -249,6 +250,7 @@ void write_file_atomically(const std::filesystem::path& path, const std::string&
     f.write(text.data(), std::streamsize(text.size()));
     if (!f) throw IoError(fmt::format("{}: cannot write", path.string()));
   }
+  fault::point("export.report.temp_written");
   std::error_code ec;
   std::filesystem::rename(tmp, path, ec);
   if (ec) {

@@ -17,12 +17,12 @@ namespace {
 namespace fs = std::filesystem;
 using test::run_strata;
 
-// Runs strata with STRATA_FAULT_AT set: the process kills itself with SIGKILL at
-// that point (src/core/progress.hpp), deterministically, mid-stage.
+// Runs strata with STRATA_CRASH_AT set: the process kills itself with SIGKILL at
+// that point (src/core/fault.hpp), deterministically, mid-stage.
 int run_until_fault(const std::string& fault, const std::vector<std::string>& args) {
   const pid_t pid = fork();
   if (pid == 0) {
-    setenv("STRATA_FAULT_AT", fault.c_str(), 1);
+    setenv("STRATA_CRASH_AT", fault.c_str(), 1);
     const std::string exe = test::strata_exe().string();
     std::vector<char*> argv{const_cast<char*>(exe.c_str())};
     for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
@@ -71,7 +71,7 @@ TEST(Resume, KilledProcessingLosesNothingAndResumes) {
 
   // Killed after the features were cached, and again with all results written but
   // not committed: the transaction must vanish as if never begun.
-  for (const char* fault : {"align.after_features", "align.before_commit"}) {
+  for (const char* fault : {"process.features.done", "process.align.before_commit"}) {
     ASSERT_EQ(run_until_fault(fault, process), SIGKILL) << fault << ": the run was not interrupted";
     EXPECT_EQ(integrity(site / "project.gpkg"), "ok") << fault;
     EXPECT_EQ(test::tree_fingerprint(site / "media"), media_before) << fault;

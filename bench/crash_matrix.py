@@ -1,0 +1,472 @@
+#!/usr/bin/python3
+"""Crash matrix (issue 19; docs/reliability.md, "Crash injection").
+
+For every kill point listed in src/core/fault.hpp (kCrashPoints), runs the strata
+command that passes it with STRATA_CRASH_AT armed, on a copy of a small synthetic
+project in the state that command starts from, and checks:
+
+  killed     the command died by SIGKILL (the point was reached)
+  integrity  PRAGMA integrity_check and foreign_key_check of project.gpkg are clean
+  media      every photo in media/ still hashes to its SHA-256 name
+  products   every product row names a whole file: its size and SHA-256 are the recorded ones
+  outputs    an export's --out is either absent or whole (the undisturbed run's bytes)
+  rerun      the same command, undisturbed, completes (exit 0) and leaves the project
+             (and output) as an undisturbed run from the same start leaves it:
+             the same rows, the same product checksums, the same exported bytes
+
+Prints a table and "N passed, M failed"; writes bench/results/crash-<UTC>.json.
+
+Usage: bench/crash_matrix.py [--sample] [--only SUBSTRING]... [--strata EXE] [--work DIR] [--keep]
+  --sample   one or two points per command family (the test suite runs this)
+Exit status 0 when every point passed.
+"""
+import argparse
+import datetime
+import hashlib
+import json
+import os
+import re
+import shutil
+import signal
+import sqlite3
+import subprocess
+import sys
+import tempfile
+import time
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+CRS = "EPSG:32636"
+
+# Points the test suite runs (--sample): one or two per command family, a few minutes in all.
+SAMPLE = [
+    "init.before_commit",
+    "import.photos.media_part_written",
+    "import.markers.observation_written",
+    "process.align.before_commit",
+    "process.dense.swapped",
+    "process.products.ortho_written",
+    "volume.model_loaded",
+    "export.qgis.temp_written",
+]
+
+
+def crash_points():
+    """(name, where) of every point in kCrashPoints, in the header's order."""
+    text = open(os.path.join(ROOT, "src", "core", "fault.hpp"), encoding="utf-8").read()
+    body = text[text.index("kCrashPoints[] = {"):]
+    body = body[: body.index("};")]
+    return re.findall(r'\{"([a-z_.]+)", "([^"]*)"\}', body)
+
+
+# ---- the project states a command starts from --------------------------------------
+
+class Project:
+    """The synthetic data, the prepared states, and the one working site folder.
+
+    Every run happens in the same folder (WORK/site): the dense stage keys its cache
+    by the photos' paths, so a copy elsewhere would recompute it and hide nothing but
+    cost minutes."""
+
+    def __init__(self, strata, work):
+        self.strata = strata
+        self.work = work
+        self.data = os.path.join(work, "data")
+        self.site = os.path.join(work, "site")
+        self.states = os.path.join(work, "states")
+        self.out = os.path.join(work, "out")
+        os.makedirs(self.states, exist_ok=True)
+
+    def run(self, args, crash=None, check=True):
+        env = dict(os.environ)
+        env.pop("STRATA_CRASH_AT", None)
+        if crash:
+            env["STRATA_CRASH_AT"] = crash
+        r = subprocess.run([self.strata, "-q"] + args, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                           text=True)
+        if check and r.returncode != 0:
+            raise RuntimeError(f"strata {' '.join(args)}: exit {r.returncode}: {r.stderr.strip()[-400:]}")
+        return r
+
+    def photos(self, layer):
+        d = os.path.join(self.data, "photos", layer)
+        return sorted(os.path.join(d, f) for f in os.listdir(d))
+
+    def layers(self):
+        rows = []
+        with open(os.path.join(self.data, "layers.csv")) as f:
+            next(f)
+            for line in f:
+                layer, unit = line.strip().split(",")[:2]
+                rows.append((layer, unit))
+        return rows
+
+    def units(self):
+        with open(os.path.join(self.data, "units.csv")) as f:
+            next(f)
+            return [line.strip().split(",")[0] for line in f if line.strip()]
+
+    def relations(self):
+        with open(os.path.join(self.data, "relations.csv")) as f:
+            next(f)
+            return [line.strip().split(",")[:3] for line in f if line.strip()]
+
+    def save(self, state):
+        dst = os.path.join(self.states, state)
+        shutil.rmtree(dst, ignore_errors=True)
+        shutil.copytree(self.site, dst, symlinks=True)  # copy2: times kept (cache keys use them)
+
+    def restore(self, state):
+        shutil.rmtree(self.site, ignore_errors=True)
+        shutil.rmtree(self.out, ignore_errors=True)
+        os.makedirs(self.out)
+        if state != "nothing":
+            shutil.copytree(os.path.join(self.states, state), self.site, symlinks=True)
+
+    def prepare(self, log):
+        t = time.time()
+        self.run(["synth", self.data, "--size", "small", "--stages", "1", "--photos", "14", "--width", "800",
+                  "--seed", "5"])
+        log(f"synthetic data in {time.time() - t:.0f} s")
+        shutil.rmtree(self.site, ignore_errors=True)
+        self.run(["init", self.site, "--crs", CRS])
+        self.save("initialised")
+        for code in self.units():
+            self.run(["unit", "add", self.site, code])
+        for a, kind, b in self.relations():
+            self.run(["relation", "add", self.site, a, kind, b])
+        for layer, unit in self.layers():
+            self.run(["layer", "add", self.site, layer, "--unit", unit])
+        self.save("recorded")
+        for layer, _ in self.layers():
+            self.run(["import", "photos", self.site, "--layer", layer] + self.photos(layer))
+        self.save("photos")
+        self.run(["import", "markers", self.site, os.path.join(self.data, "markers.csv")])
+        self.run(["import", "markers", self.site, os.path.join(self.data, "gcp_list.txt")])
+        self.save("imported")
+        for until, state in (("sparse", "sparse"), ("dense", "dense"), ("products", "processed")):
+            t = time.time()
+            self.run(["process", self.site, "--all", "--until", until])
+            log(f"process --until {until}: {time.time() - t:.0f} s")
+            self.save(state)
+        t = time.time()
+        self.run(["volume", self.site] + self.outline())
+        log(f"volume: {time.time() - t:.0f} s")
+        self.save("volumes")
+
+    def outline(self):
+        f = os.path.join(self.data, "trench_outline.geojson")
+        return ["--outline", f] if os.path.exists(f) else []
+
+
+# ---- scenarios: a start state and the command run from it -----------------------------
+
+class Scenario:
+    def __init__(self, name, state, command, out=None):
+        self.name, self.state, self.command, self.out = name, state, command, out
+
+
+def scenarios(p):
+    layer, unit = p.layers()[0]
+    s, o = p.site, p.out
+    units = p.units()
+    return {
+        "init": Scenario("init", "nothing", lambda: ["init", s, "--crs", CRS]),
+        "unit": Scenario("unit", "initialised", lambda: ["unit", "add", s, "999", "--type", "cut"]),
+        "layer": Scenario("layer", "recorded", lambda: ["layer", "add", s, "L9", "--unit", unit]),
+        "relation": Scenario("relation", "recorded", lambda: ["relation", "add", s, units[-1], "abuts", units[0]]),
+        "photos": Scenario("photos", "recorded", lambda: ["import", "photos", s, "--layer", layer] + p.photos(layer)),
+        "markers": Scenario("markers", "photos", lambda: ["import", "markers", s, os.path.join(p.data, "gcp_list.txt")]),
+        "align": Scenario("align", "imported", lambda: ["process", s, "--layer", layer, "--until", "sparse"]),
+        "dense": Scenario("dense", "sparse", lambda: ["process", s, "--layer", layer, "--until", "dense"]),
+        "products": Scenario("products", "dense", lambda: ["process", s, "--layer", layer]),
+        # A second volume run with another threshold: the thickness rasters and rows exist and are replaced.
+        "volume": Scenario("volume", "processed", lambda: ["volume", s] + p.outline()),
+        "revolume": Scenario("revolume", "volumes", lambda: ["volume", s, "--threshold", "0.006"] + p.outline()),
+        "cameras": Scenario("cameras", "processed",
+                            lambda: ["export", "cameras", s, "--layer", layer, "--out", f"{o}/cameras.csv"],
+                            out="cameras.csv"),
+        "mesh": Scenario("mesh", "processed", lambda: ["export", "mesh", s, "--layer", layer, "--out", f"{o}/mesh.ply"],
+                         out="mesh.ply"),
+        "points": Scenario("points", "processed",
+                           lambda: ["export", "points", s, "--layer", layer, "--out", f"{o}/points.ply"],
+                           out="points.ply"),
+        "dtm": Scenario("dtm", "processed",
+                        lambda: ["export", "dtm", s, "--layer", layer, "--cell", "0.01", "--out", f"{o}/dtm.tif"],
+                        out="dtm.tif"),
+        "qgs": Scenario("qgs", "processed", lambda: ["export", "qgis", s, "--out", f"{o}/site.qgs"], out="site.qgs"),
+        "qgz": Scenario("qgz", "processed", lambda: ["export", "qgis", s, "--out", f"{o}/site.qgz"], out="site.qgz"),
+        "grass": Scenario("grass", "processed", lambda: ["export", "grass", s, "--out", f"{o}/grass"], out="grass"),
+        "report": Scenario("report", "volumes", lambda: ["report", s, "--out", f"{o}/report.html"], out="report.html"),
+    }
+
+
+def runs_for(point):
+    """The (scenario, STRATA_CRASH_AT) pairs that test a point."""
+    fixed = {
+        "init.database_created": [("init", None)],
+        "init.before_commit": [("init", None)],
+        "db.migration_applied": [("init", None)],
+        "db.before_commit": [("unit", None), ("photos", None), ("align", None), ("dense", ":1"), ("dense", ":2"),
+                             ("products", ":1"), ("products", ":2"), ("volume", None), ("revolume", None)],
+        "db.after_commit": [("markers", None), ("dense", ":1"), ("products", ":3"), ("revolume", None)],
+        "stratigraphy.unit_before_commit": [("unit", None)],
+        "stratigraphy.layer_before_commit": [("layer", None)],
+        "stratigraphy.relation_before_commit": [("relation", None)],
+        "products.geotiff.temp_written": [("products", None), ("products", ":3"), ("dtm", None)],
+        "products.gpkg_raster.table_dropped": [("products", None), ("products", ":2")],
+        "process.features.file_temp_written": [("align", None), ("align", ":20")],
+        "export.cameras.temp_written": [("cameras", None)],
+        "export.copy.temp_written": [("mesh", None), ("points", None)],
+        "export.qgis.temp_written": [("qgs", None)],
+        "export.qgz.temp_written": [("qgz", None)],
+        "export.report.temp_written": [("report", None)],
+        "volume.model_loaded": [("volume", None), ("revolume", None)],
+        "volume.stored": [("volume", None)],
+    }
+    if point in fixed:
+        return fixed[point]
+    prefix = [("import.photos.", "photos"), ("import.markers.", "markers"), ("process.features.", "align"),
+              ("process.matching.", "align"), ("process.targets.", "align"), ("process.sfm.", "align"),
+              ("process.georeference.", "align"), ("process.align.", "align"), ("process.dense.", "dense"),
+              ("process.products.", "products"), ("export.grass.", "grass")]
+    for pre, scenario in prefix:
+        if point.startswith(pre):
+            # A point passed once per item: also its third hit, mid-way.
+            per_item = point.endswith(("_done", "_written", "_inserted", "_undistorted", "_recorded", "_stored"))
+            many = per_item and not point.endswith(("s_done", ".done")) and not point.startswith("process.products.")
+            return [(scenario, None)] + ([(scenario, ":3")] if many else [])
+    return []
+
+
+# ---- what is checked --------------------------------------------------------------------
+
+def sha256_file(path):
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def db_problems(site):
+    db = os.path.join(site, "project.gpkg")
+    if not os.path.exists(db):
+        return []
+    con = sqlite3.connect(f"file:{db}?mode=ro", uri=True)
+    try:
+        problems = []
+        ic = [r[0] for r in con.execute("PRAGMA integrity_check")]
+        if ic != ["ok"]:
+            problems.append("integrity_check: " + "; ".join(ic[:3]))
+        fk = con.execute("PRAGMA foreign_key_check").fetchall()
+        if fk:
+            problems.append(f"foreign_key_check: {len(fk)} row(s), e.g. {fk[0]}")
+        return problems
+    finally:
+        con.close()
+
+
+def media_problems(site):
+    problems = []
+    media = os.path.join(site, "media")
+    for dirpath, _, files in os.walk(media):
+        for f in files:
+            if f.endswith(".part"):
+                continue  # a copy not yet renamed into the store: not a photo (replaced by the next import)
+            stem = f.split(".")[0]
+            if not re.fullmatch(r"[0-9a-f]{64}", stem) or sha256_file(os.path.join(dirpath, f)) != stem:
+                problems.append(f"media/{os.path.relpath(os.path.join(dirpath, f), media)} does not hash to its name")
+    return problems
+
+
+def product_problems(site):
+    db = os.path.join(site, "project.gpkg")
+    if not os.path.exists(db):
+        return []
+    con = sqlite3.connect(f"file:{db}?mode=ro", uri=True)
+    try:
+        rows = con.execute("SELECT kind, path, sha256, bytes FROM products").fetchall()
+    finally:
+        con.close()
+    problems = []
+    for kind, path, sha, size in rows:
+        f = os.path.join(site, path)
+        if not os.path.exists(f):
+            problems.append(f"{kind} {path}: recorded, missing")
+        elif os.path.getsize(f) != size or sha256_file(f) != sha:
+            problems.append(f"{kind} {path}: recorded, but not the recorded file (size or SHA-256)")
+    return problems
+
+
+def tree_hashes(path):
+    """{relative path: sha256} of a file or of every file under a folder."""
+    if not os.path.exists(path):
+        return {}
+    if os.path.isfile(path):
+        return {os.path.basename(path): sha256_file(path)}
+    out = {}
+    for dirpath, _, files in os.walk(path):
+        for f in files:
+            full = os.path.join(dirpath, f)
+            out[os.path.relpath(full, path)] = sha256_file(full)
+    return out
+
+
+def is_temp(name):
+    return re.search(r"\.(tmp|part)(\.[a-z]+)?$|\.tmp\d", name) is not None
+
+
+def output_problems(out, reference):
+    """An export's output after a kill: absent, or every file whole (the reference's bytes)."""
+    problems = []
+    for rel, sha in tree_hashes(out).items():
+        if is_temp(rel):
+            continue
+        if rel not in reference:
+            problems.append(f"{rel}: not in the undisturbed output")
+        elif reference[rel] != sha:
+            problems.append(f"{rel}: half-written (differs from the undisturbed output)")
+    return problems
+
+
+def fingerprint(p):
+    """What a command leaves: the rows that matter (no ids, no times) and product checksums."""
+    db = os.path.join(p.site, "project.gpkg")
+    fp = {}
+    if os.path.exists(db):
+        con = sqlite3.connect(f"file:{db}?mode=ro", uri=True)
+        q = {
+            "units": "SELECT code, type, description FROM units ORDER BY code",
+            "relations": "SELECT a.code, r.kind, b.code FROM relations r JOIN units a ON a.id = r.unit_a "
+                         "JOIN units b ON b.id = r.unit_b ORDER BY 1, 2, 3",
+            "layers": "SELECT l.name, u.code FROM layers l JOIN units u ON u.id = l.unit_id ORDER BY 1",
+            "images": "SELECT l.name, i.name, i.sha256, i.media_path, i.bytes FROM images i "
+                      "JOIN layers l ON l.id = i.layer_id ORDER BY 1, 2",
+            "markers": "SELECT name, e, n, z, sigma_e, kind FROM markers ORDER BY name",
+            "observations": "SELECT m.name, i.name, o.x, o.y, o.source FROM observations o "
+                            "JOIN markers m ON m.fid = o.marker_id JOIN images i ON i.id = o.image_id ORDER BY 1, 2, 5",
+            "reconstructions": "SELECT l.name, r.stage, r.inputs_key FROM reconstructions r "
+                               "JOIN layers l ON l.id = r.layer_id ORDER BY 1, 2",
+            "poses": "SELECT i.name, p.registered, p.cx_site, p.cy_site, p.cz_site FROM image_poses p "
+                     "JOIN images i ON i.id = p.image_id ORDER BY 1",
+            "products": "SELECT kind, path, sha256, bytes FROM products ORDER BY path",
+            "unit_volumes": "SELECT u.code, v.volume_m3, v.area_m2, v.mean_thickness_m FROM unit_volumes v "
+                            "JOIN units u ON u.id = v.unit_id ORDER BY 1",
+        }
+        try:
+            for k, sql in q.items():
+                fp[k] = [list(r) for r in con.execute(sql).fetchall()]
+        finally:
+            con.close()
+    fp["out"] = tree_hashes(p.out)
+    return fp
+
+
+def differences(a, b):
+    return [k for k in sorted(set(a) | set(b)) if a.get(k) != b.get(k)]
+
+
+# ---- the matrix ----------------------------------------------------------------------------
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--sample", action="store_true", help="one or two points per command family")
+    ap.add_argument("--only", action="append", default=[], help="points whose name contains this (repeatable)")
+    ap.add_argument("--strata", default=os.path.join(ROOT, "build", "src", "cli", "strata"))
+    ap.add_argument("--work", help="scratch folder (default: a new one under /tmp)")
+    ap.add_argument("--keep", action="store_true", help="keep the scratch folder")
+    ap.add_argument("--results", default=os.path.join(ROOT, "bench", "results"))
+    args = ap.parse_args()
+
+    points = crash_points()
+    chosen = [(n, w) for n, w in points if (not args.sample or n in SAMPLE)
+              and (not args.only or any(s in n for s in args.only))]
+    work = args.work or tempfile.mkdtemp(prefix="strata-crash-")
+    os.makedirs(work, exist_ok=True)
+    p = Project(os.path.abspath(args.strata), os.path.abspath(work))
+    log = lambda m: print(f"[crash] {m}", flush=True)
+    started = time.time()
+    log(f"{len(points)} points listed, {len(chosen)} chosen; work in {work}")
+    p.prepare(log)
+    log(f"states prepared in {time.time() - started:.0f} s")
+    scen = scenarios(p)
+
+    references = {}
+
+    def reference(name):
+        if name not in references:
+            sc = scen[name]
+            p.restore(sc.state)
+            t = time.time()
+            p.run(sc.command())
+            references[name] = fingerprint(p)
+            log(f"reference {name}: {time.time() - t:.1f} s")
+        return references[name]
+
+    results = []
+    for name, where in chosen:
+        runs = runs_for(name)
+        if not runs:
+            results.append({"point": name, "run": "-", "passed": False, "failures": ["no scenario runs this point"]})
+            continue
+        for sc_name, hit in runs:
+            sc = scen[sc_name]
+            spec = name + (hit or "")
+            ref = reference(sc_name)
+            failures = []
+            t = time.time()
+            p.restore(sc.state)
+            r = p.run(sc.command(), crash=spec, check=False)
+            killed = r.returncode == -signal.SIGKILL
+            if not killed:
+                failures.append(f"not killed (exit {r.returncode}): the point was not reached"
+                                + (f"; stderr: {r.stderr.strip()[-200:]}" if r.returncode else ""))
+            else:
+                failures += db_problems(p.site) + media_problems(p.site) + product_problems(p.site)
+                if sc.out:
+                    failures += output_problems(p.out, ref["out"])
+                r2 = p.run(sc.command(), check=False)
+                if r2.returncode != 0:
+                    failures.append(f"rerun failed (exit {r2.returncode}): {r2.stderr.strip()[-300:]}")
+                else:
+                    failures += ["after the rerun: " + x for x in db_problems(p.site) + media_problems(p.site)
+                                 + product_problems(p.site)]
+                    diff = differences(fingerprint(p), ref)
+                    if diff:
+                        failures.append("rerun differs from the undisturbed run in: " + ", ".join(diff))
+                    leftovers = [f for f in tree_hashes(p.out) if is_temp(f)]
+                    if leftovers:
+                        failures.append("temporary files left in the output: " + ", ".join(leftovers))
+            results.append({"point": name, "run": f"{sc_name}{hit or ''}", "where": where, "passed": not failures,
+                            "failures": failures, "seconds": round(time.time() - t, 1)})
+            status = "pass" if not failures else "FAIL"
+            log(f"{status} {spec:<46} {sc_name:<9} {time.time() - t:5.1f} s" +
+                ("" if not failures else "\n        " + "\n        ".join(failures)))
+
+    passed = sum(r["passed"] for r in results)
+    failed = len(results) - passed
+    distinct = len({r["point"] for r in results if r["passed"]})
+    print()
+    print(f"| point | command | result | s |")
+    print(f"| --- | --- | --- | ---: |")
+    for r in results:
+        res = "pass" if r["passed"] else "FAIL: " + "; ".join(r["failures"])
+        print(f"| {r['point']} | {r['run']} | {res} | {r.get('seconds', '')} |")
+    print()
+    print(f"{passed} passed, {failed} failed ({distinct} distinct points passed, {len(results)} runs, "
+          f"{time.time() - started:.0f} s)")
+    stamp = datetime.datetime.now(datetime.timezone.utc).strftime("%Y%m%dT%H%M%SZ")
+    os.makedirs(args.results, exist_ok=True)
+    out = os.path.join(args.results, f"crash-{stamp}{'-sample' if args.sample else ''}.json")
+    with open(out, "w") as f:
+        json.dump({"time": stamp, "sample": args.sample, "passed": passed, "failed": failed,
+                   "distinct_points_passed": distinct, "seconds": round(time.time() - started),
+                   "results": results}, f, indent=1)
+    print(f"wrote {out}")
+    if not args.keep and not args.work:
+        shutil.rmtree(work, ignore_errors=True)
+    return 0 if failed == 0 else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
