@@ -16,8 +16,15 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cerrno>
+#include <chrono>
+#include <csignal>
 #include <cstring>
 #include <fstream>
+
+#include <poll.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 namespace fs = std::filesystem;
 
@@ -195,10 +202,9 @@ void require_text(const fs::path& file) {
   }
 }
 
-}  // namespace
-
-CalibrationFile read_opencv(const fs::path& file) {
-  require_text(file);
+// The reading itself. It runs OpenCV's parser, so read_opencv calls it only on a
+// file that require_parse_finishes has seen parsed to the end.
+CalibrationFile read_opencv_unguarded(const fs::path& file) {
   cv::FileStorage storage;
   try {
     if (!storage.open(file.string(), cv::FileStorage::READ)) {
@@ -232,6 +238,85 @@ CalibrationFile read_opencv(const fs::path& file) {
     throw InputError(fmt::format("{}: not a calibration OpenCV can read ({})", where(file), e.err));
   }
   return out;
+}
+
+// A calibration is a few kilobytes of text; a larger file is something else, and
+// the size bounds how long a correct parse can take (below).
+constexpr std::uintmax_t kMaxCalibrationBytes = 1 << 20;
+// OpenCV parses a calibration in about a millisecond; a parse still running after
+// this long will not end (seconds of wall time, generous for a loaded machine).
+constexpr double kParseTimeLimitS = 3.0;
+
+// OpenCV 4.6's YAML parser never returns on some malformed files
+// (corpus/calibration/regression_opencv_yaml_hang.yml) and dereferenced a null
+// pointer on others. Which inputs trigger such bugs inside OpenCV cannot be listed
+// in advance, so each file is first parsed in a child process with a time limit:
+// one that hangs or crashes the child is refused, and the real parse runs only on
+// files the child read to the end (parsing is deterministic). A fork costs about a
+// millisecond, once per imported calibration.
+void require_parse_finishes(const fs::path& file) {
+  int pipe_fds[2];
+  if (pipe(pipe_fds) != 0) {
+    throw IoError(fmt::format("{}: cannot start the checking parser: {}", where(file), std::strerror(errno)));
+  }
+  const pid_t child = fork();
+  if (child < 0) {
+    const int err = errno;
+    close(pipe_fds[0]);
+    close(pipe_fds[1]);
+    throw IoError(fmt::format("{}: cannot start the checking parser: {}", where(file), std::strerror(err)));
+  }
+  if (child == 0) {
+    close(pipe_fds[0]);
+    try {
+      read_opencv_unguarded(file);
+    } catch (...) {
+      // A refusal is a finished parse; the parent repeats it and reports it.
+    }
+    const char done = 1;
+    if (write(pipe_fds[1], &done, 1) != 1) _exit(2);
+    _exit(0);  // no destructors, atexit handlers or leak checks of the parent's state
+  }
+  close(pipe_fds[1]);
+  // The child's end of the pipe closes when it exits, however it exits.
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(kParseTimeLimitS);
+  bool finished = false;
+  for (;;) {
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+    if (left.count() <= 0) break;
+    pollfd p{pipe_fds[0], POLLIN, 0};
+    const int n = poll(&p, 1, int(left.count()));
+    if (n < 0 && errno == EINTR) continue;
+    finished = n > 0;
+    break;
+  }
+  if (!finished) kill(child, SIGKILL);
+  close(pipe_fds[0]);
+  int status = 0;
+  while (waitpid(child, &status, 0) < 0 && errno == EINTR) {
+  }
+  if (!finished) {
+    throw InputError(fmt::format("{}: OpenCV's parser did not finish reading it within {:.0f} s (a malformed file "
+                                 "that hangs OpenCV 4.6); not a calibration strata can read",
+                                 where(file), kParseTimeLimitS));
+  }
+  if (WIFSIGNALED(status)) {
+    throw InputError(fmt::format("{}: OpenCV's parser crashed on it (signal {}); not a calibration strata can read",
+                                 where(file), WTERMSIG(status)));
+  }
+}
+
+}  // namespace
+
+CalibrationFile read_opencv(const fs::path& file) {
+  require_text(file);
+  std::error_code ec;
+  const auto bytes = fs::file_size(file, ec);
+  if (!ec && bytes > kMaxCalibrationBytes) {
+    throw InputError(fmt::format("{}: {} bytes; a calibration file is a few kilobytes of text", where(file), bytes));
+  }
+  require_parse_finishes(file);
+  return read_opencv_unguarded(file);
 }
 
 CameraModel frame_model_for(const Intrinsics& k) {

@@ -137,9 +137,20 @@ PhotoImportSummary import_photos(Project& project, const PhotoImportOptions& opt
   for (const auto& c : good) {
     check_cancelled();
     if (auto existing = find_image_by_sha(db, c.sha)) {
-      std::string where = existing->layer_id == layer.id ? "" : " (in another layer)";
-      summary.already_present.push_back(
-          fmt::format("{} (already imported as {}{})", c.path.string(), existing->name, where));
+      if (existing->layer_id == layer.id) {
+        summary.already_present.push_back(fmt::format("{} (already imported as {})", c.path.string(), existing->name));
+        continue;
+      }
+      // A photo records one state of the surface: in two layers it would be two
+      // states at once. Refused like a bad file, not skipped as a repeat.
+      std::string other = "another layer";
+      for (const auto& l : list_layers(db))
+        if (l.id == existing->layer_id) other = "layer " + l.name;
+      const std::string why = fmt::format("{}: {}: the same photo is already in {} (as {}); a photo belongs to one "
+                                          "layer",
+                                          kStage, c.path.string(), other, existing->name);
+      if (!options.skip_bad) throw InputError(why + "; nothing was imported");
+      summary.bad.push_back(why);
       continue;
     }
     const std::string name = c.path.filename().string();

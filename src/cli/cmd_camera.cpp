@@ -172,6 +172,7 @@ void register_set(CLI::App* camera) {
     if (!k->empty()) o.k = parse_list(*k, "--k");
     if (!tangential->empty()) o.p = parse_list(*tangential, "--p");
     o.validate();  // before opening: a refused value touches nothing
+    const ProjectLock lock = lock_project(*dir);
     Project p = Project::open(*dir);
     const auto s = set_camera_calibration(p, o);
     print_record("set", s.record, s.replaced);
@@ -200,6 +201,7 @@ void register_import_calibration(CLI::App& app) {
   cmd->footer("Example: strata import calibration site lens.yml --camera 1 --fixed");
   cmd->callback([=] {
     options->format = parse_calibration_format(*format);
+    const ProjectLock lock = lock_project(*dir);
     Project p = Project::open(*dir);
     const auto s = import_calibration(p, *options, *file);
     for (const auto& note : s.notes) {
@@ -236,6 +238,7 @@ void register_camera_commands(CLI::App& app) {
     cmd->add_option("DIR", *dir, "project folder")->required();
     cmd->add_option("CAMERA", *ref, "camera id or the name of one of its photos")->required();
     cmd->callback([=] {
+      const ProjectLock lock = lock_project(*dir);
       Project p = Project::open(*dir);
       const CameraRecord camera = resolve_camera(p.db(), *ref);
       const bool removed = clear_camera_calibration(p, *ref);

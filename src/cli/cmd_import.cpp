@@ -1,5 +1,6 @@
 // strata import photos|markers, strata markers
 #include "cli/commands.hpp"
+#include "cli/common.hpp"
 #include "core/error.hpp"
 #include "core/log.hpp"
 #include "importers/markers/marker_importer.hpp"
@@ -33,6 +34,7 @@ void register_import_commands(CLI::App& app) {
     cmd->add_option("FILE", *files, "photos (JPEG, PNG or TIFF)")->required();
     cmd->footer("Example: strata import photos site --layer L101 card/DCIM/100CANON/*.JPG");
     cmd->callback([=] {
+      const ProjectLock lock = lock_project(*dir);
       Project p = Project::open(*dir);
       std::vector<std::filesystem::path> paths(files->begin(), files->end());
       const auto s = import_photos(p, *options, paths);
@@ -74,6 +76,7 @@ void register_import_commands(CLI::App& app) {
                   "site-wide gcp_list imported layer by layer (default: refuse the file)");
     cmd->footer("Example: strata import markers site survey.csv --crs EPSG:32636");
     cmd->callback([=] {
+      const ProjectLock lock = lock_project(*dir);
       Project p = Project::open(*dir);
       options->format = parse_marker_format(*format);
       const auto s = import_markers(p, *options, *file);

@@ -1,5 +1,6 @@
 // strata markers guide: find hand-clicked markers in every photo of a layer.
 #include "cli/commands.hpp"
+#include "cli/common.hpp"
 #include "core/error.hpp"
 #include "core/log.hpp"
 #include "pipeline/guide_layer.hpp"
@@ -103,6 +104,7 @@ void warn_far_clicks(const GuideLayerResult& r) {
 }
 
 void run_guide(const GuideArgs& a) {
+  const ProjectLock lock = lock_project(a.dir);
   Project p = Project::open(a.dir);
   const GuideLayerResult r = guide_layer(p, a.layer, a.options);
   warn_far_clicks(r);

@@ -1,5 +1,6 @@
 // strata process
 #include "cli/commands.hpp"
+#include "cli/common.hpp"
 #include "core/error.hpp"
 #include "core/log.hpp"
 #include "features/targets.hpp"
@@ -9,6 +10,7 @@
 #ifdef STRATA_HAS_REPORT_COMMANDS
 #include "report/report.hpp"
 #endif
+#include "project/media.hpp"
 #include "project/project.hpp"
 #include "project/records.hpp"
 
@@ -226,6 +228,7 @@ void register_process_commands(CLI::App& app) {
   cmd->footer("Example: strata process site --layer L101 --json");
   cmd->callback([=] {
     if (layer->empty() && !*all) throw InputError("process: give --layer LAYER or --all");
+    const ProjectLock lock = lock_project(*dir);
     Project p = Project::open(*dir);
     if (!target_names->empty()) options->naming.names = parse_target_names(*target_names);
     std::vector<std::string> layers;
@@ -233,6 +236,13 @@ void register_process_commands(CLI::App& app) {
       for (const auto& l : list_layers(p.db())) layers.push_back(l.name);
     } else {
       layers.push_back(require_layer(p.db(), *layer).name);
+    }
+    // Every photo the run will read still holds what was imported, before anything
+    // is computed from any layer (project/media.hpp).
+    for (const auto& name : layers) {
+      const auto photos = list_images(p.db(), require_layer(p.db(), name).id);
+      const MediaCheckSummary checked = verify_media(p.dir(), photos);
+      log::info("layer {}: {} photos match their SHA-256 ({} read in full)", name, checked.photos, checked.hashed);
     }
     nlohmann::json out = nlohmann::json::array();
     for (const auto& name : layers) {

@@ -1,5 +1,6 @@
 // strata unit, relation, matrix, layer
 #include "cli/commands.hpp"
+#include "cli/common.hpp"
 #include "core/error.hpp"
 #include "core/fault.hpp"
 #include "core/log.hpp"
@@ -73,6 +74,7 @@ void register_stratigraphy_commands(CLI::App& app) {
         ->check(CLI::IsMember({"deposit", "cut", "structure", "interface"}));
     cmd->add_option("--description", rec->description, "free text, e.g. 'dark brown silty fill'");
     cmd->callback([=] {
+      const ProjectLock lock = lock_project(*dir);
       Project p = Project::open(*dir);
       Transaction tx(p.db());
       insert_unit(p.db(), *rec);
@@ -118,6 +120,7 @@ void register_stratigraphy_commands(CLI::App& app) {
     cmd->add_option("RELATION", *word, "relation word")->required();
     cmd->add_option("CODE_B", *b, "second unit")->required();
     cmd->callback([=] {
+      const ProjectLock lock = lock_project(*dir);
       Project p = Project::open(*dir);
       const CanonicalRelation r = canonical_relation(*a, *word, *b);
       require_unit(p.db(), r.unit_a);
@@ -189,6 +192,7 @@ void register_stratigraphy_commands(CLI::App& app) {
     cmd->add_option("--unit", rec->unit, "the unit whose top this surface is")->required();
     cmd->add_option("--captured-at", *captured, "capture time, ISO 8601 (default: from the photos' EXIF)");
     cmd->callback([=] {
+      const ProjectLock lock = lock_project(*dir);
       Project p = Project::open(*dir);
       LayerRecord l = *rec;
       if (!captured->empty()) {

@@ -118,6 +118,7 @@ void register_volume(CLI::App& app) {
   cmd->add_flag("--json", *json, "print a JSON list of {unit, volume_m3, area_m2, mean_thickness_m, ...}");
   cmd->callback([=] {
     const SiteVolumeOptions o = site_options(*a);
+    const ProjectLock lock = lock_project(a->dir);
     Project p = Project::open(a->dir);
     const SiteModel m = load_site_model(p, o);
     if (!unit->empty()) require_solid(m, *unit);

@@ -2,11 +2,32 @@
 
 #include "core/error.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <sstream>
 
 namespace strata::cli {
+namespace {
+
+std::vector<std::string> invocation;  // argv without the program's path
+double lock_wait_s = 0;               // --wait
+
+}  // namespace
+
+void set_invocation(int argc, char** argv) { invocation.assign(argv + std::min(argc, 1), argv + argc); }
+void set_lock_wait(double seconds) { lock_wait_s = seconds; }
+
+ProjectLock lock_project(const std::string& dir) {
+  ProjectLockOptions o;
+  o.wait_s = lock_wait_s;
+  o.command = "strata";
+  for (const auto& arg : invocation) {
+    if (arg == dir) continue;  // the folder is the lock's own place
+    o.command += arg.find_first_of(" \t'\"") == std::string::npos ? " " + arg : " '" + arg + "'";
+  }
+  return ProjectLock(dir, o);
+}
 
 std::vector<double> parse_numbers(const std::string& text, std::size_t count, const std::string& option) {
   std::vector<double> out;

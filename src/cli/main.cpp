@@ -1,6 +1,7 @@
 // strata: the command-line front end. Thin by design: parse, validate, call the
 // library, map errors to exit codes.
 #include "cli/commands.hpp"
+#include "cli/common.hpp"
 #include "core/error.hpp"
 #include "core/log.hpp"
 #include "core/progress.hpp"
@@ -29,13 +30,20 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   bool quiet = false, verbose = false;
   int threads = 0;
+  double wait_s = 0;
   app.add_flag("-q,--quiet", quiet, "only warnings and errors on stderr");
   app.add_flag("-v,--verbose", verbose, "debug messages on stderr");
   app.add_option("--threads", threads,
                  "most threads to run at once, 0 = every core (default); fewer keep a field laptop "
                  "responsive. The sparse result does not depend on it (tests/integration/threads_test.cpp)")
       ->check(CLI::NonNegativeNumber);
+  app.add_option("--wait", wait_s,
+                 "when another strata command is changing the project, wait up to this many seconds for "
+                 "it to end instead of stopping at once (default 0). Reading commands never wait")
+      ->check(CLI::NonNegativeNumber);
+  strata::cli::set_invocation(argc, argv);
   app.parse_complete_callback([&] {
+    strata::cli::set_lock_wait(wait_s);
     if (quiet) strata::log::set_level(strata::log::Level::warning);
     if (verbose) strata::log::set_level(strata::log::Level::debug);
     strata::set_thread_limit(threads);

@@ -2,6 +2,7 @@
 
 #include "core/error.hpp"
 #include "core/fault.hpp"
+#include "core/hash.hpp"
 #include "core/log.hpp"
 
 #include <atomic>
@@ -14,9 +15,37 @@
 namespace strata::features {
 namespace {
 
-constexpr char kFeaturesMagic[8] = {'S', 'T', 'R', 'F', 'E', 'A', 'T', '1'};
-constexpr char kMatchesMagic[8] = {'S', 'T', 'R', 'M', 'T', 'C', 'H', '1'};
+// Version 2 ends with the SHA-256 of everything before it, so a damaged file (a bad
+// sector, a copy cut short, bytes changed by hand) is told from a good one; a
+// version-1 file is stale, recomputed without a warning.
+constexpr char kFeaturesMagic[8] = {'S', 'T', 'R', 'F', 'E', 'A', 'T', '2'};
+constexpr char kMatchesMagic[8] = {'S', 'T', 'R', 'M', 'T', 'C', 'H', '2'};
+constexpr char kFeaturesMagicV1[8] = {'S', 'T', 'R', 'F', 'E', 'A', 'T', '1'};
+constexpr char kMatchesMagicV1[8] = {'S', 'T', 'R', 'M', 'T', 'C', 'H', '1'};
 constexpr char kEndMagic[4] = {'E', 'N', 'D', '!'};
+constexpr std::size_t kDigestBytes = 32;  // SHA-256
+
+void seal(std::string& bytes) {
+  Sha256 h;
+  h.update(bytes.data(), bytes.size());
+  const auto digest = h.digest();
+  bytes.append(reinterpret_cast<const char*>(digest.data()), digest.size());
+}
+
+// Drops the digest; false when it does not match the rest.
+bool unseal(std::string& bytes) {
+  if (bytes.size() < kDigestBytes) return false;
+  Sha256 h;
+  h.update(bytes.data(), bytes.size() - kDigestBytes);
+  const auto digest = h.digest();
+  if (std::memcmp(digest.data(), bytes.data() + bytes.size() - kDigestBytes, kDigestBytes) != 0) return false;
+  bytes.resize(bytes.size() - kDigestBytes);
+  return true;
+}
+
+bool starts_with(const std::string& bytes, const char (&magic)[8]) {
+  return bytes.size() >= sizeof magic && std::memcmp(bytes.data(), magic, sizeof magic) == 0;
+}
 
 class ByteWriter {
  public:
@@ -133,15 +162,17 @@ void write_features(const std::filesystem::path& path, const StoredFeatures& f) 
   w.raw(f.colours.data(), f.colours.size());
   w.raw(f.descriptors.data(), f.descriptors.size());
   w.raw(kEndMagic, sizeof kEndMagic);
+  seal(w.bytes());
   write_file_atomic(path, w.bytes());
 }
 
 std::optional<StoredFeatures> read_features(const std::filesystem::path& path) {
-  const auto bytes = read_all(path);
-  if (!bytes) return std::nullopt;
+  auto bytes = read_all(path);
+  if (!bytes || starts_with(*bytes, kFeaturesMagicV1)) return std::nullopt;
+  const bool sealed = unseal(*bytes);
   ByteReader r(*bytes);
   std::uint32_t n = 0, dim = 0;
-  bool ok = r.expect(kFeaturesMagic, sizeof kFeaturesMagic) && r.value(n) && r.value(dim) &&
+  bool ok = sealed && r.expect(kFeaturesMagic, sizeof kFeaturesMagic) && r.value(n) && r.value(dim) &&
             dim == kDescriptorDim &&
             r.remaining() == n * (16ull + 4 + 3 + kDescriptorDim) + sizeof kEndMagic;
   StoredFeatures f;
@@ -181,15 +212,17 @@ void write_matches(const std::filesystem::path& path, const StoredMatches& m) {
     w.value(static_cast<std::uint32_t>(b));
   }
   w.raw(kEndMagic, sizeof kEndMagic);
+  seal(w.bytes());
   write_file_atomic(path, w.bytes());
 }
 
 std::optional<StoredMatches> read_matches(const std::filesystem::path& path) {
-  const auto bytes = read_all(path);
-  if (!bytes) return std::nullopt;
+  auto bytes = read_all(path);
+  if (!bytes || starts_with(*bytes, kMatchesMagicV1)) return std::nullopt;
+  const bool sealed = unseal(*bytes);
   ByteReader r(*bytes);
   std::uint32_t model = 0, h = 0, putative = 0, n = 0;
-  bool ok = r.expect(kMatchesMagic, sizeof kMatchesMagic) && r.value(model) && r.value(h) &&
+  bool ok = sealed && r.expect(kMatchesMagic, sizeof kMatchesMagic) && r.value(model) && r.value(h) &&
             r.value(putative) && r.value(n) &&
             model <= static_cast<std::uint32_t>(TwoViewModel::homography) &&
             r.remaining() == n * 8ull + sizeof kEndMagic;

@@ -553,7 +553,7 @@ GeoreferenceSummary georeference(const GeoreferenceOptions& options,
   if (usable.size() < 3) {
     throw InputError(fmt::format(
         "georeference needs at least 3 control markers triangulated from >= 2 photos; "
-        "{} control marker(s) given ({}), usable: {}; not usable: {}",
+        "{} control marker(s) seen in the photos ({}), usable: {}; not usable: {}",
         control_names.size(), names(control_names), names(usable_names),
         unusable_why.empty() ? std::string("none") : fmt::format("{}", fmt::join(unusable_why, ", "))));
   }

@@ -33,10 +33,22 @@ TEST_F(ImporterTest, PhotosAreStoredUnderTheirHashAndReimportIsANoOp) {
   EXPECT_EQ(s.already_present.size(), 2u);
   EXPECT_EQ(dump(), before);
   EXPECT_EQ(test::tree_fingerprint(project().media_dir()), media_before);
-  // The same content under another name or in another layer is still not duplicated.
+  // The same content under another name in another layer is refused, naming the
+  // layer that holds it (a photo records one state of the surface), and with
+  // --skip-bad listed as bad.
   fs::copy_file(files[0], scratch() / "in" / "copy.jpg");
-  s = import_photos(project(), {"L2", false}, {scratch() / "in" / "copy.jpg"});
+  try {
+    import_photos(project(), {"L2", false}, {scratch() / "in" / "copy.jpg"});
+    FAIL() << "a photo of layer L1 was accepted into L2";
+  } catch (const InputError& e) {
+    const std::string msg = e.what();
+    EXPECT_NE(msg.find("copy.jpg: the same photo is already in layer L1 (as a.jpg)"), std::string::npos) << msg;
+  }
+  EXPECT_EQ(dump(), before);
+  s = import_photos(project(), {"L2", true}, {scratch() / "in" / "copy.jpg"});
   EXPECT_EQ(s.imported, 0);
+  ASSERT_EQ(s.bad.size(), 1u);
+  EXPECT_NE(s.bad[0].find("already in layer L1"), std::string::npos) << s.bad[0];
   EXPECT_EQ(list_images(db()).size(), 2u);
 }
 
