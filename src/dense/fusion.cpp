@@ -9,6 +9,7 @@
 // memory. Sign convention of OpenVDB level sets: negative inside (below/behind the
 // observed surface), positive outside (towards the cameras).
 #include "core/error.hpp"
+#include "core/vdb_uuid.hpp"
 #include "dense/internal.hpp"
 
 #include <fmt/format.h>
@@ -536,6 +537,7 @@ void TsdfVolume::write(const std::filesystem::path& vdb, const Eigen::Vector3d& 
       openvdb::io::File file(tmp.string());
       file.write(grids);
       file.close();
+      make_vdb_uuid_from_content(tmp);
     } catch (const openvdb::Exception& e) {
       throw IoError(fmt::format("writer.vdb: {}: {}", tmp.string(), e.what()));
     }

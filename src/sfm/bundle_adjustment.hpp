@@ -60,7 +60,8 @@ struct BundleOptions {
   double function_tolerance = 1e-8;
   double gradient_tolerance = 1e-12;
   double parameter_tolerance = 1e-8;
-  int num_threads = 2;
+  // No thread count: the adjustment runs on one thread so that its sums, and so the
+  // products, are the same bit for bit on every run (bundle_adjustment.cpp).
 
   // Throws InputError naming the first invalid field.
   void validate() const;

@@ -3,6 +3,7 @@
 #include "volume/voxels.hpp"
 
 #include "core/error.hpp"
+#include "core/vdb_uuid.hpp"
 #include "core/log.hpp"
 
 #include <fmt/format.h>
@@ -154,6 +155,7 @@ VoxelSummary write_unit_voxels(const fs::path& path, const std::vector<UnitSolid
     openvdb::io::File file(tmp.string());
     file.write(grids, meta);
     file.close();
+    make_vdb_uuid_from_content(tmp);
   } catch (const openvdb::Exception& e) {
     throw IoError(fmt::format("writer.vdb: {}: {}", path.string(), e.what()));
   }

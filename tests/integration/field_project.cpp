@@ -70,6 +70,12 @@ void make_project(const fs::path& site, const fs::path& data, int layers) {
     std::vector<std::string> import = {"-q", "import", "photos", site.string(), "--layer", layer};
     for (const auto& f : layer_photos(data, layer)) import.push_back(f);
     require(run_strata(import), "import photos");
+    // The generator's clicks on this layer's photos: the small layer's coded targets
+    // are too few pixels wide to be found, so the markers are guided, as in the field.
+    const fs::path clicks = site.parent_path() / (site.filename().string() + "_gcp_" + layer + ".txt");
+    write_gcp_lines_of(data / "gcp_list.txt", layer + "_", clicks);
+    require(run_strata({"-q", "import", "markers", site.string(), clicks.string(), "--format", "odm"}),
+            "import clicks");
   }
   require(run_strata({"-q", "import", "markers", site.string(), (data / "markers.csv").string()}), "import markers");
 }

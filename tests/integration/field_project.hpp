@@ -17,7 +17,8 @@ namespace strata::test {
 void synth(const std::filesystem::path& out, int stages, int photos, int seed);
 
 // A project at `site` with units 101..10k, layers L1..Lk (one per synthetic layer of
-// `data`, k = layers), their photos and the surveyed markers.
+// `data`, k = layers), their photos, the generator's clicks on them and the surveyed
+// markers.
 void make_project(const std::filesystem::path& site, const std::filesystem::path& data, int layers);
 
 // Every row of the given tables (default: every table) of project.gpkg, as text, in

@@ -155,7 +155,6 @@ TEST(Georeference, CheckMarkersNeverChangeTheSolution) {
   Reconstruction with = arbitrary_frame(scene());
   Reconstruction without = with;
   GeoreferenceOptions options;
-  options.bundle.num_threads = 1;  // a fixed reduction order
   auto check_moved = only(scene(), {"C1", "C2", "C3", "C4", "K1", "K2"});
   check_moved[4].position.x() += 1.0;  // a check marker badly surveyed: measured, not used
   const auto s_with = georeference(options, check_moved, scene().marker_observations,
