@@ -32,6 +32,12 @@ template <typename T>
 std::uint64_t mix(std::uint64_t h, const T& v) {
   return dense::hash_bytes(&v, sizeof(T), h);
 }
+// A media-store file name: 64 lower-case hex digits (the SHA-256), then an extension.
+bool is_content_address(const std::string& name) {
+  if (name.size() < 65 || name[64] != '.') return false;
+  return std::all_of(name.begin(), name.begin() + 64,
+                     [](char c) { return (c >= '0' && c <= '9') || (c >= 'a' && c <= 'f'); });
+}
 std::uint64_t mix_string(std::uint64_t h, const std::string& s) {
   return dense::hash_bytes(s.data(), s.size(), h);
 }
@@ -171,11 +177,18 @@ DenseSummary run_dense(const DenseOptions& options, const Reconstruction& rec,
       check_cancelled();
       const auto& im = rec.images[i];
       const auto& intr = rec.groups[im.group].intrinsics;
-      std::uint64_t key = mix_string(0x5354524154410001ull, image_paths[i].string());
       const auto size = std::filesystem::file_size(image_paths[i], ec);
       if (ec) throw IoError(fmt::format("dense.undistort: {}: cannot read the photo", image_paths[i].string()));
-      const auto mtime = std::filesystem::last_write_time(image_paths[i], ec).time_since_epoch().count();
-      key = mix(mix(mix(key, size), mtime), pm.scale);
+      std::uint64_t key = 0;
+      if (const std::string name = image_paths[i].filename().string(); is_content_address(name)) {
+        // A photo of the media store: its name is its SHA-256 (checked before the
+        // stage runs), so the key holds whatever folder the project was moved to.
+        key = mix(mix_string(0x5354524154410001ull, name), size);
+      } else {
+        const auto mtime = std::filesystem::last_write_time(image_paths[i], ec).time_since_epoch().count();
+        key = mix(mix(mix_string(0x5354524154410001ull, image_paths[i].string()), size), mtime);
+      }
+      key = mix(key, pm.scale);
       for (double v : {intr.fx, intr.fy, intr.cx, intr.cy, intr.k1, intr.k2}) key = mix(key, v);
       // The other lens models' terms; a radial camera keeps the key of earlier versions.
       if (intr.model != CameraModel::radial) {

@@ -68,6 +68,39 @@ std::vector<OrthoView> layer_ortho_views(Project& project, const std::string& la
 
 namespace {
 
+// Product files written under staged names (dtm.next.tif beside dtm.tif) until every
+// one is complete. Destroyed before swap_in (the stage failed): the staged files go.
+class StagedFiles {
+ public:
+  StagedFiles() = default;
+  StagedFiles(const StagedFiles&) = delete;
+  StagedFiles& operator=(const StagedFiles&) = delete;
+  ~StagedFiles() {
+    std::error_code ec;
+    for (const auto& [staged, final_path] : files_) fs::remove(staged, ec);
+  }
+  // The staged name of `final_path`.
+  fs::path add(const fs::path& final_path) {
+    fs::path staged = final_path;
+    staged.replace_filename(final_path.stem().string() + ".next" + final_path.extension().string());
+    files_.emplace_back(staged, final_path);
+    return staged;
+  }
+  // Every staged file takes its final name (rename: atomic, the old file replaced).
+  void swap_in() {
+    for (const auto& [staged, final_path] : files_) {
+      std::error_code ec;
+      fs::rename(staged, final_path, ec);
+      if (ec) throw IoError(fmt::format("products: {}: cannot rename {} over it: {}", final_path.string(),
+                                        staged.filename().string(), ec.message()));
+    }
+    files_.clear();
+  }
+
+ private:
+  std::vector<std::pair<fs::path, fs::path>> files_;
+};
+
 // |DTM - sparse point| where a sparse point falls on a valid cell: an independent
 // check of the surface against the bundle adjustment (metres).
 std::pair<double, std::size_t> median_sparse_distance(const Dtm& dtm, const Reconstruction& rec) {
@@ -170,25 +203,20 @@ ProductsLayerResult products_layer(Project& project, const std::string& layer_na
   const std::string rel_dir = layer_product_dir(layer.name);
   const fs::path out_dir = project.dir() / rel_dir;
   fs::create_directories(out_dir);
-  // The files below are replaced in place: first their records go (committed), so
-  // that no record names a file being rewritten whenever the process dies; the new
-  // records are committed once every file (and raster table) is complete.
-  {
-    Transaction tx(db);
-    db.prepare("DELETE FROM reconstructions WHERE layer_id = ? AND stage = 'products'").bind_all(layer.id).run();
-    db.prepare("DELETE FROM products WHERE layer_id = ? AND kind IN ('dtm', 'ortho', 'dtm_sigma')")
-        .bind_all(layer.id)
-        .run();
-    tx.commit();
-  }
-  fault::point("process.products.records_retracted");
+  // The new files are written beside the old ones under staged names; a stage that
+  // fails (a full disk, a bad option) removes them and leaves the project as it was.
+  // Once every file is complete, the old records go (committed), the staged files
+  // take the final names, and the new records are committed: whenever the process
+  // dies, no record names a file that is not the one it describes.
+  StagedFiles staged;
+  const auto stage_path = [&](const std::string& file) { return staged.add(out_dir / file); };
 
   // DTM
   Stopwatch w;
   const Dtm dtm = build_dtm(vdb, options.dtm);
   const DtmStatistics stats = dtm_statistics(dtm, site.origin.z());
   if (stats.valid_cells == 0) throw ProcessingError(fmt::format("layer {}: the surface gives an empty DTM", layer.name));
-  write_dtm_geotiff(out_dir / "dtm.tif", dtm, geo, options.geotiff);
+  write_dtm_geotiff(stage_path("dtm.tif"), dtm, geo, options.geotiff);
   fault::point("process.products.dtm_written");
   // Its per-cell height uncertainty (one sigma, metres) beside it, from the
   // agreement of the fused depth maps; read by `strata volume` and the report.
@@ -197,7 +225,7 @@ ProductsLayerResult products_layer(Project& project, const std::string& layer_na
     Dtm sigma{dtm.grid, dtm.sigma, {}};
     RasterGeoreference sigma_geo = geo;
     sigma_geo.origin.z() = 0;  // metres of uncertainty, not heights
-    write_dtm_geotiff(out_dir / "dtm_sigma.tif", sigma, sigma_geo, options.geotiff);
+    write_dtm_geotiff(stage_path("dtm_sigma.tif"), sigma, sigma_geo, options.geotiff);
     fault::point("process.products.sigma_written");
     std::vector<float> v;
     for (float x : dtm.sigma)
@@ -223,7 +251,7 @@ ProductsLayerResult products_layer(Project& project, const std::string& layer_na
   const std::vector<OrthoView> views = layer_ortho_views(project, layer.name);
   OrthoSummary os;
   const RgbaRaster ortho = build_orthophoto(ortho_dtm.z.empty() ? dtm : ortho_dtm, views, options.ortho, &os);
-  write_rgba_geotiff(out_dir / "ortho.tif", ortho, geo, options.geotiff);
+  write_rgba_geotiff(stage_path("ortho.tif"), ortho, geo, options.geotiff);
   fault::point("process.products.ortho_written");
   steps["ortho"] = step_json(w);
   check_cancelled();
@@ -279,6 +307,17 @@ ProductsLayerResult products_layer(Project& project, const std::string& layer_na
   q["contours"] = {{"interval_m", options.contours.interval_m}, {"lines", contours.size()}};
   q["footprint"] = {{"area_m2", footprint.area_m2}, {"perimeter_m", footprint.perimeter_m},
                     {"polygons", footprint.polygons.size()}};
+
+  {
+    Transaction tx(db);
+    db.prepare("DELETE FROM reconstructions WHERE layer_id = ? AND stage = 'products'").bind_all(layer.id).run();
+    db.prepare("DELETE FROM products WHERE layer_id = ? AND kind IN ('dtm', 'ortho', 'dtm_sigma')")
+        .bind_all(layer.id)
+        .run();
+    tx.commit();
+  }
+  fault::point("process.products.records_retracted");
+  staged.swap_in();
 
   // Raster tables through GDAL's own connection, with no strata transaction open;
   // before the records, so that a run killed while GDAL writes them is not taken

@@ -12,6 +12,7 @@
 
 #include <fmt/format.h>
 
+#include <cerrno>
 #include <cmath>
 #include <memory>
 #include <mutex>
@@ -41,6 +42,21 @@ class Options {
 std::string last_gdal_error() {
   const char* m = CPLGetLastErrorMsg();
   return m && *m ? m : "unknown GDAL error";
+}
+
+// Why writing `tmp` failed. GDAL reports a full disk as whatever libtiff met first
+// ("TIFFAppendToStrip: Seek error"), so a file system left with almost no room, or
+// errno ENOSPC, is named as such.
+std::string write_failure(const fs::path& tmp) {
+  const int saved_errno = errno;
+  std::error_code ec;
+  const auto space = fs::space(tmp.parent_path(), ec);
+  constexpr std::uintmax_t kNearlyFull = 1u << 20;
+  if (saved_errno == ENOSPC || (!ec && space.available < kNearlyFull)) {
+    return fmt::format("No space left on device ({} KiB free on the file system of {}; GDAL said: {})",
+                       ec ? 0 : space.available / 1024, tmp.parent_path().string(), last_gdal_error());
+  }
+  return last_gdal_error();
 }
 
 DatasetPtr make_mem(const RasterGrid& g, int bands, GDALDataType type, const RasterGeoreference& geo) {
@@ -81,13 +97,16 @@ void write_copy(GDALDataset* src, const fs::path& path, const GeoTiffOptions& o,
   if (!drv) throw IoError(fmt::format("writer.geotiff: {}: GDAL lacks the {} driver", path.string(),
                                       o.cog ? "COG" : "GTiff"));
   CPLErrorReset();
+  errno = 0;
   DatasetPtr out(drv->CreateCopy(tmp.string().c_str(), src, FALSE, opt.get(), nullptr, nullptr));
-  if (!out) {
+  const bool created = out != nullptr;
+  out.reset();  // flush and close before the rename; a failure here is a failed write too
+  if (!created || CPLGetLastErrorType() == CE_Failure || CPLGetLastErrorType() == CE_Fatal) {
+    const std::string why = write_failure(tmp);
     std::error_code ec;
     fs::remove(tmp, ec);
-    throw IoError(fmt::format("writer.geotiff: {}: {}", path.string(), last_gdal_error()));
+    throw IoError(fmt::format("writer.geotiff: {}: {}", path.string(), why));
   }
-  out.reset();  // flush and close before the rename
   fault::point("products.geotiff.temp_written");
   std::error_code ec;
   fs::rename(tmp, path, ec);
