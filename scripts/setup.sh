@@ -11,6 +11,7 @@ packages=(
   libcgal-dev libopenvdb-dev libboost-iostreams-dev libopencv-dev libopencv-contrib-dev
   libceres-dev libeigen3-dev libtbb-dev libgtest-dev googletest libexiv2-dev
   nlohmann-json3-dev libcli11-dev libfmt-dev libspdlog-dev
+  python3  # bench scripts; the crash-injection sample of the test suite
 )
 if [[ "${1:-}" == "--gis" ]]; then
   packages+=(grass-core graphviz)
