@@ -55,7 +55,7 @@ def crash_points():
     text = open(os.path.join(ROOT, "src", "core", "fault.hpp"), encoding="utf-8").read()
     body = text[text.index("kCrashPoints[] = {"):]
     body = body[: body.index("};")]
-    return re.findall(r'\{"([a-z_.]+)", "([^"]*)"\}', body)
+    return re.findall(r'\{"([a-z_.]+)",\s*"([^"]*)"\}', body)
 
 
 # ---- the project states a command starts from --------------------------------------
@@ -310,8 +310,28 @@ def report_hash(path):
     return hashlib.sha256(text.encode()).hexdigest()
 
 
+def gpkg_hash(path):
+    """SHA-256 of a GeoPackage's rows with its write times (gpkg_contents.last_change)
+    blanked: GDAL stamps them on every write. A file SQLite cannot read hashes as bytes."""
+    try:
+        con = sqlite3.connect(f"file:{path}?mode=ro", uri=True)
+        try:
+            h = hashlib.sha256()
+            for line in con.iterdump():
+                h.update(re.sub(r"\d{4}-\d{2}-\d{2}T\d{2}:\d{2}:\d{2}(\.\d+)?Z", "-", line).encode())
+            return h.hexdigest()
+        finally:
+            con.close()
+    except sqlite3.DatabaseError:
+        return sha256_file(path)
+
+
 def file_hash(path):
-    return report_hash(path) if path.endswith(".html") else sha256_file(path)
+    if path.endswith(".html"):
+        return report_hash(path)
+    if path.endswith(".gpkg"):
+        return gpkg_hash(path)
+    return sha256_file(path)
 
 
 def tree_hashes(path):

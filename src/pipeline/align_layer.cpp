@@ -171,6 +171,25 @@ AlignResult align_layer(Project& project, const std::string& layer_name, const A
   fault::point("process.matching.done");
   log::info("layer {}: {} keypoints in {} photos, {} of {} pairs verified", layer.name, fs.keypoints,
             records.size(), ms.verified, pairs.size());
+  if (ms.verified == 0) {
+    // Without one matching pair the sparse stage can only say that no initial pair
+    // exists; the usual cause is photos without texture (black, blurred, overexposed)
+    // or photos that do not overlap, which the keypoint counts tell apart.
+    std::vector<std::size_t> by_count(keypoints.size());
+    for (std::size_t i = 0; i < by_count.size(); ++i) by_count[i] = i;
+    std::stable_sort(by_count.begin(), by_count.end(), [&](std::size_t a, std::size_t b) {
+      return keypoints[a].points.size() < keypoints[b].points.size();
+    });
+    std::string fewest;
+    for (std::size_t k = 0; k < std::min<std::size_t>(3, by_count.size()); ++k) {
+      fewest += fmt::format("{}{} {}", k ? ", " : "", keypoints[by_count[k]].image,
+                            keypoints[by_count[k]].points.size());
+    }
+    throw InputError(fmt::format(
+        "layer {}: no two of its {} photos match ({} of {} pairs verified; {} keypoints in all, fewest: {}): "
+        "the photos show too little texture (black, blurred, over- or underexposed) or do not overlap",
+        layer.name, records.size(), ms.verified, pairs.size(), fs.keypoints, fewest));
+  }
   check_cancelled();
 
   // ---- coded targets -> detected observations

@@ -250,7 +250,19 @@ ProductsLayerResult products_layer(Project& project, const std::string& layer_na
   }
   const std::vector<OrthoView> views = layer_ortho_views(project, layer.name);
   OrthoSummary os;
-  const RgbaRaster ortho = build_orthophoto(ortho_dtm.z.empty() ? dtm : ortho_dtm, views, options.ortho, &os);
+  const RgbaRaster ortho = [&] {
+    try {
+      return build_orthophoto(ortho_dtm.z.empty() ? dtm : ortho_dtm, views, options.ortho, &os);
+    } catch (const ProcessingError& e) {
+      if (alignment->rec.georeferenced) throw;
+      // In an arbitrary frame "up" is arbitrary too: the DTM may be seen edge-on or
+      // from below, and then no photo sees it. Say why rather than only that.
+      throw ProcessingError(fmt::format("{}; layer {} is not georeferenced (no surveyed marker is seen in its "
+                                        "photos), so its DTM is made along an arbitrary axis: click or detect "
+                                        "3 control markers and process again",
+                                        e.what(), layer.name));
+    }
+  }();
   write_rgba_geotiff(stage_path("ortho.tif"), ortho, geo, options.geotiff);
   fault::point("process.products.ortho_written");
   steps["ortho"] = step_json(w);

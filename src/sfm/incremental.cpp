@@ -9,6 +9,7 @@
 #include "sfm/tracks.hpp"
 #include "sfm/triangulation.hpp"
 
+#include <fmt/ranges.h>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/core/eigen.hpp>
@@ -23,6 +24,27 @@
 
 namespace strata {
 namespace {
+
+// The groups of photos that verified matches join (connected components of the match
+// graph), largest first; image indices ascending within a group.
+std::vector<std::vector<int>> match_groups(std::size_t n_images, const std::vector<PairMatches>& matches) {
+  std::vector<int> parent(n_images);
+  std::iota(parent.begin(), parent.end(), 0);
+  auto root = [&](int i) {
+    while (parent[i] != i) i = parent[i] = parent[parent[i]];
+    return i;
+  };
+  for (const auto& m : matches) {
+    if (m.matches.empty() || m.image_a < 0 || m.image_b < 0) continue;
+    parent[root(m.image_a)] = root(m.image_b);
+  }
+  std::map<int, std::vector<int>> by_root;
+  for (int i = 0; i < int(n_images); ++i) by_root[root(i)].push_back(i);
+  std::vector<std::vector<int>> groups;
+  for (auto& [r, members] : by_root) groups.push_back(std::move(members));
+  std::stable_sort(groups.begin(), groups.end(), [](const auto& a, const auto& b) { return a.size() > b.size(); });
+  return groups;
+}
 
 // OpenCV's rotation vector and translation (world to camera) as a Pose.
 Pose pose_from_cv(const cv::Mat& rvec, const cv::Mat& tvec) {
@@ -293,8 +315,14 @@ TwoViewGeometry IncrementalMapper::two_view(const PairMatches& pair) const {
 
 std::pair<int, int> IncrementalMapper::initialise() {
   // Pairs by decreasing number of track-consistent matches.
+  // The initial pair comes from the largest group of matched photos: a pair from a
+  // smaller group (photos of another place, a trench end without a bridge) would
+  // leave the larger group unaligned.
+  const auto groups = match_groups(images_.size(), matches_);
+  std::set<int> largest(groups.front().begin(), groups.front().end());
   std::vector<std::pair<std::size_t, int>> order;
   for (int i = 0; i < int(matches_.size()); ++i) {
+    if (!largest.count(matches_[i].image_a)) continue;
     order.emplace_back(matches_[i].matches.size(), i);
   }
   std::sort(order.rbegin(), order.rend());
@@ -950,6 +978,29 @@ Reconstruction IncrementalMapper::result() const {
   return rec;
 }
 
+// The photos fall into groups that no verified match joins (the connected components
+// of the match graph): e.g. two ends of a trench photographed without a bridge between
+// them, or photos of another place. Only the group that holds the reconstruction can
+// be aligned; the others are named so that the user can add bridging photos.
+void report_disconnected_groups(const std::vector<ImageInput>& images, const std::vector<PairMatches>& matches,
+                                const Reconstruction& rec) {
+  const auto sorted = match_groups(images.size(), matches);
+  if (sorted.size() < 2) return;
+  std::vector<std::string> parts;
+  for (const auto& members : sorted) {
+    std::size_t registered = 0;
+    std::vector<std::string> names;
+    for (int i : members) {
+      if (rec.images[std::size_t(i)].registered) ++registered;
+      names.push_back(images[std::size_t(i)].name);
+    }
+    parts.push_back(fmt::format("{} photo(s), {} aligned ({})", members.size(), registered, fmt::join(names, ", ")));
+  }
+  log::warn("sfm: the photos form {} groups that no match joins; only the group holding the alignment is "
+            "used; add photos that overlap both to join them: {}",
+            sorted.size(), fmt::join(parts, "; "));
+}
+
 }  // namespace
 
 Reconstruction reconstruct_incremental(const IncrementalOptions& options,
@@ -981,7 +1032,9 @@ Reconstruction reconstruct_incremental(const IncrementalOptions& options,
             local.adjustment_seconds, local.seconds,
             double(std::clock() - cpu_start) / CLOCKS_PER_SEC);
   if (local.registered < images.size()) {
-    log::warn("sfm: {} of {} images registered", local.registered, images.size());
+    log::warn("sfm: {} of {} images registered; not registered: {}", local.registered, images.size(),
+              fmt::join(local.unregistered, ", "));
+    report_disconnected_groups(images, matches, rec);
   }
   if (summary) *summary = local;
   return rec;
