@@ -5,7 +5,6 @@
 
 #include <fmt/format.h>
 
-#include <algorithm>
 #include <cctype>
 #include <cstring>
 #include <fstream>
@@ -42,9 +41,13 @@ void make_vdb_uuid_from_content(const std::filesystem::path& path) {
       !is_uuid_text(bytes)) {
     throw IoError(fmt::format("{}: not an OpenVDB file with a UUID in its header", path.string()));
   }
-  std::vector<char> zeroed = bytes;
-  std::fill_n(zeroed.begin() + kUuidOffset, kUuidSize, '\0');
-  const std::string hex = sha256_hex(std::string_view(zeroed.data(), zeroed.size()));
+  // The hash of the file with the UUID's bytes zeroed, without a second copy of it.
+  const char zeros[kUuidSize] = {};
+  Sha256 h;
+  h.update(bytes.data(), kUuidOffset);
+  h.update(zeros, kUuidSize);
+  h.update(bytes.data() + kUuidOffset + kUuidSize, bytes.size() - kUuidOffset - kUuidSize);
+  const std::string hex = h.hex_digest();
   // 32 hex digits as 8-4-4-4-12, version 4 and the RFC 4122 variant, like the UUID it replaces.
   std::string uuid = hex.substr(0, 8) + "-" + hex.substr(8, 4) + "-4" + hex.substr(13, 3) + "-" +
                      "89ab"[std::stoi(hex.substr(16, 1), nullptr, 16) & 3] + hex.substr(17, 3) + "-" +
