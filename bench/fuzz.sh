@@ -68,13 +68,20 @@ for t in "${targets[@]}"; do
   status=$?
   set -e
   elapsed=$(( $(date +%s) - start ))
-  crashes=$(find "$work/$t/crashes" -type f | wc -l)
-  if [[ $status -ne 0 || $crashes -gt 0 ]]; then
+  # Slow units (libFuzzer's slow-unit-*, over -report_slow_units seconds) are kept and
+  # counted apart: a load-dependent time, not a crash. A unit over -timeout is a crash.
+  crashes=$(find "$work/$t/crashes" -type f ! -name 'slow-unit-*' | wc -l)
+  slow=$(find "$work/$t/crashes" -type f -name 'slow-unit-*' | wc -l)
+  if [[ $status -ne 0 || $crashes -gt 0 || $slow -gt 0 ]]; then
     keep=$results/fuzz-$stamp-crashes/$t
     mkdir -p "$keep"
     cp "$work/$t/crashes"/* "$keep"/ 2>/dev/null || true
     cp "$work/$t/log" "$keep/fuzzer.log"
-    echo "fuzz: $t FAILED (exit $status), see $keep" >&2
+    if [[ $status -ne 0 || $crashes -gt 0 ]]; then
+      echo "fuzz: $t FAILED (exit $status), see $keep" >&2
+    else
+      echo "fuzz: $t: $slow slow unit(s), kept in $keep" >&2
+    fi
   fi
   if [[ $merge -eq 1 && $status -eq 0 ]]; then
     # Edges only (no hit counts): a few dozen inputs per target rather than hundreds.
@@ -92,7 +99,8 @@ cov = re.search(r"cov: (\d+)", last[-1]) if last else None
 ft = re.search(r"ft: (\d+)", last[-1]) if last else None
 reports = sorted(set(re.findall(r"(ERROR: (?:AddressSanitizer|LeakSanitizer|libFuzzer)[^\n]*|runtime error:[^\n]*|"
                                  r"terminate called[^\n]*)", text)))
-files = sorted(os.listdir(crash_dir))
+files = sorted(f for f in os.listdir(crash_dir) if not f.startswith("slow-unit-"))
+slow_files = sorted(f for f in os.listdir(crash_dir) if f.startswith("slow-unit-"))
 corpus_files = [f for f in os.listdir(corpus)]
 print(json.dumps({
     "target": target, "seconds": int(elapsed), "exit_status": int(status),
@@ -102,6 +110,7 @@ print(json.dumps({
     "corpus_files": len(corpus_files),
     "corpus_kb": sum(os.path.getsize(os.path.join(corpus, f)) for f in corpus_files) // 1024,
     "crashes": len(files), "crash_files": files, "reports": reports[:5],
+    "slow_units": len(slow_files), "slowest_unit_s": stat("slowest_unit_time_sec"),
     "last_status": last[-1].strip() if last else None}))
 PY
 )")
@@ -115,10 +124,10 @@ rows = [json.loads(r) for r in rows]
 doc = {"seconds_per_target": int(seconds), "commit": commit, "sanitizers": "address,undefined",
        "targets": rows, "crashed": [r["target"] for r in rows if r["crashes"] or r["exit_status"]]}
 json.dump(doc, open(out, "w"), indent=2)
-print(f"{'target':<14}{'s':>6}{'executions':>13}{'exec/s':>9}{'cov':>7}{'ft':>8}{'crashes':>9}")
+print(f"{'target':<14}{'s':>6}{'executions':>13}{'exec/s':>9}{'cov':>7}{'ft':>8}{'crashes':>9}{'slow':>6}")
 for r in rows:
     print(f"{r['target']:<14}{r['seconds']:>6}{r['executions'] or 0:>13}{r['exec_per_s'] or 0:>9}"
-          f"{r['cov'] or 0:>7}{r['ft'] or 0:>8}{r['crashes']:>9}")
+          f"{r['cov'] or 0:>7}{r['ft'] or 0:>8}{r['crashes']:>9}{r['slow_units']:>6}")
 print(f"written {out}")
 sys.exit(1 if doc["crashed"] else 0)
 PY

@@ -193,9 +193,14 @@ MarkerFormat detect_format(const fs::path& file) {
   if (numeric >= 3) return MarkerFormat::csv;
   if (df.lines.size() >= 2 && df.lines[1].fields.size() >= 6 && is_number(df.lines[1].fields[3]) &&
       is_number(df.lines[1].fields[4])) {
+    std::string line;
+    for (const auto& f : first) line += (line.empty() ? "" : " ") + f;
+    // A CRS line has letters (EPSG:, +proj=, WKT, a name); one of digits and signs is a
+    // data line, and asking PROJ would search its whole database for that name (0.2 s,
+    // seconds under the fuzzer's sanitizers: its only slow inputs, docs/reliability.md).
+    const bool letters = std::any_of(line.begin(), line.end(), [](unsigned char c) { return std::isalpha(c); });
+    if (!letters) return MarkerFormat::csv;
     try {
-      std::string line;
-      for (const auto& f : first) line += (line.empty() ? "" : " ") + f;
       describe_crs(line);
       return MarkerFormat::odm;
     } catch (const CrsError&) {

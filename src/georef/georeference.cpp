@@ -3,6 +3,7 @@
 #include "core/error.hpp"
 #include "core/log.hpp"
 #include "core/resources.hpp"
+#include "sfm/quality.hpp"
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
@@ -38,6 +39,9 @@ void GeoreferenceOptions::validate() const {
     fail("unknown_height_sigma_m", unknown_height_sigma_m, ">= horizontal_only_sigma_m");
   if (!(min_observation_sigma_px > 0)) fail("min_observation_sigma_px", min_observation_sigma_px, "> 0");
   if (max_rejection_rounds < 0) fail("max_rejection_rounds", max_rejection_rounds, ">= 0");
+  if (!(max_relative_misfit > 0)) fail("max_relative_misfit", max_relative_misfit, "> 0");
+  if (!(max_bending_factor >= 1)) fail("max_bending_factor", max_bending_factor, ">= 1");
+  if (!(min_bent_rmse_px > 0)) fail("min_bent_rmse_px", min_bent_rmse_px, "> 0");
   bundle.validate();
   rays.validate();
 }
@@ -345,6 +349,71 @@ std::optional<std::string> diagnose_bending(const std::vector<MarkerResidual>& r
 // The up direction of the reconstruction's ground: the normal of the sparse points'
 // least-squares plane (smallest principal axis), turned towards the cameras (which
 // look down at the ground from above it).
+// Refuses a georeference that these photos cannot carry (another place, clicks made on
+// other photos, the survey of another site): throws InputError when
+//  - the adjustment reached the survey only by bending the photos: the keypoint
+//    reprojection RMSE rose from `rmse_before_px` (the free block) beyond
+//    max_bending_factor times that and min_bent_rmse_px; or
+//  - the control markers kept miss their survey by more than max_relative_misfit of
+//    their spread (RMS about their centre) and by more than outlier_sigma_factor times
+//    their survey sigma, while most of them agree only through the scatter of their
+//    clicks (dispersion beyond twice the click sigma: their limits are wide because the
+//    clicks are not one point). Sharp markers that misfit (a poor survey, a bent block:
+//    copr fits its survey to 5 %) are kept with the warnings of the residual table.
+// `scattered`: the control markers clicked in two or more photos whose rays were not one
+// point; `clicked`: every control marker.
+void refuse_foreign_photos(const std::vector<MarkerResidual>& rows,
+                           const std::map<std::string, const MarkerConstraint*>& by_name,
+                           const std::vector<std::string>& clicked, const std::vector<std::string>& scattered,
+                           double click_sigma_px, double rmse_before_px, double rmse_after_px,
+                           const GeoreferenceOptions& options) {
+  const std::string causes =
+      "the photos show another place, the clicks were made on other photos (the same file names?), or the "
+      "survey is of another site or CRS; nothing was recorded (see 'strata markers DIR')";
+  if (rmse_after_px > std::max(options.min_bent_rmse_px, options.max_bending_factor * rmse_before_px)) {
+    throw InputError(fmt::format(
+        "georeference: these photos do not fit the survey: the adjustment met the survey only by bending the "
+        "photos (keypoint reprojection RMSE {:.2f} px, {:.2f} px before): {}",
+        rmse_after_px, rmse_before_px, causes));
+  }
+  std::vector<const MarkerResidual*> control;
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+  for (const auto& row : rows) {
+    if (row.role != MarkerRole::control || !row.triangulated) continue;
+    control.push_back(&row);
+    centroid += by_name.at(row.name)->position;
+  }
+  if (control.size() < 3) return;
+  centroid /= double(control.size());
+  double misfit2 = 0, spread2 = 0, sigma2 = 0;
+  std::size_t dispersed = 0;
+  for (const MarkerResidual* row : control) {
+    const MarkerConstraint& m = *by_name.at(row->name);
+    const bool plan = !row->height_known;
+    misfit2 += std::pow(residual_norm({row->dE, row->dN, row->dZ}, plan), 2);
+    spread2 += std::pow(residual_norm(m.position - centroid, plan), 2);
+    sigma2 += std::pow(survey_sigma(m, plan), 2);
+    if (row->dispersion_px > 2 * click_sigma_px) ++dispersed;
+  }
+  const double n = double(control.size());
+  const double misfit = std::sqrt(misfit2 / n), spread = std::sqrt(spread2 / n), sigma = std::sqrt(sigma2 / n);
+  if (!(misfit > options.max_relative_misfit * spread && misfit > options.outlier_sigma_factor * sigma &&
+        2 * dispersed > control.size())) {
+    return;
+  }
+  std::vector<std::string> kept;
+  for (const MarkerResidual* row : control) kept.push_back(row->name);
+  throw InputError(fmt::format(
+      "georeference: these photos do not fit the survey: control markers {} miss their surveyed positions by "
+      "{:.3f} m RMS, {:.0f} % of their spread ({:.2f} m RMS about their centre), far beyond their survey sigma "
+      "({:.3f} m), and the clicks of {} of them scatter instead of meeting at one point{}: {}",
+      names(kept), misfit, 100 * misfit / spread, spread, sigma, dispersed,
+      scattered.empty() ? std::string()
+                        : fmt::format("; those of {} of the {} control markers are not one point at all ({})",
+                                      scattered.size(), clicked.size(), names(scattered)),
+      causes));
+}
+
 Eigen::Vector3d ground_up(const Reconstruction& rec) {
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
   for (const auto& p : rec.points) mean += p.X;
@@ -606,6 +675,9 @@ GeoreferenceSummary georeference(const GeoreferenceOptions& options,
   };
   std::vector<int> inliers(n_usable);
   std::iota(inliers.begin(), inliers.end(), 0);
+  // An agreement of k of the usable markers rejects at most a third of them; beyond
+  // that, the survey and the photos disagree broadly (see below).
+  auto agreement = [&](std::size_t k) { return 3 * (n_usable - k) <= n_usable; };
   if (n_usable >= 4) {
     // Consensus over every non-collinear triple (exhaustive: there are few markers;
     // RANSAC in spirit, Fischler & Bolles 1981): the triple whose similarity agrees
@@ -641,7 +713,7 @@ GeoreferenceSummary georeference(const GeoreferenceOptions& options,
     // rejected, the survey and the photos disagree broadly (a survey of metre-level
     // accuracy, a deformed block) and rejecting most of the markers would hide it
     // behind a perfect fit on the few left.
-    const bool broad = 3 * (n_usable - best.size()) > n_usable;
+    const bool broad = !agreement(best.size());
     if (broad) {
       log::warn("georeference: only {} of the {} control markers agree with one similarity within "
                 "their limit: survey and photo geometry disagree broadly (not a few blunders); all are "
@@ -654,7 +726,16 @@ GeoreferenceSummary georeference(const GeoreferenceOptions& options,
       for (std::size_t i = 0; i < n_usable; ++i) {
         if (residual_of(s, i) <= limit_of(usable[i], s.scale)) confirmed.push_back(int(i));
       }
-      inliers = confirmed.size() >= 3 && spread_of(confirmed) >= options.min_spread_ratio ? confirmed : best;
+      // The confirmed set must still be an agreement: a consensus of four of six that
+      // shrinks to three on its own refit was four markers whose limits (wide, from
+      // dispersed clicks) happened to overlap.
+      if (agreement(confirmed.size()) && spread_of(confirmed) >= options.min_spread_ratio) {
+        inliers = confirmed;
+      } else {
+        log::warn("georeference: {} control markers agree with one similarity, but only {} of the {} "
+                  "refitted on them: survey and photo geometry disagree broadly (not a few blunders); "
+                  "all are kept", best.size(), confirmed.size(), n_usable);
+      }
       for (std::size_t i = 0; i < n_usable; ++i) {
         if (std::find(inliers.begin(), inliers.end(), int(i)) != inliers.end()) continue;
         const double r = residual_of(s, i), limit = limit_of(usable[i], s.scale);
@@ -696,7 +777,9 @@ GeoreferenceSummary georeference(const GeoreferenceOptions& options,
   rec.georeferenced = true;
 
   // 5. Combined adjustment of photos and survey: the inlier control markers and the
-  // observations that passed the screening.
+  // observations that passed the screening. The free block's reprojection RMSE is the
+  // yardstick of a survey that bends it (refuse_foreign_photos).
+  const double rmse_free_px = reprojection_rmse_px(rec, keypoints);
   auto adjust = [&] {
     if (!options.adjust) return;
     const std::set<std::string> used(summary.control_used.begin(), summary.control_used.end());
@@ -842,7 +925,11 @@ GeoreferenceSummary georeference(const GeoreferenceOptions& options,
   // Only from 5 control markers on: with 4, each leave-one-out fit rests on 3 markers and
   // one blunder among them shows on whichever marker is left out (the consensus above
   // handles that case).
-  for (int round = 0; round < options.max_rejection_rounds && summary.control_used.size() >= 5; ++round) {
+  // Never beyond a third of the usable markers (the consensus rule above): rejecting more
+  // would hide a broad disagreement behind a good fit on the rest.
+  for (int round = 0; round < options.max_rejection_rounds && summary.control_used.size() >= 5 &&
+                      agreement(summary.control_used.size() - 1);
+       ++round) {
     const MarkerResidual* worst = nullptr;
     double worst_ratio = 1.0, worst_r = 0, worst_limit = 0;
     for (const auto& row : rows) {
@@ -937,6 +1024,12 @@ GeoreferenceSummary georeference(const GeoreferenceOptions& options,
   for (const auto& photo : diagnose_misplaced_photos(rays, fits, rec)) {
     summary.diagnosis.push_back(photo);
     log::warn("georeference: {}", photo);
+  }
+  {
+    std::vector<std::string> scattered;  // clicked in 2 or more photos, rays not one point
+    for (const auto& b : marker_blunders) scattered.push_back(b.marker);
+    refuse_foreign_photos(rows, by_name, control_names, scattered, ray_options.click_sigma_px, rmse_free_px,
+                          options.adjust ? summary.bundle.rmse_px : 0.0, options);
   }
   summary.residuals = std::move(rows);
   summary.blunders = std::move(all_blunders);

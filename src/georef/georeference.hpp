@@ -64,6 +64,16 @@ struct GeoreferenceOptions {
   // Rounds of post-adjustment rejection (a control marker whose leave-one-out residual
   // exceeds its limit is rejected, the worst first, and the adjustment redone).
   int max_rejection_rounds = 2;
+  // Refusal of photos that cannot carry this survey (another place, clicks made on other
+  // photos; see refuse_foreign_photos in georeference.cpp and docs/georeference.md):
+  // control markers that miss their survey by more than max_relative_misfit of their
+  // spread, beyond their survey sigma, agreeing only through the scatter of their
+  // clicks (unitless; real blocks fit to a few per cent: copr 5 %); or an adjustment
+  // that raised the keypoint reprojection RMSE beyond max_bending_factor times that of
+  // the free block and min_bent_rmse_px (pixels).
+  double max_relative_misfit = 0.1;
+  double max_bending_factor = 5.0;
+  double min_bent_rmse_px = 2.0;
   // The adjustment in the site frame (robust loss, marker pixel sigma, intrinsics).
   BundleOptions bundle;
   // Weigh the photos by their measured precision instead of bundle.keypoint_sigma_px and

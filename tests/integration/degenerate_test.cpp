@@ -1,7 +1,8 @@
 // Degenerate field data (issue 19, item 6; docs/reliability.md): a layer of one photo,
 // too few or collinear markers, markers no photo sees, the same photo in two layers,
 // black or blurred photos, several cameras in one layer, and a layer whose photos form
-// two groups (some of another place). Each either works or fails with one clear line,
+// two groups (some of another place), photos of another place entirely (with this site's
+// clicks, or with its own targets). Each either works or fails with one clear line,
 // and a refused command leaves the project as it was.
 #include "integration/field_project.hpp"
 
@@ -50,6 +51,12 @@ class Degenerate : public ::testing::Test {
   }
   static fs::path scratch() { return scratch_->path(); }
   static fs::path data() { return scratch() / "data"; }
+  // Another place: the same kind of trench, dug and photographed otherwise (seed 9).
+  static fs::path other_place() {
+    const fs::path other = scratch() / "other";
+    if (!fs::exists(other / "gcp_list.txt")) test::synth(other, 1, 12, 9);
+    return other;
+  }
 
   // A project with unit 101 and layer L1 holding `photos` (no markers).
   static fs::path site_with(const std::string& name, const std::vector<std::string>& photos) {
@@ -235,12 +242,51 @@ TEST_F(Degenerate, SeveralCamerasInOneLayerAlign) {
   EXPECT_EQ(r.out.find("NOT georeferenced"), std::string::npos) << r.out;
 }
 
+TEST_F(Degenerate, PhotosOfAnotherPlaceWithThisSitesClicksAreRefused) {
+  // The wrong folder imported: twelve photos of another trench with the same file names
+  // (phones number their photos), and the clicks made on this site's photos. Every photo
+  // aligns; the clicks land on other things.
+  const fs::path site = site_with("another_place_clicks", test::layer_photos(other_place(), "L1"));
+  import_clicks(site, {"GCP1", "GCP2", "GCP3", "GCP4", "GCP5", "GCP6", "GCP7", "GCP8"});
+  expect_refused(site, {"georeference: these photos do not fit the survey", "of their spread",
+                        "scatter instead of meeting at one point", "the photos show another place",
+                        "nothing was recorded"});
+}
+
+TEST_F(Degenerate, PhotosOfAnotherPlaceWithItsOwnMarkersAreRefused) {
+  // Another trench marked with the same kit of targets (GCP1..GCP8, clicked right in
+  // its own photos), georeferenced on this site's survey: the survey can only be met by
+  // bending the photos.
+  const fs::path site = site_with("another_place_targets", test::layer_photos(other_place(), "L1"));
+  std::map<std::string, std::string> survey;  // marker -> this site's "E\tN\tZ"
+  {
+    std::ifstream in(data() / "gcp_list.txt");
+    std::string line, e, n, z, x, y, image, marker;
+    std::getline(in, line);
+    while (in >> e >> n >> z >> x >> y >> image >> marker) survey[marker] = e + "\t" + n + "\t" + z;
+  }
+  const fs::path clicks = scratch() / "another_place_targets_gcp_list.txt";
+  {
+    std::ifstream in(other_place() / "gcp_list.txt");
+    std::ofstream out(clicks);
+    std::string line, e, n, z, x, y, image, marker;
+    std::getline(in, line);
+    out << line << "\n";
+    while (in >> e >> n >> z >> x >> y >> image >> marker) {
+      if (image.rfind("L1_", 0) != 0) continue;
+      out << survey.at(marker) << "\t" << x << "\t" << y << "\t" << image << "\t" << marker << "\n";
+    }
+  }
+  ASSERT_EQ(run_strata({"-q", "import", "markers", site.string(), clicks.string(), "--layer", "L1"}).exit_code, 0);
+  expect_refused(site, {"georeference: these photos do not fit the survey", "bending the photos",
+                        "keypoint reprojection RMSE", "the photos show another place", "nothing was recorded"});
+}
+
 TEST_F(Degenerate, TwoGroupsOfPhotosAlignTheLargerAndNameTheOther) {
   // The twelve photos of the site and four of another place, named so that they sort last.
   auto photos = test::layer_photos(data(), "L1");
-  test::synth(scratch() / "other", 1, 12, 9);
   fs::create_directories(scratch() / "elsewhere");
-  const auto other = test::layer_photos(scratch() / "other", "L1");
+  const auto other = test::layer_photos(other_place(), "L1");
   for (int i = 0; i < 4; ++i) {
     const fs::path p = scratch() / "elsewhere" / ("X_elsewhere_" + std::to_string(i + 1) + ".jpg");
     fs::copy_file(other[std::size_t(i)], p, fs::copy_options::overwrite_existing);
