@@ -338,6 +338,7 @@ def main():
     # Per layer.
     grid = None  # the DTM grid of the first layer found: later ones must match
     E = {}
+    grid_of = {}
     D = {}
     T = {}
     for L in layers:
@@ -474,6 +475,7 @@ def main():
         if grid is None:
             grid = (list(dgt), dtm.shape, x[0], y[0])
         E[L], D[L], T[L] = e, dtm, ts
+        grid_of[L] = list(dgt)
         E[L + "_grid"] = (x[0], y[0], dtm.shape, inside, outside, measured)
 
     # Consecutive layers: what enters each unit's volume.
@@ -483,15 +485,30 @@ def main():
                                           "reason": "a DTM is missing"})
             continue
         ga, gb = E[a + "_grid"], E[b + "_grid"]
-        if ga[:3] != gb[:3]:
-            result["inter_layer"].append({"layers": f"{a}-{b}", "computed": False, "reason": "DTM grids differ"})
+        # Each layer's DTM has its own extent, and may have its own cell size: compare
+        # at the cells of a's DTM, taking b's nearest cell (exact when the two share
+        # a lattice; within half of b's cell otherwise).
+        cell_a = abs(grid_of[a][1])
+        cell_b = abs(grid_of[b][1])
+        (ra, ca), (rb, cb) = ga[2], gb[2]
+        xa = ga[0] + np.arange(ca) * cell_a  # centres (ga[0], ga[1]: first centre)
+        ya = ga[1] - np.arange(ra) * cell_a
+        cols_b = np.rint((xa - gb[0]) / cell_b).astype(int)
+        rows_b = np.rint((gb[1] - ya) / cell_b).astype(int)
+        okc, okr = (cols_b >= 0) & (cols_b < cb), (rows_b >= 0) & (rows_b < rb)
+        if not okc.any() or not okr.any():
+            result["inter_layer"].append({"layers": f"{a}-{b}", "computed": False, "reason": "DTMs do not overlap"})
             continue
-        inside, outside = ga[3], ga[4]
-        both = ga[5] & gb[5]
-        tth = T[a] - T[b]
+        ic, ir = np.nonzero(okc)[0], np.nonzero(okr)[0]
+        wa = np.ix_(ir, ic)
+        wb = np.ix_(rows_b[ir], cols_b[ic])
+        inside, outside = ga[3][wa], ga[4][wa]
+        both = ga[5][wa] & gb[5][wb]
+        tb, _ = bilinear(truth[b][0], truth[b][1], xa[ic], ya[ir])  # truth of b at a's cells
+        tth = T[a][wa] - tb
         dug = inside & (tth > args.min_thickness)
-        de = E[a] - E[b]  # thickness error
-        area = abs(grid[0][1] * grid[0][5])
+        de = E[a][wa] - E[b][wb]  # thickness error
+        area = cell_a * cell_a
         u = layer_unit.get(a)
         ok = dug & np.isfinite(de)
         rec = {
