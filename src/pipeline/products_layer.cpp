@@ -2,6 +2,7 @@
 
 #include "core/error.hpp"
 #include "core/fault.hpp"
+#include "core/staged_files.hpp"
 #include "core/hash.hpp"
 #include "core/log.hpp"
 #include "core/progress.hpp"
@@ -67,39 +68,6 @@ std::vector<OrthoView> layer_ortho_views(Project& project, const std::string& la
 }
 
 namespace {
-
-// Product files written under staged names (dtm.next.tif beside dtm.tif) until every
-// one is complete. Destroyed before swap_in (the stage failed): the staged files go.
-class StagedFiles {
- public:
-  StagedFiles() = default;
-  StagedFiles(const StagedFiles&) = delete;
-  StagedFiles& operator=(const StagedFiles&) = delete;
-  ~StagedFiles() {
-    std::error_code ec;
-    for (const auto& [staged, final_path] : files_) fs::remove(staged, ec);
-  }
-  // The staged name of `final_path`.
-  fs::path add(const fs::path& final_path) {
-    fs::path staged = final_path;
-    staged.replace_filename(final_path.stem().string() + ".next" + final_path.extension().string());
-    files_.emplace_back(staged, final_path);
-    return staged;
-  }
-  // Every staged file takes its final name (rename: atomic, the old file replaced).
-  void swap_in() {
-    for (const auto& [staged, final_path] : files_) {
-      std::error_code ec;
-      fs::rename(staged, final_path, ec);
-      if (ec) throw IoError(fmt::format("products: {}: cannot rename {} over it: {}", final_path.string(),
-                                        staged.filename().string(), ec.message()));
-    }
-    files_.clear();
-  }
-
- private:
-  std::vector<std::pair<fs::path, fs::path>> files_;
-};
 
 // |DTM - sparse point| where a sparse point falls on a valid cell: an independent
 // check of the surface against the bundle adjustment (metres).
@@ -208,7 +176,7 @@ ProductsLayerResult products_layer(Project& project, const std::string& layer_na
   // Once every file is complete, the old records go (committed), the staged files
   // take the final names, and the new records are committed: whenever the process
   // dies, no record names a file that is not the one it describes.
-  StagedFiles staged;
+  StagedFiles staged("products");
   const auto stage_path = [&](const std::string& file) { return staged.add(out_dir / file); };
 
   // DTM

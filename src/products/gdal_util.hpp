@@ -3,8 +3,10 @@
 // it includes GDAL, so it stays out of the public headers).
 #include <gdal_priv.h>
 
+#include <filesystem>
 #include <memory>
 #include <mutex>
+#include <string>
 
 namespace strata::products_detail {
 
@@ -18,5 +20,12 @@ struct DatasetCloser {
   void operator()(GDALDataset* d) const { GDALClose(GDALDataset::ToHandle(d)); }
 };
 using DatasetPtr = std::unique_ptr<GDALDataset, DatasetCloser>;
+
+// GDAL's last error message, or "unknown GDAL error".
+std::string last_gdal_error();
+// Why writing `tmp` failed: a full disk named as such ("No space left on device (N KiB
+// free on ...)"; GDAL reports it as whatever libtiff met first), else GDAL's message.
+// Call with errno and GDAL's error state as the failed write left them.
+std::string write_failure(const std::filesystem::path& tmp);
 
 }  // namespace strata::products_detail

@@ -20,24 +20,7 @@
 namespace fs = std::filesystem;
 
 namespace strata {
-namespace {
-
-using products_detail::DatasetPtr;
-using products_detail::init_gdal;
-
-// Owned list of "KEY=VALUE" creation options.
-class Options {
- public:
-  Options() = default;
-  ~Options() { CSLDestroy(list_); }
-  Options(const Options&) = delete;
-  Options& operator=(const Options&) = delete;
-  void set(const char* key, const std::string& value) { list_ = CSLSetNameValue(list_, key, value.c_str()); }
-  char** get() const { return list_; }
-
- private:
-  char** list_ = nullptr;
-};
+namespace products_detail {
 
 std::string last_gdal_error() {
   const char* m = CPLGetLastErrorMsg();
@@ -58,6 +41,29 @@ std::string write_failure(const fs::path& tmp) {
   }
   return last_gdal_error();
 }
+
+}  // namespace products_detail
+
+namespace {
+
+using products_detail::DatasetPtr;
+using products_detail::init_gdal;
+using products_detail::last_gdal_error;
+using products_detail::write_failure;
+
+// Owned list of "KEY=VALUE" creation options.
+class Options {
+ public:
+  Options() = default;
+  ~Options() { CSLDestroy(list_); }
+  Options(const Options&) = delete;
+  Options& operator=(const Options&) = delete;
+  void set(const char* key, const std::string& value) { list_ = CSLSetNameValue(list_, key, value.c_str()); }
+  char** get() const { return list_; }
+
+ private:
+  char** list_ = nullptr;
+};
 
 DatasetPtr make_mem(const RasterGrid& g, int bands, GDALDataType type, const RasterGeoreference& geo) {
   init_gdal();

@@ -3,11 +3,14 @@
 
 #include "core/error.hpp"
 #include "crs/crs.hpp"
+#include "products/gdal_util.hpp"
 
+#include <cpl_error.h>
 #include <fmt/format.h>
 #include <gdal_priv.h>
 #include <ogr_spatialref.h>
 
+#include <cerrno>
 #include <cmath>
 #include <limits>
 #include <memory>
@@ -18,10 +21,7 @@ namespace {
 
 constexpr double kNodata = -9999.0;
 
-struct DatasetCloser {
-  void operator()(GDALDataset* d) const { GDALClose(GDALDataset::ToHandle(d)); }
-};
-using DatasetPtr = std::unique_ptr<GDALDataset, DatasetCloser>;
+using products_detail::DatasetPtr;
 
 }  // namespace
 
@@ -72,10 +72,20 @@ void write_field_geotiff(const fs::path& path, const HeightField& field, const E
   opts = CSLSetNameValue(opts, "COMPRESS", "DEFLATE");
   opts = CSLSetNameValue(opts, "PREDICTOR", "3");
   opts = CSLSetNameValue(opts, "TILED", "YES");
+  // A failure anywhere (create, a row, the flush on close: a full disk) removes the
+  // partial file and names the cause.
+  auto failed = [&](const std::string& what) {
+    const std::string why = products_detail::write_failure(tmp);
+    std::error_code ec;
+    fs::remove(tmp, ec);
+    return IoError(fmt::format("writer.thickness: {}: {}{}", path.string(), what, why));
+  };
+  CPLErrorReset();
+  errno = 0;
   {
     DatasetPtr ds(driver->Create(tmp.c_str(), field.nx, field.ny, 1, GDT_Float32, opts));
     CSLDestroy(opts);
-    if (!ds) throw IoError(fmt::format("writer.thickness: {}: cannot create", path.string()));
+    if (!ds) throw failed("cannot create: ");
     const double west = site_origin.x() + field.x0 - 0.5 * field.cell;
     const double north = site_origin.y() + field.y0 + (field.ny - 0.5) * field.cell;
     double gt[6] = {west, field.cell, 0, north, 0, -field.cell};
@@ -91,16 +101,21 @@ void write_field_geotiff(const fs::path& path, const HeightField& field, const E
     band->SetDescription(description.c_str());
     band->SetUnitType("m");
     std::vector<float> row(std::size_t(field.nx));
+    CPLErrorReset();  // from here, any GDAL failure is the writing's
+    errno = 0;
     for (int r = 0; r < field.ny; ++r) {
       const int j = field.ny - 1 - r;
       for (int i = 0; i < field.nx; ++i) {
         const double v = field.at(i, j);
         row[std::size_t(i)] = std::isfinite(v) ? float(v + value_offset) : float(kNodata);
       }
-      if (band->RasterIO(GF_Write, 0, r, field.nx, 1, row.data(), field.nx, 1, GDT_Float32, 0, 0) != CE_None)
-        throw IoError(fmt::format("writer.thickness: {}: cannot write row {}", path.string(), r));
+      if (band->RasterIO(GF_Write, 0, r, field.nx, 1, row.data(), field.nx, 1, GDT_Float32, 0, 0) != CE_None) {
+        ds.reset();
+        throw failed(fmt::format("cannot write row {}: ", r));
+      }
     }
-  }
+  }  // closed: GDAL flushes here, and a failure shows in its error state
+  if (CPLGetLastErrorType() == CE_Failure || CPLGetLastErrorType() == CE_Fatal) throw failed("");
   std::error_code ec;
   fs::rename(tmp, path, ec);
   if (ec) throw IoError(fmt::format("writer.thickness: {}: {}", path.string(), ec.message()));

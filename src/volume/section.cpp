@@ -413,8 +413,14 @@ void write_section_gpkg(const fs::path& path, const SectionProfile& p, const Eig
         if (std::isfinite(z)) ztop = std::max(ztop, z);
     add_line(l, {point3(0, ztop), point3(p.length(), ztop)}, {{"name", "A-B"}});
   }
-  ds->CommitTransaction();
+  if (ds->CommitTransaction() != OGRERR_NONE) fail("cannot commit the features: " + std::string(CPLGetLastErrorMsg()));
+  CPLErrorReset();
   GDALClose(GDALDataset::ToHandle(ds));
+  if (CPLGetLastErrorType() == CE_Failure || CPLGetLastErrorType() == CE_Fatal) {
+    const std::string why = CPLGetLastErrorMsg();
+    fs::remove(tmp, ec);
+    throw IoError(fmt::format("{}: {}: {}", kStage, path.string(), why));
+  }
   fs::rename(tmp, path, ec);
   if (ec) throw IoError(fmt::format("{}: {}: {}", kStage, path.string(), ec.message()));
 }

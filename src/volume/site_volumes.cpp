@@ -2,6 +2,7 @@
 #include "volume/site_volumes.hpp"
 
 #include "core/error.hpp"
+#include "core/staged_files.hpp"
 #include "core/log.hpp"
 
 #include <fstream>
@@ -335,16 +336,26 @@ VoxelSummary store_site_volumes(Project& project, const SiteModel& model, const 
     labels[u.code] = std::int32_t(u.id);
     unit_ids[u.code] = u.id;
   }
-  const VoxelSummary voxels =
-      write_unit_voxels(dir / "units.vdb", model.solids, labels, options.voxels, model.site.origin, model.site.crs);
+  // Every file is written under a staged name first; only when all are complete are
+  // the old records retracted (committed) and the files swapped in, so a full disk
+  // part-way leaves the recorded files and rows as they were (docs/reliability.md).
+  StagedFiles staged("volume");
+  const VoxelSummary voxels = write_unit_voxels(staged.add(dir / "units.vdb"), model.solids, labels, options.voxels,
+                                                model.site.origin, model.site.crs);
   for (const auto& s : model.solids) {
     HeightField t = s.top;
     for (std::size_t c = 0; c < t.z.size(); ++c) t.z[c] = s.dug(c) ? s.thickness(c) : t.z[c];
-    write_field_geotiff(dir / fmt::format("thickness_{}.tif", s.unit), t, model.site.origin, model.site.crs, 0,
-                        fmt::format("thickness of unit {} (m)", s.unit));
+    write_field_geotiff(staged.add(dir / fmt::format("thickness_{}.tif", s.unit)), t, model.site.origin,
+                        model.site.crs, 0, fmt::format("thickness of unit {} (m)", s.unit));
   }
 
   Database& db = project.db();
+  {
+    Transaction retract(db);
+    db.exec("DELETE FROM products WHERE kind IN ('thickness', 'voxels')");
+    retract.commit();
+  }
+  staged.swap_in();
   Transaction tx(db);
   db.exec("DELETE FROM unit_volumes");
   nlohmann::json sources = nlohmann::json::object();

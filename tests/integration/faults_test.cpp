@@ -149,6 +149,54 @@ TEST_F(Faults, DiskFullDuringProductsRecordsNothing) {
   EXPECT_EQ(test::integrity(site / "project.gpkg"), "ok");
 }
 
+TEST_F(Faults, DiskFullDuringVolumeRecordsNothing) {
+  // Two layers processed and their volume stored, on the ordinary disk (14 photos a
+  // layer: with 12, the second layer of this seed aligns only 9).
+  const fs::path made = scratch() / "volume_template";
+  test::synth(scratch() / "data14", 1, 14, 5);
+  test::make_project(made, scratch() / "data14", 2);
+  for (const char* layer : {"L1", "L2"}) {
+    const auto p = run_strata({"-q", "process", made.string(), "--layer", layer});
+    ASSERT_EQ(p.exit_code, 0) << p.err;
+  }
+  const auto first = run_strata({"-q", "volume", made.string()});
+  ASSERT_EQ(first.exit_code, 0) << first.err;
+
+  const fs::path mnt = scratch() / "small_disk_volume";
+  Mount disk(mnt);
+  std::uintmax_t project_bytes = 0;
+  for (const auto& e : fs::recursive_directory_iterator(made))
+    if (e.is_regular_file()) project_bytes += e.file_size();
+  if (const std::string why = disk.tmpfs(project_bytes * 2 + (64u << 20)); !why.empty())
+    GTEST_SKIP() << "cannot mount a tmpfs here (" << why << "); the disk-full case needs one";
+  const fs::path site = mnt / "site";
+  fs::copy(made, site, fs::copy_options::recursive);
+  const auto before = test::project_state(site);
+  const std::string volume_before = test::tree_fingerprint(site / "products" / "volume");
+
+  // New volumes (another threshold): the disk fills while the voxel model and the
+  // thickness rasters are written.
+  fill_leaving(mnt, kFreeBytesLeft);
+  const auto r = run_strata({"volume", site.string(), "--threshold", "0.006"});
+  EXPECT_EQ(r.exit_code, 1) << "a typed error, not a crash: " << r.err;
+  const auto at = r.err.rfind("strata: error: ");
+  ASSERT_NE(at, std::string::npos) << r.err;
+  const std::string error_line = r.err.substr(at);
+  EXPECT_EQ(test::line_count(error_line), 1) << r.err;
+  EXPECT_NE(error_line.find("No space left on device"), std::string::npos) << r.err;
+  EXPECT_NE(error_line.find(site.string()), std::string::npos) << "names the file: " << r.err;
+  EXPECT_EQ(test::integrity(site / "project.gpkg"), "ok");
+  EXPECT_TRUE(test::project_state(site) == before) << "the failed command recorded something";
+  EXPECT_EQ(test::tree_fingerprint(site / "products" / "volume"), volume_before)
+      << "a volume file was replaced or left behind";
+
+  // With room again, the same command completes.
+  fs::remove(mnt / "filler");
+  const auto again = run_strata({"-q", "volume", site.string(), "--threshold", "0.006"});
+  EXPECT_EQ(again.exit_code, 0) << again.err;
+  EXPECT_EQ(test::integrity(site / "project.gpkg"), "ok");
+}
+
 TEST_F(Faults, ReadOnlyProjectServesReadsAndRefusesWrites) {
   const fs::path site = copy_template(scratch() / "rw_site");
   const fs::path ro = scratch() / "ro_site";

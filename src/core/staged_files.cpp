@@ -1,0 +1,34 @@
+#include "core/staged_files.hpp"
+
+#include "core/error.hpp"
+
+#include <fmt/format.h>
+
+namespace strata {
+
+namespace fs = std::filesystem;
+
+StagedFiles::~StagedFiles() {
+  std::error_code ec;
+  for (const auto& [staged, final_path] : files_) fs::remove(staged, ec);
+}
+
+fs::path StagedFiles::add(const fs::path& final_path) {
+  fs::path staged = final_path;
+  staged.replace_filename(final_path.stem().string() + ".next" + final_path.extension().string());
+  files_.emplace_back(staged, final_path);
+  return staged;
+}
+
+void StagedFiles::swap_in() {
+  for (const auto& [staged, final_path] : files_) {
+    std::error_code ec;
+    fs::rename(staged, final_path, ec);
+    if (ec)
+      throw IoError(fmt::format("{}: {}: cannot rename {} over it: {}", stage_, final_path.string(),
+                                staged.filename().string(), ec.message()));
+  }
+  files_.clear();
+}
+
+}  // namespace strata

@@ -1,0 +1,31 @@
+#pragma once
+// Output files written under staged names (dtm.next.tif beside dtm.tif) until every
+// one of a command's files is complete, then swapped in by rename: a command that
+// fails part-way (a full disk) leaves the files it would have replaced untouched.
+// Destroyed before swap_in (the command failed), it removes the staged files.
+#include <filesystem>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace strata {
+
+class StagedFiles {
+ public:
+  // `stage`: the stage named in a rename error ("products", "volume").
+  explicit StagedFiles(std::string stage) : stage_(std::move(stage)) {}
+  StagedFiles(const StagedFiles&) = delete;
+  StagedFiles& operator=(const StagedFiles&) = delete;
+  ~StagedFiles();
+  // The staged name of `final_path`: its stem + ".next" + its extension.
+  std::filesystem::path add(const std::filesystem::path& final_path);
+  // Every staged file takes its final name (rename: atomic, the old file replaced),
+  // in the order added; throws IoError naming the file that could not be renamed.
+  void swap_in();
+
+ private:
+  std::string stage_;
+  std::vector<std::pair<std::filesystem::path, std::filesystem::path>> files_;
+};
+
+}  // namespace strata
