@@ -54,16 +54,31 @@ void write_vectors(const fs::path& gpkg, const fs::path& out, const std::vector<
     fs::remove(tmp, ec);
     throw IoError(fmt::format("exporter.grass: {}: {}", out.string(), CPLGetLastErrorMsg()));
   }
-  GDALClose(dst);
-  fs::rename(tmp, out);
+  CPLErrorReset();
+  GDALClose(dst);  // GPKG commits here; a full disk shows in GDAL's error state
+  std::error_code ec;
+  if (CPLGetLastErrorType() == CE_Failure || CPLGetLastErrorType() == CE_Fatal) {
+    const std::string why = CPLGetLastErrorMsg();
+    fs::remove(tmp, ec);
+    throw IoError(fmt::format("exporter.grass: {}: {}", out.string(), why));
+  }
+  fs::rename(tmp, out, ec);
+  if (ec) throw IoError(fmt::format("exporter.grass: {}: {}", out.string(), ec.message()));
 }
 
 // Copies (or writes) through a temporary name in the same folder, renamed into place
 // when complete.
 void copy_atomically(const fs::path& src, const fs::path& dst) {
   const fs::path tmp = dst.string() + ".tmp";
-  fs::copy_file(src, tmp, fs::copy_options::overwrite_existing);
-  fs::rename(tmp, dst);
+  std::error_code ec;
+  fs::copy_file(src, tmp, fs::copy_options::overwrite_existing, ec);
+  if (!ec) fs::rename(tmp, dst, ec);
+  if (ec) {
+    std::error_code ignored;
+    fs::remove(tmp, ignored);
+    throw IoError(fmt::format("exporter.grass: {}: cannot copy {} there: {}", dst.string(), src.string(),
+                              ec.message()));
+  }
 }
 
 }  // namespace
@@ -159,12 +174,19 @@ GrassExportSummary export_grass(Project& project, const fs::path& out) {
   {
     std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
     f << script;
-    if (!f) throw IoError(fmt::format("exporter.grass: {}: cannot write", sum.script.string()));
+    f.close();  // the flush can fail (a full disk) as well as the write
+    if (!f) {
+      std::error_code ec;
+      fs::remove(tmp, ec);
+      throw IoError(fmt::format("exporter.grass: {}: cannot write", sum.script.string()));
+    }
   }
   fs::permissions(tmp, fs::perms::owner_exec | fs::perms::group_exec | fs::perms::others_exec,
                   fs::perm_options::add);
   fault::point("export.grass.script_temp_written");
-  fs::rename(tmp, sum.script);
+  std::error_code ec;
+  fs::rename(tmp, sum.script, ec);
+  if (ec) throw IoError(fmt::format("exporter.grass: {}: {}", sum.script.string(), ec.message()));
   return sum;
 }
 
