@@ -346,9 +346,6 @@ std::optional<std::string> diagnose_bending(const std::vector<MarkerResidual>& r
                      x(1) > 0 ? "bowl" : "dome", 1000 * edge, std::sqrt(r2_max), 100 * (1 - left / total));
 }
 
-// The up direction of the reconstruction's ground: the normal of the sparse points'
-// least-squares plane (smallest principal axis), turned towards the cameras (which
-// look down at the ground from above it).
 // Refuses a georeference that these photos cannot carry (another place, clicks made on
 // other photos, the survey of another site): throws InputError when
 //  - the adjustment reached the survey only by bending the photos: the keypoint
@@ -414,6 +411,9 @@ void refuse_foreign_photos(const std::vector<MarkerResidual>& rows,
       causes));
 }
 
+// The up direction of the reconstruction's ground: the normal of the sparse points'
+// least-squares plane (smallest principal axis), turned towards the cameras (which
+// look down at the ground from above it).
 Eigen::Vector3d ground_up(const Reconstruction& rec) {
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
   for (const auto& p : rec.points) mean += p.X;

@@ -2,8 +2,8 @@
 #include "volume/site_volumes.hpp"
 
 #include "core/error.hpp"
-#include "core/staged_files.hpp"
 #include "core/log.hpp"
+#include "core/staged_files.hpp"
 
 #include <fstream>
 #include "products/dtm.hpp"
