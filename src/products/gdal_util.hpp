@@ -21,6 +21,13 @@ struct DatasetCloser {
 };
 using DatasetPtr = std::unique_ptr<GDALDataset, DatasetCloser>;
 
+// True when GDAL's last error since CPLErrorReset() is a failure: how a write that
+// fails only on its flush at close (a full disk) shows.
+inline bool gdal_failed() {
+  const CPLErr e = CPLGetLastErrorType();
+  return e == CE_Failure || e == CE_Fatal;
+}
+
 // GDAL's last error message, or "unknown GDAL error".
 std::string last_gdal_error();
 // Why writing `tmp` failed: a full disk named as such ("No space left on device (N KiB

@@ -47,6 +47,7 @@ std::string write_failure(const fs::path& tmp) {
 namespace {
 
 using products_detail::DatasetPtr;
+using products_detail::gdal_failed;
 using products_detail::init_gdal;
 using products_detail::last_gdal_error;
 using products_detail::write_failure;
@@ -107,7 +108,7 @@ void write_copy(GDALDataset* src, const fs::path& path, const GeoTiffOptions& o,
   DatasetPtr out(drv->CreateCopy(tmp.string().c_str(), src, FALSE, opt.get(), nullptr, nullptr));
   const bool created = out != nullptr;
   out.reset();  // flush and close before the rename; a failure here is a failed write too
-  if (!created || CPLGetLastErrorType() == CE_Failure || CPLGetLastErrorType() == CE_Fatal) {
+  if (!created || gdal_failed()) {
     const std::string why = write_failure(tmp);
     std::error_code ec;
     fs::remove(tmp, ec);

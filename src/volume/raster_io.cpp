@@ -115,7 +115,7 @@ void write_field_geotiff(const fs::path& path, const HeightField& field, const E
       }
     }
   }  // closed: GDAL flushes here, and a failure shows in its error state
-  if (CPLGetLastErrorType() == CE_Failure || CPLGetLastErrorType() == CE_Fatal) throw failed("");
+  if (products_detail::gdal_failed()) throw failed("");
   std::error_code ec;
   fs::rename(tmp, path, ec);
   if (ec) throw IoError(fmt::format("writer.thickness: {}: {}", path.string(), ec.message()));
