@@ -71,12 +71,12 @@ class Degenerate : public ::testing::Test {
     EXPECT_EQ(r.exit_code, 0) << r.err;
     return site;
   }
-  // The generator's clicks on L1's photos (its gcp_list), for the markers in `keep`
-  // only; `moved` replaces a marker's surveyed line (E N Z).
+  // The generator's clicks on L1's photos (its gcp_list: this site's, or `from`), for
+  // the markers in `keep` only; `moved` replaces a marker's surveyed line (E N Z).
   static void import_clicks(const fs::path& site, const std::set<std::string>& keep,
                             const std::map<std::string, std::string>& moved = {},
-                            const std::map<std::string, double>& scale = {}) {
-    std::ifstream in(data() / "gcp_list.txt");
+                            const std::map<std::string, double>& scale = {}, const fs::path& from = {}) {
+    std::ifstream in(from.empty() ? data() / "gcp_list.txt" : from);
     const fs::path out_path = site.parent_path() / (site.filename().string() + "_gcp_list.txt");
     std::ofstream out(out_path);
     std::string line;
@@ -265,19 +265,8 @@ TEST_F(Degenerate, PhotosOfAnotherPlaceWithItsOwnMarkersAreRefused) {
     std::getline(in, line);
     while (in >> e >> n >> z >> x >> y >> image >> marker) survey[marker] = e + "\t" + n + "\t" + z;
   }
-  const fs::path clicks = scratch() / "another_place_targets_gcp_list.txt";
-  {
-    std::ifstream in(other_place() / "gcp_list.txt");
-    std::ofstream out(clicks);
-    std::string line, e, n, z, x, y, image, marker;
-    std::getline(in, line);
-    out << line << "\n";
-    while (in >> e >> n >> z >> x >> y >> image >> marker) {
-      if (image.rfind("L1_", 0) != 0) continue;
-      out << survey.at(marker) << "\t" << x << "\t" << y << "\t" << image << "\t" << marker << "\n";
-    }
-  }
-  ASSERT_EQ(run_strata({"-q", "import", "markers", site.string(), clicks.string(), "--layer", "L1"}).exit_code, 0);
+  import_clicks(site, {"GCP1", "GCP2", "GCP3", "GCP4", "GCP5", "GCP6", "GCP7", "GCP8"}, survey, {},
+                other_place() / "gcp_list.txt");
   expect_refused(site, {"georeference: these photos do not fit the survey", "bending the photos",
                         "keypoint reprojection RMSE", "the photos show another place", "nothing was recorded"});
 }

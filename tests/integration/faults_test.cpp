@@ -115,38 +115,54 @@ void corrupt_middle(const fs::path& file) {
   f.write(junk.data(), std::streamsize(junk.size()));
 }
 
-TEST_F(Faults, DiskFullDuringProductsRecordsNothing) {
-  const fs::path mnt = scratch() / "small_disk";
-  Mount disk(mnt);
-  // Room for the project as processed and its next products, not much more.
+// A tmpfs at `disk` with room for `project` twice over and its next products: empty
+// when mounted, else why not.
+std::string mount_room_for(Mount& disk, const fs::path& project) {
   std::uintmax_t project_bytes = 0;
-  for (const auto& e : fs::recursive_directory_iterator(*scratch_ / "template"))
+  for (const auto& e : fs::recursive_directory_iterator(project))
     if (e.is_regular_file()) project_bytes += e.file_size();
-  if (const std::string why = disk.tmpfs(project_bytes * 2 + (64u << 20)); !why.empty())
-    GTEST_SKIP() << "cannot mount a tmpfs here (" << why << "); the disk-full case needs one";
-  const fs::path site = copy_template(mnt / "site");
-  const auto before = test::project_state(site);
-  const std::string products_before = test::tree_fingerprint(site / "products");
+  return disk.tmpfs(project_bytes * 2 + (64u << 20));
+}
 
-  // New products (another contour interval): the stage runs, and the disk fills
-  // while it writes the DTM.
+// Runs `args`, a command writing into `site` on the file system mounted at `mnt`,
+// with only kFreeBytesLeft free: it must fail with one line naming a file of the
+// site and "No space left on device", leaving the project and the files under
+// `watched` as they were; with room again, the same command completes.
+void expect_disk_full_changes_nothing(const fs::path& mnt, const fs::path& site, const fs::path& watched,
+                                      const std::vector<std::string>& args) {
+  const auto before = test::project_state(site);
+  const std::string files_before = test::tree_fingerprint(watched);
   fill_leaving(mnt, kFreeBytesLeft);
-  const auto r = run_strata({"process", site.string(), "--layer", "L1", "--contour-interval", "0.02"});
+  const auto r = run_strata(args);
   EXPECT_NE(r.exit_code, 0);
   EXPECT_EQ(r.exit_code, 1) << "a typed error, not a crash: " << r.err;
-  const auto error_line = r.err.substr(r.err.rfind("strata: error: "));
+  const auto at = r.err.rfind("strata: error: ");
+  ASSERT_NE(at, std::string::npos) << r.err;
+  const std::string error_line = r.err.substr(at);
   EXPECT_EQ(test::line_count(error_line), 1) << r.err;
   EXPECT_NE(error_line.find("No space left on device"), std::string::npos) << r.err;
   EXPECT_NE(error_line.find(site.string()), std::string::npos) << "names the file: " << r.err;
   EXPECT_EQ(test::integrity(site / "project.gpkg"), "ok");
-  EXPECT_TRUE(test::project_state(site) == before) << "the failed stage recorded something";
-  EXPECT_EQ(test::tree_fingerprint(site / "products"), products_before) << "a product file was replaced";
+  EXPECT_TRUE(test::project_state(site) == before) << "the failed command recorded something";
+  EXPECT_EQ(test::tree_fingerprint(watched), files_before)
+      << "a file under " << watched << " was replaced or left behind";
 
-  // With room again, the same command completes.
   fs::remove(mnt / "filler");
-  const auto again = run_strata({"process", site.string(), "--layer", "L1", "--contour-interval", "0.02"});
+  const auto again = run_strata(args);
   EXPECT_EQ(again.exit_code, 0) << again.err;
   EXPECT_EQ(test::integrity(site / "project.gpkg"), "ok");
+}
+
+TEST_F(Faults, DiskFullDuringProductsRecordsNothing) {
+  const fs::path mnt = scratch() / "small_disk";
+  Mount disk(mnt);
+  if (const std::string why = mount_room_for(disk, *scratch_ / "template"); !why.empty())
+    GTEST_SKIP() << "cannot mount a tmpfs here (" << why << "); the disk-full case needs one";
+  const fs::path site = copy_template(mnt / "site");
+  // New products (another contour interval): the stage runs, and the disk fills
+  // while it writes the DTM.
+  expect_disk_full_changes_nothing(mnt, site, site / "products",
+                                   {"process", site.string(), "--layer", "L1", "--contour-interval", "0.02"});
 }
 
 TEST_F(Faults, DiskFullDuringVolumeRecordsNothing) {
@@ -164,37 +180,14 @@ TEST_F(Faults, DiskFullDuringVolumeRecordsNothing) {
 
   const fs::path mnt = scratch() / "small_disk_volume";
   Mount disk(mnt);
-  std::uintmax_t project_bytes = 0;
-  for (const auto& e : fs::recursive_directory_iterator(made))
-    if (e.is_regular_file()) project_bytes += e.file_size();
-  if (const std::string why = disk.tmpfs(project_bytes * 2 + (64u << 20)); !why.empty())
+  if (const std::string why = mount_room_for(disk, made); !why.empty())
     GTEST_SKIP() << "cannot mount a tmpfs here (" << why << "); the disk-full case needs one";
   const fs::path site = mnt / "site";
   fs::copy(made, site, fs::copy_options::recursive);
-  const auto before = test::project_state(site);
-  const std::string volume_before = test::tree_fingerprint(site / "products" / "volume");
-
   // New volumes (another threshold): the disk fills while the voxel model and the
   // thickness rasters are written.
-  fill_leaving(mnt, kFreeBytesLeft);
-  const auto r = run_strata({"volume", site.string(), "--threshold", "0.006"});
-  EXPECT_EQ(r.exit_code, 1) << "a typed error, not a crash: " << r.err;
-  const auto at = r.err.rfind("strata: error: ");
-  ASSERT_NE(at, std::string::npos) << r.err;
-  const std::string error_line = r.err.substr(at);
-  EXPECT_EQ(test::line_count(error_line), 1) << r.err;
-  EXPECT_NE(error_line.find("No space left on device"), std::string::npos) << r.err;
-  EXPECT_NE(error_line.find(site.string()), std::string::npos) << "names the file: " << r.err;
-  EXPECT_EQ(test::integrity(site / "project.gpkg"), "ok");
-  EXPECT_TRUE(test::project_state(site) == before) << "the failed command recorded something";
-  EXPECT_EQ(test::tree_fingerprint(site / "products" / "volume"), volume_before)
-      << "a volume file was replaced or left behind";
-
-  // With room again, the same command completes.
-  fs::remove(mnt / "filler");
-  const auto again = run_strata({"-q", "volume", site.string(), "--threshold", "0.006"});
-  EXPECT_EQ(again.exit_code, 0) << again.err;
-  EXPECT_EQ(test::integrity(site / "project.gpkg"), "ok");
+  expect_disk_full_changes_nothing(mnt, site, site / "products" / "volume",
+                                   {"volume", site.string(), "--threshold", "0.006"});
 }
 
 TEST_F(Faults, ReadOnlyProjectServesReadsAndRefusesWrites) {
