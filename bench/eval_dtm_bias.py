@@ -41,9 +41,11 @@ import sys
 import numpy as np
 from osgeo import gdal
 
-gdal.UseExceptions()
-
 HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+import eval_surface  # noqa: E402  (bench/eval_surface.py: read_band)
+
+gdal.UseExceptions()
 
 
 def read(path):
@@ -51,12 +53,7 @@ def read(path):
     gt = ds.GetGeoTransform()
     if gt[2] != 0 or gt[4] != 0 or gt[5] >= 0:
         sys.exit(f"eval_dtm_bias: {path}: only north-up rasters")
-    b = ds.GetRasterBand(1)
-    a = b.ReadAsArray().astype(np.float64)
-    nd = b.GetNoDataValue()
-    if nd is not None:
-        a[a == nd] = np.nan
-    a[~np.isfinite(a)] = np.nan
+    a = eval_surface.read_band(ds)
     srs = ds.GetSpatialRef()
     epsg = srs.GetAuthorityCode(None) if srs is not None else None
     return a, gt, epsg
