@@ -308,6 +308,7 @@ DenseSummary run_dense(const DenseOptions& options, const Reconstruction& rec,
   sw = Stopwatch();
   const auto& fo = options.fusion;
   summary.gsd_m = gsd.empty() ? 0 : percentile(gsd, 0.5);
+  summary.smoothing_m = options.patch_match.smoothing_m(summary.gsd_m);
   double voxel = fo.voxel_size_m;
   if (voxel == 0) {
     if (summary.gsd_m <= 0) throw ProcessingError("dense: no depth estimated, cannot choose a voxel size");

@@ -56,6 +56,13 @@ struct PatchMatchOptions {
   // Every field, as text: part of the depth-map cache keys and of the dense stage's
   // inputs key, so that a change of any option recomputes what it affects.
   std::string fingerprint() const;
+
+  // The horizontal scale over which a depth averages the ground, metres: one sigma
+  // of the Gaussian equivalent to the NCC window of (2 r + 1) pixels of `gsd_m`
+  // (a box of width w has sigma w / sqrt 12). A slanted plane fitted over the window
+  // follows planes exactly, but on curved ground (edges of walls and pits) the
+  // depth is the window's mean: the surface is smoothed at this scale.
+  double smoothing_m(double gsd_m) const;
 };
 
 // Forward-backward geometric consistency between depth maps (Schönberger et al. 2016, §4.4).
@@ -141,6 +148,7 @@ struct DenseSummary {
   int depth_maps_from_cache = 0;
   double depth_scale = 0;         // as used
   double gsd_m = 0;               // median depth-map ground sampling distance, metres
+  double smoothing_m = 0;         // PatchMatchOptions::smoothing_m at gsd_m, metres
   double voxel_size_m = 0;        // as used
   double truncation_m = 0;
   double valid_depth_fraction = 0;    // after PatchMatch, mean over images

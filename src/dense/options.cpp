@@ -22,6 +22,10 @@ std::string PatchMatchOptions::fingerprint() const {
                      depth_margin, max_normal_angle_deg, seed);
 }
 
+double PatchMatchOptions::smoothing_m(double gsd_m) const {
+  return (2 * window_radius + 1) * gsd_m / std::sqrt(12.0);
+}
+
 std::string ConsistencyOptions::fingerprint() const {
   return fmt::format("cons {} {} {} {} {}", min_consistent_views, max_reprojection_px, max_relative_depth,
                      max_free_space_violations, free_space_margin);

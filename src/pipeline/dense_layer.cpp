@@ -99,6 +99,7 @@ DenseLayerResult dense_layer(Project& project, const std::string& layer_name, co
   q["images_with_depth"] = s.images_with_depth;
   q["depth_scale"] = s.depth_scale;
   q["gsd_m"] = s.gsd_m;
+  q["smoothing_m"] = s.smoothing_m;
   q["voxel_size_m"] = s.voxel_size_m;
   q["active_voxels"] = s.active_voxels;
   q["floating_voxels_removed"] = s.floating_voxels_removed;

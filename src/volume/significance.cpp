@@ -90,6 +90,52 @@ std::vector<double> box_mean(const std::vector<double>& values, int nx, int ny, 
   return mean;
 }
 
+namespace {
+
+// Separable convolution with a symmetric kernel (k[0] the centre), rows then
+// columns; cells beyond the grid count as zero.
+std::vector<double> convolve(const std::vector<double>& v, int nx, int ny, const std::vector<double>& k) {
+  const int r = int(k.size()) - 1;
+  std::vector<double> rows(v.size(), 0), out(v.size(), 0);
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i) {
+      double acc = 0;
+      for (int d = -r; d <= r; ++d)
+        if (i + d >= 0 && i + d < nx) acc += k[std::size_t(std::abs(d))] * v[std::size_t(j) * nx + (i + d)];
+      rows[std::size_t(j) * nx + i] = acc;
+    }
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i) {
+      double acc = 0;
+      for (int d = -r; d <= r; ++d)
+        if (j + d >= 0 && j + d < ny) acc += k[std::size_t(std::abs(d))] * rows[std::size_t(j + d) * nx + i];
+      out[std::size_t(j) * nx + i] = acc;
+    }
+  return out;
+}
+
+}  // namespace
+
+std::vector<double> smoothing_residual(const HeightField& z, double sigma_m) {
+  const std::size_t n = z.z.size();
+  std::vector<double> residual(n, std::numeric_limits<double>::quiet_NaN());
+  if (!(sigma_m > 0) || n == 0) return residual;
+  const double s = sigma_m / z.cell;  // cells
+  const int r = std::max(1, int(std::ceil(3 * s)));
+  std::vector<double> k(std::size_t(r) + 1);
+  double total = 0;
+  for (int d = 0; d <= r; ++d) total += (d ? 2 : 1) * (k[std::size_t(d)] = std::exp(-0.5 * d * d / (s * s)));
+  for (double& w : k) w /= total;
+  std::vector<double> values(n, 0), ones(n, 0);
+  for (std::size_t c = 0; c < n; ++c)
+    if (std::isfinite(z.z[c])) values[c] = z.z[c], ones[c] = 1;
+  const std::vector<double> sum = convolve(values, z.nx, z.ny, k);
+  const std::vector<double> weight = convolve(ones, z.nx, z.ny, k);
+  for (std::size_t c = 0; c < n; ++c)
+    if (ones[c] > 0 && weight[c] >= 0.5) residual[c] = sum[c] / weight[c] - z.z[c];
+  return residual;
+}
+
 double StableGround::factor(double stated_sigma_m) const {
   if (bin_sigma_m.empty()) return scale;
   if (stated_sigma_m <= bin_sigma_m.front()) return bin_factor.front();

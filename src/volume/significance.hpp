@@ -58,6 +58,10 @@ StableGround judge_stable_ground(const std::vector<double>& difference, const st
 // every cell; NaN where there is none.
 std::vector<double> box_mean(const std::vector<double>& values, int nx, int ny, int radius_cells);
 
+// G * z - z per cell: the change of a height field smoothed once more by an
+// isotropic Gaussian of `sigma_m` (normalised over the finite cells, kernel to 3
+// sigma); NaN where z is NaN or less than half the kernel's weight is known.
+std::vector<double> smoothing_residual(const HeightField& z, double sigma_m);
 // Sets every cell within `radius_cells` (square neighbourhood) of a set cell.
 std::vector<std::uint8_t> dilate(const std::vector<std::uint8_t>& mask, int nx, int ny, int radius_cells);
 

@@ -4,6 +4,7 @@
 #include "core/error.hpp"
 #include "core/log.hpp"
 #include "core/staged_files.hpp"
+#include "dense/dense.hpp"
 
 #include <fstream>
 #include "products/dtm.hpp"
@@ -57,6 +58,17 @@ double vertical_rmse(Database& db, std::int64_t layer_id) {
     if (it != q->end() && it->is_object() && it->value("markers", 0) > 0) return it->value("z_m", 0.0);
   }
   return 0;
+}
+
+// The scale over which the layer's dense stage averaged the ground (its matching
+// window on the ground); projects fused before it was recorded have the depth
+// maps' GSD, and the window is the default one.
+double surface_smoothing(Database& db, std::int64_t layer_id) {
+  const auto q = quality_json(db, layer_id, "dense");
+  if (!q) return 0;
+  if (const double s = q->value("smoothing_m", 0.0); s > 0) return s;
+  const double gsd = q->value("gsd_m", 0.0);
+  return gsd > 0 ? PatchMatchOptions{}.smoothing_m(gsd) : 0.0;
 }
 
 double surface_noise(Database& db, std::int64_t layer_id, double fallback) {
@@ -233,6 +245,8 @@ SiteModel load_site_model(Project& project, const SiteVolumeOptions& options) {
     }
     l.noise_m = surface_noise(db, s.layer.id, options.default_noise_m);
     l.vertical_rmse_m = vertical_rmse(db, s.layer.id);
+    // A DTM from elsewhere: its smoothing is not known.
+    if (!options.surface_files.count(s.layer.name)) l.smoothing_m = surface_smoothing(db, s.layer.id);
     model.layers.push_back(std::move(l));
   }
 
@@ -282,14 +296,16 @@ nlohmann::ordered_json unit_measures_json(const UnitSolid& s) {
            {{"random", m.random_sigma_m3},
             {"systematic", m.systematic_sigma_m3},
             {"fill", m.fill_sigma_m3},
-            {"extent", m.extent_sigma_m3}}},
+            {"extent", m.extent_sigma_m3},
+            {"smoothing", m.smoothing_sigma_m3}}},
           {"interval_method",
            "one-sigma parts in quadrature: random (per-cell surface sigmas, from the fused depth maps' agreement, "
            "scaled per bin of stated sigma on stable ground, correlated over correlation_m: Gaussian model, pi L^2), "
            "systematic (the surfaces' relative offset on stable ground, its standard error and its spread between "
            "the four quadrants; else check-marker RMSE z; over the whole area), fill (summed "
            "linearly over interpolated cells), extent (volumes with the level of detection halved and doubled, "
-           "uniform); interval = volume +/- z sigma"},
+           "uniform), smoothing (what one more smoothing of both surfaces at their reconstruction's scale moves the "
+           "volume: rounded edges and corners); interval = volume +/- z sigma"},
           {"measured_volume_m3", m.measured_volume_m3},
           {"filled_volume_m3", m.filled_volume_m3},
           {"area_m2", m.area_m2},

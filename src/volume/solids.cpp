@@ -154,7 +154,8 @@ std::string volume_advice(const UnitMeasures& m, bool extent_from_data) {
   const double half = m.interval_high_m3 - m.volume_m3;
   std::string line = fmt::format("+/- {:.4f} m3 ({:.1f} %) at {:.0f} %", half,
                                  m.volume_m3 > 0 ? 100 * half / m.volume_m3 : 0.0, 100 * m.confidence);
-  const double parts[] = {m.random_sigma_m3, m.systematic_sigma_m3, m.fill_sigma_m3, m.extent_sigma_m3};
+  const double parts[] = {m.random_sigma_m3, m.systematic_sigma_m3, m.fill_sigma_m3, m.extent_sigma_m3,
+                          m.smoothing_sigma_m3};
   const int largest = int(std::max_element(std::begin(parts), std::end(parts)) - std::begin(parts));
   switch (largest) {
     case 0:
@@ -170,6 +171,9 @@ std::string volume_advice(const UnitMeasures& m, bool extent_from_data) {
     case 2:
       return line + fmt::format("; mostly the gaps ({:.3f} m2 of its top or bottom interpolated): photos of the gaps "
                                 "would make it surer", m.filled_area_m2);
+    case 4:
+      return line + "; mostly the reconstruction's rounding of edges and corners (walls, pit sides, steps): "
+                    "closer photos, a finer ground sampling, would make it surer";
     default:
       return line + (extent_from_data ? "; mostly where its edge lies: a survey of the limit of excavation "
                                         "(--outline or --footprint) would make it surer"
@@ -300,6 +304,11 @@ std::vector<UnitSolid> build_unit_solids(const std::vector<LayerSurface>& layers
     if (l.z.has_sigma() && finite(l.z.sigma[c])) return l.z.sigma[c];
     return l.noise_m;
   };
+  // Each layer's change under one more smoothing at its own scale (the shape part
+  // of the interval); empty where the scale is unknown.
+  std::vector<std::vector<double>> smoothing(layers.size());
+  for (std::size_t k = 0; k < layers.size(); ++k)
+    if (layers[k].smoothing_m > 0) smoothing[k] = volume_detail::smoothing_residual(layers[k].z, layers[k].smoothing_m);
   for (const auto& unit : units) {
     std::vector<std::size_t> own, later;  // indices into layers
     std::size_t first = layers.size();
@@ -483,6 +492,7 @@ std::vector<UnitSolid> build_unit_solids(const std::vector<LayerSurface>& layers
       return (mid(i + a * di, j + a * dj) - mid(i - b * di, j - b * dj)) / ((a + b) * grid.cell);
     };
     double normal_sum = 0;  // m3: sum of thickness x cos(slope) x cell area
+    double smoothing_sum = 0;  // m3: sum of the change of thickness under one more smoothing x cell area
     for (std::size_t c = 0; c < n; ++c) {
       if (!dug[c]) continue;
       const LayerSurface& top = layers[std::size_t(top_of[c])];
@@ -504,6 +514,9 @@ std::vector<UnitSolid> build_unit_solids(const std::vector<LayerSurface>& layers
       const double cos_slope = 1 / std::sqrt(1 + gx * gx + gy * gy);
       normal_sum += t[c] * cos_slope * cell_area;
       normal_thickness.push_back(t[c] * cos_slope);
+      const auto& st = smoothing[std::size_t(top_of[c])];
+      const auto& sb = smoothing[later[std::size_t(bottom_of[c])]];
+      if (!st.empty() && !sb.empty() && finite(st[c]) && finite(sb[c])) smoothing_sum += (st[c] - sb[c]) * cell_area;
       if (top.filled(c) || bottom.filled(c)) {
         ++filled_cells;
         const double dt = top.filled(c) ? top.filled_distance_m[c] : 0.0;
@@ -560,8 +573,10 @@ std::vector<UnitSolid> build_unit_solids(const std::vector<LayerSurface>& layers
         };
         m.extent_sigma_m3 = std::abs(volume_at(0.5) - volume_at(2.0)) / (2 * std::sqrt(3.0));
       }
+      m.smoothing_sigma_m3 = std::abs(smoothing_sum);
       m.volume_sigma_m3 = std::sqrt(m.random_sigma_m3 * m.random_sigma_m3 + m.systematic_sigma_m3 * m.systematic_sigma_m3 +
-                                    fill_error * fill_error + m.extent_sigma_m3 * m.extent_sigma_m3);
+                                    fill_error * fill_error + m.extent_sigma_m3 * m.extent_sigma_m3 +
+                                    m.smoothing_sigma_m3 * m.smoothing_sigma_m3);
       m.interval_low_m3 = m.volume_m3 - z * m.volume_sigma_m3;
       m.interval_high_m3 = m.volume_m3 + z * m.volume_sigma_m3;
       m.advice = volume_advice(m, options.fill.outline.empty() && footprint == options.footprints.end());

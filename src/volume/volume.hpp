@@ -62,6 +62,10 @@ struct LayerSurface {
   // Uncertainty of the surface, metres, one sigma:
   double noise_m = 0.003;   // per-cell random noise (dense surface vs sparse points)
   double vertical_rmse_m = 0;  // vertical georeference error (check or control RMSE z); 0 = unknown
+  // Horizontal scale over which the reconstruction averaged the ground (one sigma
+  // of an equivalent Gaussian: the stereo matching window on the ground), metres;
+  // 0 = unknown (a surface from elsewhere). See UnitMeasures::smoothing_sigma_m3.
+  double smoothing_m = 0;
   // Gap filling (fill_surface_gaps): per cell, 0 where the height was measured,
   // else the distance in metres to the nearest measured cell of this layer (the
   // height was interpolated). Empty: nothing was filled.
@@ -178,12 +182,20 @@ struct UnitMeasures {
 
   // The interval and its parts (m3). volume_sigma_m3 is the quadrature sum of:
   // random (per-cell surface noise, correlated over correlation_m), systematic
-  // (the surfaces' relative vertical offset over the whole area), fill (above)
-  // and extent (the volumes found with the level of detection halved and
+  // (the surfaces' relative vertical offset over the whole area), fill (above),
+  // smoothing (below) and extent (the volumes found with the level of detection halved and
   // doubled span where the edge lies; a uniform error over that span).
   double confidence = 0.95;
   double interval_low_m3 = 0, interval_high_m3 = 0;
   double random_sigma_m3 = 0, systematic_sigma_m3 = 0, extent_sigma_m3 = 0;
+  // Smoothing (shape) part: a reconstruction that averages the ground over
+  // LayerSurface::smoothing_m rounds convex edges down and fills concave corners
+  // (the foot of a wall, the floor of a pit), and the stable ground around the
+  // trench cannot see it. Its size is what smoothing each surface once more at
+  // that scale moves the unit's volume, |sum over dug cells of
+  // (G*top - top) - (G*bottom - bottom)| x cell area; kept as an uncertainty, not
+  // applied as a correction (its sign does not hold for every unit).
+  double smoothing_sigma_m3 = 0;
   double measured_volume_m3 = 0;  // over cells where both surfaces were measured
   double filled_volume_m3 = 0;    // over cells where one of them was interpolated
   std::string extent_method;      // "footprint", "significance", "significance within the outline"
