@@ -50,8 +50,8 @@ Layout read_layout(const DelimitedFile& df, const fs::path& file) {
   if (df.lines.empty() || df.lines[0].fields.size() < 2 || is_number(df.lines[0].fields[1])) return layout;
   const auto& header = df.lines[0];
   layout.at = header_columns(header, {{"id", "find", "find_id", "number", "no", "name"},
-                                      {"e", "east", "easting", "x"},
-                                      {"n", "north", "northing", "y"},
+                                      {"e", "east", "easting", "x", "lon", "longitude"},
+                                      {"n", "north", "northing", "y", "lat", "latitude"},
                                       {"z", "h", "height", "elevation", "elev"},
                                       {"unit", "context", "su", "us", "unit_code"},
                                       {"type", "material", "class", "category"},

@@ -109,12 +109,14 @@ FindsCheck place_finds(const LabelVolume& v, const std::vector<FindRecord>& find
     FindPlacement p;
     p.find = f;
     const Eigen::Vector3d x = f.position - v.site_origin;  // site frame
+    // The voxel holding the point, also when it lies outside the block (the search
+    // below starts from it).
     Index c{};
     bool inside = v.voxel_size_m > 0;
-    for (int a = 0; a < 3 && inside; ++a) {
-      const double t = std::floor((x[a] - v.min_centre[a]) / v.voxel_size_m + 0.5);
+    for (int a = 0; a < 3; ++a) {
+      const double t = v.voxel_size_m > 0 ? std::floor((x[a] - v.min_centre[a]) / v.voxel_size_m + 0.5) : 0.0;
       c[a] = int(std::clamp(t, -1e9, 1e9));
-      inside = c[a] >= 0 && c[a] < (a == 0 ? v.nx : a == 1 ? v.ny : v.nz);
+      inside = inside && c[a] >= 0 && c[a] < (a == 0 ? v.nx : a == 1 ? v.ny : v.nz);
     }
     if (inside) {
       const std::int32_t l = v.at(c[0], c[1], c[2]);
