@@ -1,6 +1,7 @@
 #pragma once
 // Line-oriented delimited text as surveyors export it: comma, semicolon, tab or
-// runs of spaces; '#' comments; optional header. Every parsed value remembers its
+// runs of spaces; '#' comments; optional header; a field in double quotes may hold
+// the delimiter ("" inside it is a quote). Every parsed value remembers its
 // line so errors can name it.
 #include <filesystem>
 #include <string>
@@ -29,5 +30,13 @@ DelimitedFile read_delimited(const std::filesystem::path& path, int skip_first =
 // Parses a finite decimal number; throws InputError "<stage>: file:line: <what>
 // '<text>' is not a number" (or "is not finite" for nan/inf).
 double parse_number(const std::string& text, const std::string& what, const std::string& where);
+
+// Whether the whole text reads as a decimal number (for telling a header from data).
+bool is_number(const std::string& text);
+std::string lower_case(std::string text);
+
+// Where each wanted column stands in a header line: aliases[c] lists the names
+// (lower case) that column c may have; the result is its index, -1 when absent.
+std::vector<int> header_columns(const DelimitedLine& header, const std::vector<std::vector<std::string>>& aliases);
 
 }  // namespace strata

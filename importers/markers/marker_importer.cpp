@@ -33,18 +33,6 @@ struct ParsedObservation {
   int line = 0;
 };
 
-std::string lower(std::string s) {
-  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return char(std::tolower(c)); });
-  return s;
-}
-
-bool is_number(const std::string& s) {
-  if (s.empty()) return false;
-  char* end = nullptr;
-  std::strtod(s.c_str(), &end);
-  return end != s.c_str() && *end == '\0';
-}
-
 std::string where(const char* stage, const fs::path& file, int line) {
   return fmt::format("{}: {}:{}", stage, file.string(), line);
 }
@@ -78,7 +66,7 @@ std::map<std::string, ParsedMarker> parse_csv(const fs::path& file, double defau
     c_name = c_e = c_n = c_z = -1;
     const auto& h = df.lines[0].fields;
     for (int i = 0; i < int(h.size()); ++i) {
-      const std::string k = lower(h[i]);
+      const std::string k = lower_case(h[i]);
       if (k == "name" || k == "id" || k == "marker" || k == "point" || k == "label") c_name = i;
       else if (k == "e" || k == "east" || k == "easting" || k == "x" || k == "lon" || k == "longitude") c_e = i;
       else if (k == "n" || k == "north" || k == "northing" || k == "y" || k == "lat" || k == "latitude") c_n = i;
@@ -115,11 +103,11 @@ std::map<std::string, ParsedMarker> parse_csv(const fs::path& file, double defau
     if (positional) {
       // Optional 5th and 6th columns: sigma and/or kind, in that order.
       for (std::size_t k = 4; k < f.size(); ++k) {
-        if (is_number(f[k]) || lower(f[k]) == "nan") {
+        if (is_number(f[k]) || lower_case(f[k]) == "nan") {
           sigma = parse_number(f[k], "sigma", at);
           m.has_sigma = true;
         } else {
-          kind = lower(f[k]);
+          kind = lower_case(f[k]);
         }
       }
     } else {
@@ -127,7 +115,7 @@ std::map<std::string, ParsedMarker> parse_csv(const fs::path& file, double defau
         sigma = parse_number(f[c_sigma], "sigma", at);
         m.has_sigma = true;
       }
-      if (c_kind >= 0 && c_kind < int(f.size()) && !f[c_kind].empty()) kind = lower(f[c_kind]);
+      if (c_kind >= 0 && c_kind < int(f.size()) && !f[c_kind].empty()) kind = lower_case(f[c_kind]);
     }
     if (sigma <= 0) throw InputError(fmt::format("{}: sigma {} must be positive (metres)", at, sigma));
     if (kind == "gcp") kind = "control";
@@ -189,7 +177,7 @@ MarkerFormat detect_format(const fs::path& file) {
   const DelimitedFile df = read_delimited(file);
   if (df.lines.empty()) return MarkerFormat::csv;
   const auto& first = df.lines.front().fields;
-  const auto numeric = std::count_if(first.begin(), first.end(), is_number);
+  const auto numeric = std::count_if(first.begin(), first.end(), [](const std::string& f) { return is_number(f); });
   if (numeric >= 3) return MarkerFormat::csv;
   if (df.lines.size() >= 2 && df.lines[1].fields.size() >= 6 && is_number(df.lines[1].fields[3]) &&
       is_number(df.lines[1].fields[4])) {
@@ -212,7 +200,7 @@ MarkerFormat detect_format(const fs::path& file) {
 }  // namespace
 
 MarkerFormat parse_marker_format(const std::string& text) {
-  const std::string t = lower(text);
+  const std::string t = lower_case(text);
   if (t == "csv") return MarkerFormat::csv;
   if (t == "odm" || t == "gcp") return MarkerFormat::odm;
   if (t == "auto" || t.empty()) return MarkerFormat::automatic;
@@ -244,13 +232,7 @@ MarkerImportSummary import_markers(Project& project, const MarkerImportOptions& 
   const std::string stage = "importer.markers." + summary.format;
   // A CRS PROJ knows may still have no transformation to the site CRS (e.g. a
   // projection string without a datum): both are refused naming the file.
-  std::optional<CrsTransform> to_site;
-  try {
-    describe_crs(source_crs);
-    to_site.emplace(source_crs, site.crs);
-  } catch (const CrsError& e) {
-    throw CrsError(fmt::format("{}: {}: {}", stage, file.string(), e.what()));
-  }
+  const CrsTransform to_site = transform_into_site(source_crs, site.crs, fmt::format("{}: {}", stage, file.string()));
   summary.source_crs = source_crs;
 
   // Resolve every observed image before writing anything.
@@ -293,7 +275,7 @@ MarkerImportSummary import_markers(Project& project, const MarkerImportOptions& 
   for (auto& [name, m] : markers) {
     const std::string at = where(stage.c_str(), file, m.line);
     try {
-      m.record.position = to_site->apply(m.record.position);
+      m.record.position = to_site.apply(m.record.position);
     } catch (const CrsError& e) {
       throw CrsError(fmt::format("{}: {}", at, e.what()));
     }

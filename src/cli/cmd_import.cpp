@@ -1,8 +1,9 @@
-// strata import photos|markers, strata markers
+// strata import photos|markers|finds, strata markers, strata find add
 #include "cli/commands.hpp"
 #include "cli/common.hpp"
 #include "core/error.hpp"
 #include "core/log.hpp"
+#include "importers/finds/find_importer.hpp"
 #include "importers/markers/marker_importer.hpp"
 #include "importers/photos/photo_importer.hpp"
 #include "project/project.hpp"
@@ -15,6 +16,68 @@
 #include <memory>
 
 namespace strata::cli {
+
+namespace {
+
+void print_find_summary(const std::string& what, const FindImportSummary& s) {
+  fmt::print("{} ({}): {} new, {} updated, {} unchanged finds\n", what, s.source_crs, s.finds_new, s.finds_updated,
+             s.finds_unchanged);
+}
+
+// strata import finds DIR FILE, strata find add DIR --id ... --at E,N,Z --unit CODE
+void register_find_imports(CLI::App& app, CLI::App& import) {
+  const char* crs_help =
+      "CRS of the coordinates (default: the site CRS); e.g. EPSG:4326 for longitude/latitude in degrees";
+  const char* update_help =
+      "replace finds already in the project whose position, unit, type or description differ (default: refuse "
+      "them; the same find again is left as it is)";
+  {
+    auto* cmd = import.add_subcommand(
+        "finds",
+        "import finds recorded in place from a total-station CSV (id,E,N,Z,unit[,type][,description];\n"
+        "header optional; comma, semicolon, tab or space separated). Every unit must already be in the\n"
+        "project. Nothing is imported when any line is bad. 'strata finds DIR' then tells which unit's\n"
+        "solid holds each find.");
+    auto dir = std::make_shared<std::string>();
+    auto file = std::make_shared<std::string>();
+    auto options = std::make_shared<FindImportOptions>();
+    cmd->add_option("DIR", *dir, "project folder")->required();
+    cmd->add_option("FILE", *file, "finds CSV")->required();
+    cmd->add_option("--crs", options->crs, crs_help);
+    cmd->add_flag("--update", options->update, update_help);
+    cmd->footer("Example: strata import finds site finds.csv");
+    cmd->callback([=] {
+      const ProjectLock lock = lock_project(*dir);
+      Project p = Project::open(*dir);
+      print_find_summary(*file, import_finds(p, *options, *file));
+    });
+  }
+  auto* find = app.add_subcommand("find", "finds recorded in place: add one ('strata finds DIR' lists them)");
+  find->require_subcommand(1);
+  auto* cmd = find->add_subcommand("add", "record one find at a surveyed point, in a unit of the project");
+  auto dir = std::make_shared<std::string>();
+  auto at = std::make_shared<std::string>();
+  auto record = std::make_shared<FindRecord>();
+  auto options = std::make_shared<FindImportOptions>();
+  cmd->add_option("DIR", *dir, "project folder")->required();
+  cmd->add_option("--id", record->id, "the find's number")->required();
+  cmd->add_option("--at", *at, "E,N,Z of the find (metres in the site CRS, or in --crs)")->required();
+  cmd->add_option("--unit", record->unit, "code of the unit it was recorded in")->required();
+  cmd->add_option("--type", record->type, "pottery, bone, lithic, metal, ...");
+  cmd->add_option("--description", record->description, "free text");
+  cmd->add_option("--crs", options->crs, crs_help);
+  cmd->add_flag("--update", options->update, update_help);
+  cmd->footer("Example: strata find add site --id F17 --at 734012.402,4174018.311,1450.127 --unit 102 --type pottery");
+  cmd->callback([=] {
+    FindRecord f = *record;
+    f.position = parse_vector3(*at, "--at");
+    const ProjectLock lock = lock_project(*dir);
+    Project p = Project::open(*dir);
+    print_find_summary("find " + f.id, add_find(p, *options, f));
+  });
+}
+
+}  // namespace
 
 void register_import_commands(CLI::App& app) {
   auto* import = app.add_subcommand("import", "bring photos and surveyed markers into a project");
@@ -90,6 +153,7 @@ void register_import_commands(CLI::App& app) {
       }
     });
   }
+  register_find_imports(app, *import);
   {
     auto* cmd = app.add_subcommand(
         "markers",

@@ -76,6 +76,9 @@ void run_synth(const SynthArgs& a) {
   for (const auto& u : s.units)
     fmt::print("  unit {}: {:.4f} m3 removed over {:.3f} m2, mean {:.3f} m, max {:.3f} m\n", u.unit, u.volume_m3,
                u.area_m2, u.mean_thickness_m, u.max_thickness_m);
+  fmt::print("  finds.csv: {} finds planted in the removed units, {} of them recorded in the wrong unit "
+             "(truth/finds.csv)\n",
+             s.finds, s.planted_contradictions);
 }
 
 }  // namespace
@@ -91,8 +94,9 @@ void register_synth_command(CLI::App& app) {
       "proud, steep sides. Each layer is photographed hand-held (oblique from the edges,\n"
       "near-vertical over the trench) with ArUco DICT_4X4_50 targets GCP1..GCP8 around it.\n\n"
       "OUT gets site.json, units.csv, relations.csv, layers.csv, markers.csv (surveyed),\n"
+      "finds.csv (surveyed finds, a few recorded in the wrong unit on purpose),\n"
       "gcp_list.txt (OpenDroneMap), photos/L<k>/*.jpg and truth/ (cameras.csv,\n"
-      "surface.tif per layer, markers.csv, units.csv; cameras_lens.csv with every lens term).\n"
+      "surface.tif per layer, markers.csv, units.csv, finds.csv; cameras_lens.csv with every lens term).\n"
       "See docs/synthetic.md.\n\n"
       "Examples:\n"
       "  strata synth /tmp/dig --size small            4 x 20 photos at 1000 x 667, a minute\n"

@@ -61,6 +61,7 @@ int main(int argc, char** argv) {
 #endif
 #ifdef STRATA_HAS_VOLUME_COMMANDS
   strata::cli::register_volume_commands(app);
+  strata::cli::register_finds_command(app);
 #endif
 #ifdef STRATA_HAS_REPORT_COMMANDS
   strata::cli::register_report_command(app);

@@ -172,4 +172,13 @@ Eigen::Vector3d CrsTransform::apply(const Eigen::Vector3d& p) const {
   return {r.xyz.x, r.xyz.y, std::isfinite(r.xyz.z) ? r.xyz.z : p.z()};
 }
 
+CrsTransform transform_into_site(const std::string& from, const std::string& site_crs, const std::string& context) {
+  try {
+    describe_crs(from);
+    return CrsTransform(from, site_crs);
+  } catch (const CrsError& e) {
+    throw CrsError(fmt::format("{}: {}", context, e.what()));
+  }
+}
+
 }  // namespace strata

@@ -48,4 +48,9 @@ class CrsTransform {
   bool identity_ = false;
 };
 
+// The transformation from `from` (checked with describe_crs first, so an unknown
+// CRS is named as such) into the site CRS; a CrsError starts with `context`
+// (e.g. "importer.finds.csv: finds.csv").
+CrsTransform transform_into_site(const std::string& from, const std::string& site_crs, const std::string& context);
+
 }  // namespace strata

@@ -21,6 +21,7 @@ constexpr FeatureTable kFeatureTables[] = {
     {"contours", "LINESTRING", 1, "contour lines of each layer's DTM"},
     {"footprints", "MULTIPOLYGON", 0, "reconstructed footprint of each layer"},
     {"unit_extents", "MULTIPOLYGON", 0, "excavated extent of each unit (strata volume)"},
+    {"finds", "POINT", 1, "finds recorded in place, with the unit they were recorded in"},
 };
 
 bool table_exists(Database& db, const std::string& name) {

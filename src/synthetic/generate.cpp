@@ -7,6 +7,7 @@
 #include "core/log.hpp"
 #include "core/progress.hpp"
 #include "core/resources.hpp"
+#include "synthetic/finds.hpp"
 #include "synthetic/noise.hpp"
 #include "synthetic/photo_set.hpp"
 #include "synthetic/render.hpp"
@@ -308,6 +309,28 @@ void write_dataset(const SyntheticExcavationOptions& o, const fs::path& dir, Syn
                                  u.mean_thickness_m, u.max_thickness_m);
     }
     units.close();
+  }
+
+  // Finds planted in the removed units, surveyed like the markers; the truth names
+  // each one's unit and whether the register was planted wrong.
+  {
+    Rng find_survey(o.seed ^ 0xF1D55EB7ull);
+    TextFile truth(dir / "truth" / "finds.csv"), meas(dir / "finds.csv");
+    truth.out() << "id,E,N,Z,true_unit,recorded_unit,planted_contradiction,depth_m,clearance_m\n";
+    meas.out() << "id,E,N,Z,unit,type,description\n";
+    for (const auto& f : plant_finds(scene, o.seed)) {
+      const Eigen::Vector3d t = f.position + origin;
+      const Eigen::Vector3d s =
+          t + site.survey_sigma * Eigen::Vector3d(find_survey.normal(), find_survey.normal(), find_survey.normal());
+      truth.out() << fmt::format("{},{:.6f},{:.6f},{:.6f},{},{},{},{:.4f},{:.4f}\n", f.id, t.x(), t.y(), t.z(),
+                                 f.true_unit, f.recorded_unit, f.contradiction() ? 1 : 0, f.depth_m, f.clearance_m);
+      meas.out() << fmt::format("{},{:.4f},{:.4f},{:.4f},{},{},{}\n", f.id, s.x(), s.y(), s.z(), f.recorded_unit,
+                                csv_field(f.type), csv_field(f.description));
+      summary.finds++;
+      summary.planted_contradictions += f.contradiction() ? 1 : 0;
+    }
+    truth.close();
+    meas.close();
   }
 
   // Stratigraphy and layers.

@@ -4,7 +4,8 @@
 // generate_excavation() builds a trench in a projected CRS, excavates it in K
 // stages, photographs every recorded surface with a hand-held camera (JPEG + EXIF)
 // and writes the truth beside the photos: cameras, surface rasters, marker
-// coordinates, unit volumes and the Harris matrix of the scene. The output layout
+// coordinates, unit volumes, the Harris matrix of the scene, and finds planted in
+// known units (a few recorded in the wrong unit on purpose). The output layout
 // is documented in docs/synthetic.md; other modules and the README rely on it.
 //
 // Public surface: Options (validated once), Summary, one entry function. The
@@ -90,6 +91,8 @@ struct SyntheticExcavationSummary {
   int photos = 0;
   int markers = 0;
   int marker_observations = 0;   // lines of gcp_list.txt
+  int finds = 0;                 // lines of finds.csv (planted in the removed units)
+  int planted_contradictions = 0;  // of which recorded in another unit than the true one
   std::vector<UnitVolume> units; // one per removed unit, in excavation order
   double seconds = 0;            // wall-clock time of the whole generation
 };

@@ -1,6 +1,7 @@
 #pragma once
 // A fresh project in a scratch folder, photos made on the fly, and a dump of the
 // whole database for before/after comparisons.
+#include "core/error.hpp"
 #include "project/project.hpp"
 #include "project/records.hpp"
 #include "support/test_support.hpp"
@@ -42,6 +43,28 @@ class ImporterTest : public ::testing::Test {
     std::filesystem::create_directories(path.parent_path());
     cv::imwrite(path.string(), img);
     return path;
+  }
+
+  // A text input file under scratch()/in.
+  std::filesystem::path write(const std::string& name, const std::string& text) {
+    const auto p = scratch() / "in" / name;
+    write_text(p, text);
+    return p;
+  }
+
+  // Writes `text` as bad.csv, runs `import(path)` and expects an Error whose message
+  // contains `expected`; the database must be unchanged.
+  template <typename Import>
+  void expect_import_refused(const std::string& text, const std::string& expected, Import import) {
+    const std::string before = dump();
+    try {
+      import(write("bad.csv", text));
+      ADD_FAILURE() << "accepted:\n" << text;
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find(expected), std::string::npos)
+          << "message: " << e.what() << "\nexpected to contain: " << expected;
+    }
+    EXPECT_EQ(dump(), before);
   }
 
   // Every row of every table, as text: equal dumps mean an unchanged database.

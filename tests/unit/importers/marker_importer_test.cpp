@@ -16,25 +16,8 @@ constexpr double kCrsAgreementMetres = 1e-3;
 
 class MarkerImportTest : public ImporterTest {
  protected:
-  fs::path write(const std::string& name, const std::string& text) {
-    const fs::path p = scratch() / "in" / name;
-    test::write_text(p, text);
-    return p;
-  }
-  // Imports and expects an InputError/CrsError whose message contains `expected`;
-  // the database must be unchanged.
-  void expect_refused(const std::string& text, const std::string& expected,
-                      MarkerImportOptions options = {}) {
-    const std::string before = dump();
-    const fs::path f = write("bad.csv", text);
-    try {
-      import_markers(project(), options, f);
-      ADD_FAILURE() << "accepted:\n" << text;
-    } catch (const Error& e) {
-      EXPECT_NE(std::string(e.what()).find(expected), std::string::npos)
-          << "message: " << e.what() << "\nexpected to contain: " << expected;
-    }
-    EXPECT_EQ(dump(), before);
+  void expect_refused(const std::string& text, const std::string& expected, MarkerImportOptions options = {}) {
+    expect_import_refused(text, expected, [&](const fs::path& f) { import_markers(project(), options, f); });
   }
 };
 

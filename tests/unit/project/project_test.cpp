@@ -72,10 +72,12 @@ TEST(Project, Migration7KeepsObservationIdsAndRenamesManualToClicked) {
     auto& db = p.db();
     // Back to the observations table of schema 1 and a level below 7.
     db.exec("DROP TABLE observations");
-    // Schema 8's table, which a version-6 file does not have yet.
-    db.exec("DELETE FROM gpkg_geometry_columns WHERE table_name = 'unit_extents'");
-    db.exec("DELETE FROM gpkg_contents WHERE table_name = 'unit_extents'");
-    db.exec("DROP TABLE unit_extents");
+    // Schema 8's and 9's tables, which a version-6 file does not have yet.
+    for (const std::string table : {"unit_extents", "finds"}) {
+      db.exec("DELETE FROM gpkg_geometry_columns WHERE table_name = '" + table + "'");
+      db.exec("DELETE FROM gpkg_contents WHERE table_name = '" + table + "'");
+      db.exec("DROP TABLE " + table);
+    }
     db.exec("CREATE TABLE observations (id INTEGER PRIMARY KEY, marker_id INTEGER NOT NULL REFERENCES "
             "markers(fid) ON DELETE CASCADE, image_id INTEGER NOT NULL REFERENCES images(id) ON DELETE CASCADE, "
             "x REAL NOT NULL, y REAL NOT NULL, source TEXT NOT NULL CHECK (source IN ('detected', 'manual')), "
@@ -110,6 +112,10 @@ TEST(Project, Migration7KeepsObservationIdsAndRenamesManualToClicked) {
   EXPECT_EQ(db.query_int("PRAGMA user_version"), 10200);
   EXPECT_EQ(db.query_int("SELECT count(*) FROM sqlite_master WHERE type = 'index' AND name = 'observations_image'"), 1);
   EXPECT_EQ(db.query_text("SELECT srs_id FROM gpkg_contents WHERE table_name = 'markers'"), "32636");
+  // The finds table of schema 9 comes registered as a 3D point layer in the site CRS.
+  EXPECT_EQ(db.query_text("SELECT geometry_type_name || ' ' || z || ' ' || srs_id FROM gpkg_geometry_columns "
+                          "WHERE table_name = 'finds'"),
+            "POINT 1 32636");
   // Deleting the marker still cascades to its observations.
   db.exec("DELETE FROM markers WHERE fid = 2");
   EXPECT_EQ(db.query_int("SELECT count(*) FROM observations"), 0);

@@ -3,6 +3,7 @@
 #include "core/error.hpp"
 #include "geometry/camera.hpp"
 #include "support/test_support.hpp"
+#include "synthetic/finds.hpp"
 #include "synthetic/render.hpp"
 #include "synthetic/scene.hpp"
 #include "synthetic/synthetic.hpp"
@@ -46,6 +47,9 @@ constexpr double kMinDetectionRate = 0.7;
 // The centroid of a painted 1.5 cm disc vs the projection of its centre: pixel
 // quantisation and the tiny perspective bias of a disc (radius^2 / distance).
 constexpr double kSpotTol = 0.3;  // pixels
+// A find's height vs a truth raster cell whose centre is up to 3.5 mm away on a
+// surface of at most ~30 % slope (away from the trench sides and the wall).
+constexpr double kFindRasterSlack = 0.002;  // metres
 // A ray ending at a point hidden behind the trench side stops this much earlier.
 constexpr double kOcclusionMargin = 0.05;  // metres
 
@@ -249,6 +253,50 @@ TEST_F(SmallExcavation, UnitVolumesAgreeWithTheTruthRasters) {
     EXPECT_LT(mean, options_.site.max_unit_thickness);
     EXPECT_LE(area, options_.site.trench_size_e * options_.site.trench_size_n * 1.02);
   }
+}
+
+// The truth surface at (E, N): the raster cell that holds the point.
+double height_at(const Raster& r, double e, double n) {
+  const int col = int(std::floor((e - r.gt[0]) / r.gt[1])), row = int(std::floor((n - r.gt[3]) / r.gt[5]));
+  return r.z[std::size_t(row) * std::size_t(r.cols) + std::size_t(col)];
+}
+
+TEST_F(SmallExcavation, FindsArePlantedWellInsideTheirTrueUnit) {
+  std::string h;
+  const Table truth = read_csv(*dir_ / "truth" / "finds.csv", &h);
+  EXPECT_EQ(h, "id,E,N,Z,true_unit,recorded_unit,planted_contradiction,depth_m,clearance_m");
+  const Table measured = read_csv(*dir_ / "finds.csv", &h);
+  EXPECT_EQ(h, "id,E,N,Z,unit,type,description");
+  const int stages = options_.site.stages;
+  ASSERT_EQ(int(truth.size()), stages * synthetic::kFindsPerUnit + synthetic::kPlantedContradictions);
+  ASSERT_EQ(measured.size(), truth.size());
+  EXPECT_EQ(summary_->finds, int(truth.size()));
+  EXPECT_EQ(summary_->planted_contradictions, synthetic::kPlantedContradictions);
+  std::map<std::string, int> per_unit;
+  int contradictions = 0;
+  for (std::size_t i = 0; i < truth.size(); ++i) {
+    const auto& t = truth[i];
+    const auto& m = measured[i];
+    ASSERT_EQ(m.at("id"), t.at("id"));
+    EXPECT_EQ(m.at("unit"), t.at("recorded_unit"));
+    const bool wrong = t.at("planted_contradiction") == "1";
+    EXPECT_EQ(wrong, t.at("true_unit") != t.at("recorded_unit")) << t.at("id");
+    contradictions += wrong;
+    per_unit[t.at("true_unit")] += wrong ? 0 : 1;
+    const double e = std::stod(t.at("E")), n = std::stod(t.at("N")), z = std::stod(t.at("Z"));
+    for (const char* axis : {"E", "N", "Z"})
+      EXPECT_NEAR(std::stod(m.at(axis)), std::stod(t.at(axis)), kSurveyNoiseBound) << t.at("id") << " " << axis;
+    // Unit 10k lies between the surfaces of layers L(k-100) and L(k-99).
+    const int k = std::stoi(t.at("true_unit")) - 100;
+    const Raster top = read_raster(*dir_ / "truth" / ("L" + std::to_string(k)) / "surface.tif");
+    const Raster bottom = read_raster(*dir_ / "truth" / ("L" + std::to_string(k + 1)) / "surface.tif");
+    // The raster cell's centre is up to half a cell away: allow for the slope.
+    EXPECT_GE(height_at(top, e, n) - z, synthetic::kFindMinClearance - kFindRasterSlack) << t.at("id");
+    EXPECT_GE(z - height_at(bottom, e, n), synthetic::kFindMinClearance - kFindRasterSlack) << t.at("id");
+    EXPECT_GE(std::stod(t.at("clearance_m")), synthetic::kFindMinClearance) << t.at("id");
+  }
+  EXPECT_EQ(contradictions, synthetic::kPlantedContradictions);
+  for (int k = 0; k < stages; ++k) EXPECT_EQ(per_unit[std::to_string(101 + k)], synthetic::kFindsPerUnit);
 }
 
 TEST_F(SmallExcavation, MarkersProjectOntoTheGcpListPixels) {
