@@ -17,10 +17,15 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <memory>
 #include <string>
 #include <vector>
 
 namespace strata {
+
+namespace dense {
+class TsdfVolume;
+}
 
 // Choice of source views for each reference image from the sparse covisibility
 // (shared tracks) and the triangulation angle of the shared points.
@@ -210,6 +215,24 @@ LevelSetInfo read_level_set_info(const std::filesystem::path& vdb);
 // visible top of the layer, what a DTM needs). Throws IoError when unreadable.
 HeightField sample_top_surface(const std::filesystem::path& vdb, double x0, double y0,
                                double cell, int nx, int ny);
+// A layer's fused surface (surface.vdb) opened for sampling in 3D, where a height
+// field cannot look: under an overhang, along a vertical face. Site frame, metres.
+class LevelSetProbe {
+ public:
+  explicit LevelSetProbe(const std::filesystem::path& vdb);  // throws IoError when unreadable
+  ~LevelSetProbe();
+  LevelSetProbe(LevelSetProbe&&) noexcept;
+  double voxel_size_m() const;
+  double truncation_m() const;  // distances are clamped to +-this
+  // out[k], k < n: the signed distance at (x, y, z0 + k dz), > 0 above the surface
+  // (air), < 0 in the ground, NaN where the voxels around were not all observed.
+  // Safe to call from several threads at once.
+  void column(double x, double y, double z0, double dz, int n, double* out) const;
+
+ private:
+  std::unique_ptr<dense::TsdfVolume> volume_;
+};
+
 // Volume enclosed by a closed level set, cubic metres (openvdb::tools::levelSetVolume).
 double level_set_volume_m3(const std::filesystem::path& vdb);
 // Zero level set of a .vdb as triangles (site frame), unseen voxels masked out.

@@ -508,6 +508,20 @@ std::vector<double> TsdfVolume::distances(const std::vector<Eigen::Vector3d>& po
   return out;
 }
 
+void TsdfVolume::signed_column(double x, double y, double z0, double dz, int n, double* out) const {
+  const auto& I = *impl_;
+  auto acc = I.tsdf->getConstAccessor();
+  openvdb::tools::GridSampler<openvdb::FloatGrid::ConstAccessor, openvdb::tools::BoxSampler> sampler(
+      acc, I.tsdf->transform());
+  for (int k = 0; k < n; ++k) {
+    const openvdb::Vec3d p(x, y, z0 + k * dz);
+    const openvdb::Coord base = openvdb::Coord::floor(I.tsdf->transform().worldToIndex(p));
+    out[k] = I.cell_observed(acc, base) ? sampler.wsSample(p) : std::numeric_limits<double>::quiet_NaN();
+  }
+}
+
+double TsdfVolume::truncation() const { return impl_->trunc; }
+
 double TsdfVolume::level_set_volume() const {
   return openvdb::tools::levelSetVolume(*impl_->tsdf, true);
 }
@@ -614,6 +628,15 @@ HeightField sample_top_surface(const std::filesystem::path& vdb, double x0, doub
     throw InputError(fmt::format("sample_top_surface: bad grid (cell {} m, {} x {})", cell, nx, ny));
   }
   return dense::TsdfVolume::read(vdb, nullptr)->top_surface(x0, y0, cell, nx, ny);
+}
+
+LevelSetProbe::LevelSetProbe(const std::filesystem::path& vdb) : volume_(dense::TsdfVolume::read(vdb, nullptr)) {}
+LevelSetProbe::~LevelSetProbe() = default;
+LevelSetProbe::LevelSetProbe(LevelSetProbe&&) noexcept = default;
+double LevelSetProbe::voxel_size_m() const { return volume_->voxel_size(); }
+double LevelSetProbe::truncation_m() const { return volume_->truncation(); }
+void LevelSetProbe::column(double x, double y, double z0, double dz, int n, double* out) const {
+  volume_->signed_column(x, y, z0, dz, n, out);
 }
 
 double level_set_volume_m3(const std::filesystem::path& vdb) {

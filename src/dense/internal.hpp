@@ -137,6 +137,11 @@ class TsdfVolume {
   HeightField top_surface(double x0, double y0, double cell, int nx, int ny) const;
   // |signed distance| to the surface at each point, metres; NaN outside the band.
   std::vector<double> distances(const std::vector<Eigen::Vector3d>& points) const;
+  // Signed distances (trilinear) at (x, y, z0 + k dz), k < n: > 0 in front of the
+  // surface (air), < 0 behind it (ground); NaN where the 2x2x2 voxels around are not
+  // all observed. Safe to call from several threads at once.
+  void signed_column(double x, double y, double z0, double dz, int n, double* out) const;
+  double truncation() const;
   // Writes grids "surface" (level set), "weight", "colour", with the site origin and CRS
   // as metadata; temp file then rename.
   void write(const std::filesystem::path& vdb, const Eigen::Vector3d& site_origin,

@@ -282,6 +282,10 @@ SiteModel load_site_model(Project& project, const SiteVolumeOptions& options) {
   }
   model.fill = fill_surface_gaps(model.layers, vo);
   model.solids = build_unit_solids(model.layers, vo);
+  std::map<std::string, fs::path> level_sets;  // the fused layers' voxel models
+  for (const auto& src : sources)
+    if (!src.raster) level_sets[src.layer.name] = src.path;
+  check_folds(model.solids, model.layers, level_sets, vo);
   return model;
 }
 
@@ -297,7 +301,8 @@ nlohmann::ordered_json unit_measures_json(const UnitSolid& s) {
             {"systematic", m.systematic_sigma_m3},
             {"fill", m.fill_sigma_m3},
             {"extent", m.extent_sigma_m3},
-            {"smoothing", m.smoothing_sigma_m3}}},
+            {"smoothing", m.smoothing_sigma_m3},
+            {"fold", m.fold_sigma_m3}}},
           {"interval_method",
            "one-sigma parts in quadrature: random (per-cell surface sigmas, from the fused depth maps' agreement, "
            "scaled per bin of stated sigma on stable ground, correlated over correlation_m: Gaussian model, pi L^2), "
@@ -305,7 +310,8 @@ nlohmann::ordered_json unit_measures_json(const UnitSolid& s) {
            "the four quadrants; else check-marker RMSE z; over the whole area), fill (summed "
            "linearly over interpolated cells), extent (volumes with the level of detection halved and doubled, "
            "uniform), smoothing (what one more smoothing of both surfaces at their reconstruction's scale moves the "
-           "volume: rounded edges and corners); interval = volume +/- z sigma"},
+           "volume: rounded edges and corners), fold (half what the voxel models add where the surfaces are steep; "
+           "their figure replaces the height fields' there); interval = volume +/- z sigma"},
           {"measured_volume_m3", m.measured_volume_m3},
           {"filled_volume_m3", m.filled_volume_m3},
           {"area_m2", m.area_m2},
@@ -317,6 +323,12 @@ nlohmann::ordered_json unit_measures_json(const UnitSolid& s) {
           {"max_thickness_raw_m", m.max_thickness_raw_m},
           {"mean_normal_thickness_m", m.mean_normal_thickness_m},
           {"max_normal_thickness_m", m.max_normal_thickness_m},
+          {"fold_check",
+           m.fold_checked ? nlohmann::ordered_json{{"area_m2", m.fold_area_m2},
+                                                   {"height_field_volume_m3", m.fold_height_field_m3},
+                                                   {"voxel_volume_m3", m.fold_voxel_m3},
+                                                   {"difference_m3", m.fold_difference_m3()}}
+                          : nlohmann::ordered_json(nullptr)},
           {"filled_area_m2", m.filled_area_m2},
           {"filled_fraction", m.filled_fraction},
           {"fill_sigma_m3", m.fill_sigma_m3},

@@ -150,12 +150,13 @@ void add_unmeasured_holes(std::vector<std::uint8_t>& dug, const std::vector<doub
 
 // One line: how sure a unit's volume is, and what would make it surer (the
 // largest part of its uncertainty decides).
-std::string volume_advice(const UnitMeasures& m, bool extent_from_data) {
+std::string volume_advice(const UnitMeasures& m) {
+  const bool extent_from_data = m.extent_method == "significance";
   const double half = m.interval_high_m3 - m.volume_m3;
   std::string line = fmt::format("+/- {:.4f} m3 ({:.1f} %) at {:.0f} %", half,
                                  m.volume_m3 > 0 ? 100 * half / m.volume_m3 : 0.0, 100 * m.confidence);
   const double parts[] = {m.random_sigma_m3, m.systematic_sigma_m3, m.fill_sigma_m3, m.extent_sigma_m3,
-                          m.smoothing_sigma_m3};
+                          m.smoothing_sigma_m3, m.fold_sigma_m3};
   const int largest = int(std::max_element(std::begin(parts), std::end(parts)) - std::begin(parts));
   switch (largest) {
     case 0:
@@ -174,6 +175,10 @@ std::string volume_advice(const UnitMeasures& m, bool extent_from_data) {
     case 4:
       return line + "; mostly the reconstruction's rounding of edges and corners (walls, pit sides, steps): "
                     "closer photos, a finer ground sampling, would make it surer";
+    case 5:
+      return line + fmt::format("; mostly where its surfaces fold (walls, overhangs: the voxel models add {:+.4f} m3 "
+                                "to the height fields there): photos looking straight at the faces would make it "
+                                "surer", m.fold_difference_m3());
     default:
       return line + (extent_from_data ? "; mostly where its edge lies: a survey of the limit of excavation "
                                         "(--outline or --footprint) would make it surer"
@@ -182,6 +187,16 @@ std::string volume_advice(const UnitMeasures& m, bool extent_from_data) {
 }
 
 }  // namespace
+
+void settle_interval(UnitMeasures& m) {
+  const double z = two_sided_normal_quantile(m.confidence);
+  m.volume_sigma_m3 = std::sqrt(m.random_sigma_m3 * m.random_sigma_m3 + m.systematic_sigma_m3 * m.systematic_sigma_m3 +
+                                m.fill_sigma_m3 * m.fill_sigma_m3 + m.extent_sigma_m3 * m.extent_sigma_m3 +
+                                m.smoothing_sigma_m3 * m.smoothing_sigma_m3 + m.fold_sigma_m3 * m.fold_sigma_m3);
+  m.interval_low_m3 = m.volume_m3 - z * m.volume_sigma_m3;
+  m.interval_high_m3 = m.volume_m3 + z * m.volume_sigma_m3;
+  m.advice = volume_advice(m);
+}
 
 bool inside_polygon(const std::vector<Eigen::Vector2d>& poly, double x, double y) {
   bool in = false;
@@ -254,6 +269,10 @@ void VolumeOptions::validate() const {
     throw InputError(fmt::format("volume options: reliable_fill_m = {} is not in 0..10 m", reliable_fill_m));
   if (!(normal_scale_m > 0 && normal_scale_m <= 5))
     throw InputError(fmt::format("volume options: normal_scale_m = {} is not in (0, 5] m", normal_scale_m));
+  if (!(fold_slope_deg > 0 && fold_slope_deg < 90))
+    throw InputError(fmt::format("volume options: fold_slope_deg = {} is not in (0, 90) degrees", fold_slope_deg));
+  if (!(fold_reach_m >= 0 && fold_reach_m <= 1))
+    throw InputError(fmt::format("volume options: fold_reach_m = {} is not in 0..1 m", fold_reach_m));
   if (!(min_stable_area_m2 >= 0 && min_stable_area_m2 <= 1000))
     throw InputError(fmt::format("volume options: min_stable_area_m2 = {} is not in 0..1000 m2", min_stable_area_m2));
   if (!(fill.closing_m >= 0 && fill.closing_m <= 10))
@@ -574,12 +593,7 @@ std::vector<UnitSolid> build_unit_solids(const std::vector<LayerSurface>& layers
         m.extent_sigma_m3 = std::abs(volume_at(0.5) - volume_at(2.0)) / (2 * std::sqrt(3.0));
       }
       m.smoothing_sigma_m3 = std::abs(smoothing_sum);
-      m.volume_sigma_m3 = std::sqrt(m.random_sigma_m3 * m.random_sigma_m3 + m.systematic_sigma_m3 * m.systematic_sigma_m3 +
-                                    fill_error * fill_error + m.extent_sigma_m3 * m.extent_sigma_m3 +
-                                    m.smoothing_sigma_m3 * m.smoothing_sigma_m3);
-      m.interval_low_m3 = m.volume_m3 - z * m.volume_sigma_m3;
-      m.interval_high_m3 = m.volume_m3 + z * m.volume_sigma_m3;
-      m.advice = volume_advice(m, options.fill.outline.empty() && footprint == options.footprints.end());
+      settle_interval(m);
       if (m.filled_fraction > options.fill.warn_fraction)
         log::warn("volume: unit {}: {:.0f} % of its area ({:.3f} of {:.3f} m2) has an interpolated top or bottom "
                   "(gaps in the dense surfaces); its volume is uncertain by +/- {:.4f} m3",

@@ -19,6 +19,7 @@
 #include <Eigen/Core>
 
 #include <cstdint>
+#include <filesystem>
 #include <map>
 #include <optional>
 #include <string>
@@ -153,6 +154,12 @@ struct VolumeOptions {
   double normal_scale_m = 0.05;
   double stable_buffer_m = 0.10;
   double min_stable_area_m2 = 0.05;
+  // Where height fields fold (check_folds): dug cells whose top or bottom is
+  // steeper than fold_slope_deg, and every cell within fold_reach_m of them (the
+  // ground under an overhang is flat in a height field), are integrated again
+  // through the layers' voxel models.
+  double fold_slope_deg = 60;
+  double fold_reach_m = 0.05;
   GapFillOptions fill;
 
   // Throws InputError naming the first invalid field.
@@ -212,6 +219,21 @@ struct UnitMeasures {
   // slope over normal_scale_m): the mean and the p99 of thickness x cos(slope).
   double mean_normal_thickness_m = 0;
   double max_normal_thickness_m = 0;
+  // The check against the voxel model where height fields fold (check_folds):
+  // over the fold cells (steep dug cells and those within fold_reach_m), the
+  // volume between the two surfaces as height fields and as integrated through
+  // both layers' voxel models (signed distances along vertical lines; where a
+  // voxel was not observed, the height field). fold_checked is false when a layer
+  // has no voxel model (a DTM from elsewhere) or nothing is steep.
+  // The voxel models' figure replaces the height fields' there (volume_m3
+  // includes the difference), known to about half the difference: the sixth part
+  // of the interval, fold_sigma_m3 = |difference| / 2 (docs/volume.md, measured).
+  bool fold_checked = false;
+  double fold_area_m2 = 0;
+  double fold_height_field_m3 = 0;
+  double fold_voxel_m3 = 0;
+  double fold_sigma_m3 = 0;
+  double fold_difference_m3() const { return fold_voxel_m3 - fold_height_field_m3; }
   // One line: how sure the figure is and what would make it surer.
   std::string advice;
 };
@@ -239,6 +261,16 @@ GapFillSummary fill_surface_gaps(std::vector<LayerSurface>& layers, const Volume
 // one grid. Units whose layer is the last (not dug yet) have no solid.
 std::vector<UnitSolid> build_unit_solids(const std::vector<LayerSurface>& layers,
                                          const VolumeOptions& options);
+
+// Volume sigma from its parts in quadrature, the interval at m.confidence, and the
+// advice line (what would make the figure surer). After any part changed.
+void settle_interval(UnitMeasures& m);
+
+// The check of every solid against the voxel model where height fields fold (see
+// UnitMeasures::fold_*): corrects volume_m3, mean and measured volume, interval. `level_sets` maps layer names to their surface.vdb; a
+// solid whose top or bottom layer has none is left unchecked. Reads each file once.
+void check_folds(std::vector<UnitSolid>& solids, const std::vector<LayerSurface>& layers,
+                 const std::map<std::string, std::filesystem::path>& level_sets, const VolumeOptions& options);
 
 // Closed triangle mesh of a solid (site frame): top and bottom surfaces through
 // the cell corners (corner height = mean of the adjacent dug cells, so it is a

@@ -1,7 +1,7 @@
 // DTM from a level set of a known analytic surface; GeoTIFF georeferencing as
 // gdalinfo would report it (CRS, geotransform, nodata, COG layout).
 #include "crs/crs.hpp"
-#include "level_set_fixture.hpp"
+#include "support/level_set_fixture.hpp"
 #include "products/dtm.hpp"
 #include "products/raster_io.hpp"
 #include "support/test_support.hpp"
