@@ -1,0 +1,300 @@
+// exporter.gltf: the GLB container and its JSON (glTF 2.0 specification, sections
+// 3.6 buffers/accessors, 3.7 meshes and 4.4 the binary file format).
+#include "exporters/gltf/gltf_writer.hpp"
+
+#include "core/error.hpp"
+#include "core/staged_files.hpp"
+
+#include <Eigen/Geometry>
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <fstream>
+#include <limits>
+
+namespace strata {
+namespace {
+
+namespace fs = std::filesystem;
+using Json = nlohmann::ordered_json;  // keys in the order written: asset first, as people read it
+
+static_assert(std::endian::native == std::endian::little, "GLB is little-endian; the writer copies native values");
+
+constexpr const char* kStage = "exporter.gltf";
+// Spec constants: accessor component types, bufferView targets, GLB magic and chunk types.
+constexpr int kFloat = 5126, kUnsignedInt = 5125;
+constexpr int kArrayBuffer = 34962, kElementArrayBuffer = 34963;
+constexpr int kTriangles = 4;
+constexpr std::uint32_t kGlbMagic = 0x46546C67;  // "glTF"
+constexpr std::uint32_t kGlbVersion = 2;
+constexpr std::uint32_t kChunkJson = 0x4E4F534A;  // "JSON"
+constexpr std::uint32_t kChunkBin = 0x004E4942;   // "BIN\0"
+// A normal shorter than this (a reader's zero fill, a degenerate fusion cell) has no
+// direction worth keeping; the faces around its vertex give one instead.
+constexpr double kMinNormalLength = 1e-6;
+
+// (E, N, Z) -> glTF (x, y, z) = (E, Z, -N): Y up, and a rotation (determinant +1).
+Eigen::Vector3d to_gltf_axes(const Eigen::Vector3d& enz) { return {enz.x(), enz.z(), -enz.y()}; }
+
+std::string mesh_name(const GltfMesh& m, std::size_t i) {
+  return m.name.empty() ? fmt::format("mesh {}", i + 1) : m.name;
+}
+
+void check_meshes(const fs::path& path, std::span<const GltfMesh> meshes) {
+  auto fail = [&](const std::string& what) {
+    return InputError(fmt::format("{}: {}: {}", kStage, path.string(), what));
+  };
+  if (meshes.empty()) throw fail("no mesh to write");
+  for (std::size_t i = 0; i < meshes.size(); ++i) {
+    const DenseMesh* m = meshes[i].mesh;
+    const std::string name = mesh_name(meshes[i], i);
+    if (!m || m->faces.empty()) throw fail(fmt::format("mesh '{}' has no faces; glTF export needs a triangle mesh", name));
+    if (!m->colours.empty() && m->colours.size() != m->vertices.size())
+      throw fail(fmt::format("mesh '{}': {} colours for {} vertices", name, m->colours.size(), m->vertices.size()));
+    if (!m->normals.empty() && m->normals.size() != m->vertices.size())
+      throw fail(fmt::format("mesh '{}': {} normals for {} vertices", name, m->normals.size(), m->vertices.size()));
+    const auto n = static_cast<std::int64_t>(m->vertices.size());
+    for (const auto& f : m->faces) {
+      for (int k : f) {
+        if (k < 0 || k >= n) throw fail(fmt::format("mesh '{}': face index {} out of range (0..{})", name, k, n - 1));
+      }
+    }
+    for (const auto& v : m->vertices) {
+      if (!v.allFinite()) throw fail(fmt::format("mesh '{}': a vertex is not finite", name));
+    }
+  }
+}
+
+// The bounding-box centre of every vertex, in site CRS coordinates, rounded to whole
+// metres: short to quote, exact in float32 for a viewer that stores translations so.
+Eigen::Vector3d local_origin(std::span<const GltfMesh> meshes, const Eigen::Vector3d& site_origin) {
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
+  Eigen::Vector3d hi = -lo;
+  for (const auto& m : meshes) {
+    for (const auto& v : m.mesh->vertices) {
+      lo = lo.cwiseMin(v);
+      hi = hi.cwiseMax(v);
+    }
+  }
+  const Eigen::Vector3d centre = 0.5 * (lo + hi) + site_origin;
+  return centre.array().round().matrix();
+}
+
+// The BIN chunk under construction and the bufferViews that slice it.
+class BinaryBuffer {
+ public:
+  // Appends one bufferView (4-byte aligned: every component written is 4 bytes wide).
+  // stride 0: none (index data must not declare one).
+  int add_view(const void* data, std::size_t bytes, int target, int stride) {
+    while (bytes_.size() % 4 != 0) bytes_.push_back('\0');
+    Json v = {{"buffer", 0}, {"byteOffset", bytes_.size()}, {"byteLength", bytes}};
+    if (stride > 0) v["byteStride"] = stride;
+    v["target"] = target;
+    bytes_.append(static_cast<const char*>(data), bytes);
+    views_.push_back(std::move(v));
+    return static_cast<int>(views_.size()) - 1;
+  }
+  const std::string& bytes() const { return bytes_; }
+  const Json& views() const { return views_; }
+
+ private:
+  std::string bytes_;
+  Json views_ = Json::array();
+};
+
+int add_accessor(Json& accessors, int view, int component_type, std::size_t count, const char* type) {
+  accessors.push_back({{"bufferView", view}, {"componentType", component_type}, {"count", count}, {"type", type}});
+  return static_cast<int>(accessors.size()) - 1;
+}
+
+// Positions relative to the local origin, in glTF axes, float32; min/max are taken
+// from the float values themselves, as the spec requires of POSITION.
+int add_positions(BinaryBuffer& bin, Json& accessors, const DenseMesh& m, const Eigen::Vector3d& shift) {
+  std::vector<float> xyz;
+  xyz.reserve(3 * m.vertices.size());
+  std::array<float, 3> lo, hi;
+  lo.fill(std::numeric_limits<float>::infinity());
+  hi.fill(-std::numeric_limits<float>::infinity());
+  for (const auto& v : m.vertices) {
+    const Eigen::Vector3d p = to_gltf_axes(v + shift);
+    for (int k = 0; k < 3; ++k) {
+      const float f = static_cast<float>(p[k]);
+      xyz.push_back(f);
+      lo[k] = std::min(lo[k], f);
+      hi[k] = std::max(hi[k], f);
+    }
+  }
+  const int view = bin.add_view(xyz.data(), xyz.size() * sizeof(float), kArrayBuffer, 12);
+  const int a = add_accessor(accessors, view, kFloat, m.vertices.size(), "VEC3");
+  accessors[a]["min"] = lo;
+  accessors[a]["max"] = hi;
+  return a;
+}
+
+// Area-weighted sums of the normals of the faces around each vertex (site axes).
+std::vector<Eigen::Vector3d> face_normal_sums(const DenseMesh& m) {
+  std::vector<Eigen::Vector3d> sums(m.vertices.size(), Eigen::Vector3d::Zero());
+  for (const auto& f : m.faces) {
+    const Eigen::Vector3d n =
+        (m.vertices[f[1]] - m.vertices[f[0]]).cross(m.vertices[f[2]] - m.vertices[f[0]]);  // |n| = 2 area
+    for (int k : f) sums[k] += n;
+  }
+  return sums;
+}
+
+// Unit normals in glTF axes. An unusable normal takes its faces' direction, an
+// isolated vertex's "up".
+int add_normals(BinaryBuffer& bin, Json& accessors, const DenseMesh& m) {
+  std::vector<Eigen::Vector3d> fallback;
+  std::vector<float> xyz;
+  xyz.reserve(3 * m.normals.size());
+  for (std::size_t i = 0; i < m.normals.size(); ++i) {
+    Eigen::Vector3d n = m.normals[i].cast<double>();
+    if (!n.allFinite() || n.norm() < kMinNormalLength) {
+      if (fallback.empty()) fallback = face_normal_sums(m);
+      n = fallback[i].norm() > 0 ? fallback[i] : Eigen::Vector3d::UnitZ();
+    }
+    const Eigen::Vector3d g = to_gltf_axes(n.normalized());
+    for (int k = 0; k < 3; ++k) xyz.push_back(static_cast<float>(g[k]));
+  }
+  const int view = bin.add_view(xyz.data(), xyz.size() * sizeof(float), kArrayBuffer, 12);
+  return add_accessor(accessors, view, kFloat, m.normals.size(), "VEC3");
+}
+
+// glTF vertex colours are linear multipliers; the photos' colours are sRGB-encoded
+// (IEC 61966-2-1 transfer function). Float keeps the dark tones that 8-bit linear
+// values would band.
+int add_colours(BinaryBuffer& bin, Json& accessors, const DenseMesh& m) {
+  std::array<float, 256> linear;
+  for (int c = 0; c < 256; ++c) {
+    const double s = c / 255.0;
+    linear[c] = static_cast<float>(s <= 0.04045 ? s / 12.92 : std::pow((s + 0.055) / 1.055, 2.4));
+  }
+  std::vector<float> rgb;
+  rgb.reserve(3 * m.colours.size());
+  for (const auto& c : m.colours) {
+    for (int k = 0; k < 3; ++k) rgb.push_back(linear[c[k]]);
+  }
+  const int view = bin.add_view(rgb.data(), rgb.size() * sizeof(float), kArrayBuffer, 12);
+  return add_accessor(accessors, view, kFloat, m.colours.size(), "VEC3");
+}
+
+int add_indices(BinaryBuffer& bin, Json& accessors, const DenseMesh& m) {
+  std::vector<std::uint32_t> idx;
+  idx.reserve(3 * m.faces.size());
+  for (const auto& f : m.faces) {
+    for (int k : f) idx.push_back(static_cast<std::uint32_t>(k));
+  }
+  const int view = bin.add_view(idx.data(), idx.size() * sizeof(std::uint32_t), kElementArrayBuffer, 0);
+  return add_accessor(accessors, view, kUnsignedInt, idx.size(), "SCALAR");
+}
+
+Json asset_json(const ExportFrame& frame, const Eigen::Vector3d& origin) {
+  return {{"version", "2.0"},
+          {"generator", "strata (exporter.gltf)"},
+          {"extras",
+           {{"crs", frame.crs},
+            {"origin", {origin.x(), origin.y(), origin.z()}},
+            {"axes", "x = E, y = Z (up), z = -N; site CRS (E, N, Z) = (t.x + p.x, -(t.z + p.z), t.y + p.y) "
+                     "for node translation t and position p"},
+            {"units", "metres"}}}};
+}
+
+// The whole glTF JSON; fills `bin` with the data it refers to.
+Json gltf_json(std::span<const GltfMesh> meshes, const ExportFrame& frame, BinaryBuffer& bin) {
+  const Eigen::Vector3d origin = local_origin(meshes, frame.site_origin);
+  const Eigen::Vector3d shift = frame.site_origin - origin;  // site frame -> local, metres
+  const Eigen::Vector3d t = to_gltf_axes(origin);
+  Json accessors = Json::array(), gl_meshes = Json::array(), nodes = Json::array(), scene_nodes = Json::array();
+  for (std::size_t i = 0; i < meshes.size(); ++i) {
+    const DenseMesh& m = *meshes[i].mesh;
+    Json attributes = {{"POSITION", add_positions(bin, accessors, m, shift)}};
+    if (!m.normals.empty()) attributes["NORMAL"] = add_normals(bin, accessors, m);
+    if (!m.colours.empty()) attributes["COLOR_0"] = add_colours(bin, accessors, m);
+    const int indices = add_indices(bin, accessors, m);
+    const std::string name = mesh_name(meshes[i], i);
+    const Json primitive = {{"attributes", attributes}, {"indices", indices}, {"material", 0}, {"mode", kTriangles}};
+    gl_meshes.push_back({{"name", name}, {"primitives", Json::array({primitive})}});
+    nodes.push_back({{"name", name}, {"mesh", i}, {"translation", {t.x(), t.y(), t.z()}}});
+    scene_nodes.push_back(i);
+  }
+  const Json material = {{"name", "surface"},
+                         {"pbrMetallicRoughness",
+                          {{"baseColorFactor", {1.0, 1.0, 1.0, 1.0}}, {"metallicFactor", 0.0}, {"roughnessFactor", 1.0}}},
+                         {"doubleSided", true}};
+  return {{"asset", asset_json(frame, origin)},
+          {"scene", 0},
+          {"scenes", Json::array({Json{{"nodes", scene_nodes}}})},
+          {"nodes", nodes},
+          {"meshes", gl_meshes},
+          {"materials", Json::array({material})},
+          {"accessors", accessors},
+          {"bufferViews", bin.views()},
+          {"buffers", Json::array({Json{{"byteLength", bin.bytes().size()}}})}};
+}
+
+void put_u32(std::string& out, std::uint32_t v) {
+  char b[4];
+  std::memcpy(b, &v, 4);
+  out.append(b, 4);
+}
+
+// Header (magic, version, total length), then the JSON chunk padded with spaces and
+// the BIN chunk padded with zeros, each to 4 bytes.
+std::string glb_bytes(const fs::path& path, std::string json, std::string bin) {
+  json.append((4 - json.size() % 4) % 4, ' ');
+  bin.append((4 - bin.size() % 4) % 4, '\0');
+  const std::uint64_t total = 12 + 8 + json.size() + 8 + bin.size();
+  if (total > std::numeric_limits<std::uint32_t>::max()) {
+    throw InputError(fmt::format("{}: {}: {} bytes, more than one .glb can hold (4 GiB); simplify the mesh", kStage,
+                                 path.string(), total));
+  }
+  std::string out;
+  out.reserve(total);
+  put_u32(out, kGlbMagic);
+  put_u32(out, kGlbVersion);
+  put_u32(out, static_cast<std::uint32_t>(total));
+  put_u32(out, static_cast<std::uint32_t>(json.size()));
+  put_u32(out, kChunkJson);
+  out += json;
+  put_u32(out, static_cast<std::uint32_t>(bin.size()));
+  put_u32(out, kChunkBin);
+  out += bin;
+  return out;
+}
+
+void write_bytes(const fs::path& path, const std::string& bytes) {
+  std::error_code ec;
+  if (path.has_parent_path()) fs::create_directories(path.parent_path(), ec);
+  if (ec) {
+    throw IoError(fmt::format("{}: {}: cannot create the folder {}: {}", kStage, path.string(),
+                              path.parent_path().string(), ec.message()));
+  }
+  StagedFiles staged(kStage);
+  const fs::path tmp = staged.add(path);
+  {
+    std::ofstream f(tmp, std::ios::binary);
+    if (!f) throw IoError(fmt::format("{}: {}: cannot open {} for writing", kStage, path.string(), tmp.string()));
+    f.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+    f.close();
+    if (!f) throw IoError(fmt::format("{}: {}: write failed (disk full?)", kStage, path.string()));
+  }
+  staged.swap_in();
+}
+
+}  // namespace
+
+void write_glb(const fs::path& path, std::span<const GltfMesh> meshes, const ExportFrame& frame) {
+  check_meshes(path, meshes);
+  BinaryBuffer bin;
+  const Json json = gltf_json(meshes, frame, bin);
+  write_bytes(path, glb_bytes(path, json.dump(), bin.bytes()));
+}
+
+}  // namespace strata

@@ -1,0 +1,118 @@
+// `strata export model` on a project whose layer has a recorded dense mesh (written
+// here, as the dense stage writes it: double site CRS coordinates): the refusals, and
+// the .glb's frame checked against the mesh's known coordinates. The container
+// itself is checked in tests/unit/exporters/gltf_test.cpp.
+#include "dense/dense_mesh.hpp"
+#include "project/project.hpp"
+#include "project/records.hpp"
+#include "support/test_support.hpp"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cstring>
+
+namespace strata {
+namespace {
+
+namespace fs = std::filesystem;
+using test::run_strata;
+
+const Eigen::Vector3d kSiteOrigin(733900.0, 4173900.0, 1450.0);  // E, N, Z metres, as given to init
+constexpr double kSubMillimetre = 1e-4;  // metres: what the local origin must preserve
+
+int lines(const std::string& s) { return int(std::count(s.begin(), s.end(), '\n')); }
+
+// Two triangles, 2.5 x 1.5 m, with tenth-of-millimetre digits (site frame).
+DenseMesh quad() {
+  DenseMesh m;
+  m.vertices = {{100.1234, 100.5678, 0.0009}, {102.6234, 100.5678, 0.0102},
+                {102.6234, 102.0678, -0.2031}, {100.1234, 102.0678, -0.1007}};
+  m.colours.assign(4, Rgb8(180, 140, 90));
+  m.faces = {{0, 1, 2}, {0, 2, 3}};
+  return m;
+}
+
+fs::path project_with_layer(const test::ScratchDir& dir) {
+  const std::string site = (dir / "site").string();
+  for (const auto& args : std::vector<std::vector<std::string>>{
+           {"init", site, "--crs", "EPSG:32636", "--origin", "733900,4173900,1450"},
+           {"unit", "add", site, "101"},
+           {"layer", "add", site, "L1", "--unit", "101"}}) {
+    const auto r = run_strata(args);
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+  }
+  return site;
+}
+
+void record_dense_mesh(const fs::path& site, const DenseMesh& m) {
+  Project p = Project::open(site);
+  const LayerRecord l = require_layer(p.db(), "L1");
+  ExportFrame frame;
+  frame.site_origin = kSiteOrigin;
+  frame.crs = "EPSG:32636";
+  fs::create_directories(site / "products" / "L1" / "dense");
+  write_ply(site / "products" / "L1" / "dense" / "mesh.ply", m, frame);
+  ProductRecord rec;
+  rec.layer_id = l.id;
+  rec.kind = "mesh";
+  rec.path = "products/L1/dense/mesh.ply";
+  record_product(p.db(), p.dir(), rec);
+}
+
+nlohmann::json glb_json(const fs::path& glb) {
+  const std::string b = test::read_text(glb);
+  std::uint32_t magic = 0, json_len = 0;
+  if (b.size() < 20) return {};
+  std::memcpy(&magic, b.data(), 4);
+  std::memcpy(&json_len, b.data() + 12, 4);
+  if (magic != 0x46546C67 || 20 + std::size_t{json_len} > b.size()) return {};
+  return nlohmann::json::parse(b.substr(20, json_len));
+}
+
+TEST(CliExportModel, RefusesWithoutDenseMeshOrGlbExtension) {
+  test::ScratchDir dir("model_refused");
+  const std::string site = project_with_layer(dir).string();
+  auto r = run_strata({"export", "model", site, "--layer", "L1", "--out", (dir / "l1.glb").string()});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(lines(r.err), 1) << r.err;
+  EXPECT_NE(r.err.find("no dense mesh"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("--until dense"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir / "l1.glb"));
+  r = run_strata({"export", "model", site, "--layer", "L1", "--out", (dir / "l1.obj").string()});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find(".glb"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir / "l1.obj"));
+}
+
+TEST(CliExportModel, GlbCarriesTheSiteFrame) {
+  test::ScratchDir dir("model_glb");
+  const fs::path site = project_with_layer(dir);
+  const DenseMesh m = quad();
+  record_dense_mesh(site, m);
+  const auto r = run_strata({"export", "model", site.string(), "--layer", "L1", "--out", (dir / "l1.glb").string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json j = glb_json(dir / "l1.glb");
+  ASSERT_TRUE(j.is_object());
+  EXPECT_EQ(j["asset"]["extras"]["crs"], "EPSG:32636");
+  // Box centre 734001.3734, 4174001.3178, 1449.90355 (CRS) -> whole metres.
+  EXPECT_EQ(j["asset"]["extras"]["origin"], nlohmann::json({734001.0, 4174001.0, 1450.0}));
+  EXPECT_EQ(j["nodes"][0]["name"], "L1");
+  const auto& t = j["nodes"][0]["translation"];
+  const auto& pos = j["accessors"][int(j["meshes"][0]["primitives"][0]["attributes"]["POSITION"])];
+  EXPECT_EQ(pos["count"], m.vertices.size());
+  // The box back in site CRS coordinates: E = t.x + x, N = -(t.z + z), Z = t.y + y.
+  const double e_min = double(t[0]) + double(pos["min"][0]), e_max = double(t[0]) + double(pos["max"][0]);
+  const double n_min = -(double(t[2]) + double(pos["max"][2])), n_max = -(double(t[2]) + double(pos["min"][2]));
+  const double z_min = double(t[1]) + double(pos["min"][1]), z_max = double(t[1]) + double(pos["max"][1]);
+  EXPECT_NEAR(e_min, 734000.1234, kSubMillimetre);
+  EXPECT_NEAR(e_max, 734002.6234, kSubMillimetre);
+  EXPECT_NEAR(n_min, 4174000.5678, kSubMillimetre);
+  EXPECT_NEAR(n_max, 4174002.0678, kSubMillimetre);
+  EXPECT_NEAR(z_min, 1449.7969, kSubMillimetre);
+  EXPECT_NEAR(z_max, 1450.0102, kSubMillimetre);
+}
+
+}  // namespace
+}  // namespace strata
