@@ -17,6 +17,7 @@
 #include <cstring>
 #include <fstream>
 #include <limits>
+#include <numbers>
 
 namespace strata {
 namespace {
@@ -46,11 +47,12 @@ std::string mesh_name(const GltfMesh& m, std::size_t i) {
   return m.name.empty() ? fmt::format("mesh {}", i + 1) : m.name;
 }
 
+InputError input_error(const fs::path& path, const std::string& what) {
+  return InputError(fmt::format("{}: {}: {}", kStage, path.string(), what));
+}
+
 void check_meshes(const fs::path& path, std::span<const GltfMesh> meshes) {
-  auto fail = [&](const std::string& what) {
-    return InputError(fmt::format("{}: {}: {}", kStage, path.string(), what));
-  };
-  if (meshes.empty()) throw fail("no mesh to write");
+  auto fail = [&](const std::string& what) { return input_error(path, what); };
   for (std::size_t i = 0; i < meshes.size(); ++i) {
     const DenseMesh* m = meshes[i].mesh;
     const std::string name = mesh_name(meshes[i], i);
@@ -68,20 +70,59 @@ void check_meshes(const fs::path& path, std::span<const GltfMesh> meshes) {
     for (const auto& v : m->vertices) {
       if (!v.allFinite()) throw fail(fmt::format("mesh '{}': a vertex is not finite", name));
     }
+    if (const auto& c = meshes[i].colour) {
+      for (double v : *c)
+        if (!(v >= 0 && v <= 1)) throw fail(fmt::format("mesh '{}': colour components must lie in [0, 1]", name));
+    }
+  }
+}
+
+// A rotation matrix is orthonormal with determinant +1, to rounding.
+constexpr double kRotationTolerance = 1e-9;
+
+void check_nodes(const fs::path& path, const GltfScene& scene) {
+  auto fail = [&](const GltfNode& n, const std::string& what) {
+    return input_error(path, fmt::format("node '{}': {}", n.name, what));
+  };
+  if (scene.nodes.empty()) throw input_error(path, "no node to write");
+  for (const auto& n : scene.nodes) {
+    if (n.mesh < -1 || n.mesh >= int(scene.meshes.size()))
+      throw fail(n, fmt::format("mesh {} out of range ({} meshes)", n.mesh, scene.meshes.size()));
+    if (n.position && !n.position->allFinite()) throw fail(n, "position is not finite");
+    if (n.rotation) {
+      const Eigen::Matrix3d& r = *n.rotation;
+      if (!r.allFinite() || (r.transpose() * r - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > kRotationTolerance ||
+          r.determinant() < 0)
+        throw fail(n, "rotation is not a rotation matrix");
+    }
+    if (n.camera && !(n.camera->yfov_rad > 0 && n.camera->yfov_rad < std::numbers::pi && n.camera->znear_m > 0 &&
+                      n.camera->aspect_ratio >= 0))
+      throw fail(n, "camera needs 0 < yfov < pi, znear > 0 and aspect ratio >= 0");
+    if (!n.extras_json.empty()) {
+      const Json extras = Json::parse(n.extras_json, nullptr, false);
+      if (!extras.is_object()) throw fail(n, "extras are not a JSON object");
+    }
   }
 }
 
 // The bounding-box centre of every vertex, in site CRS coordinates, rounded to whole
 // metres: short to quote, exact in float32 for a viewer that stores translations so.
-Eigen::Vector3d local_origin(std::span<const GltfMesh> meshes, const Eigen::Vector3d& site_origin) {
+Eigen::Vector3d local_origin(const GltfScene& scene, const Eigen::Vector3d& site_origin) {
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
   Eigen::Vector3d hi = -lo;
-  for (const auto& m : meshes) {
+  for (const auto& m : scene.meshes) {
     for (const auto& v : m.mesh->vertices) {
       lo = lo.cwiseMin(v);
       hi = hi.cwiseMax(v);
     }
   }
+  for (const auto& n : scene.nodes) {
+    if (n.position) {
+      lo = lo.cwiseMin(*n.position);
+      hi = hi.cwiseMax(*n.position);
+    }
+  }
+  if (!(lo.array() <= hi.array()).all()) lo = hi = Eigen::Vector3d::Zero();  // nothing placed
   const Eigen::Vector3d centre = 0.5 * (lo + hi) + site_origin;
   return centre.array().round().matrix();
 }
@@ -172,10 +213,7 @@ int add_normals(BinaryBuffer& bin, Json& accessors, const DenseMesh& m) {
 // values would band.
 int add_colours(BinaryBuffer& bin, Json& accessors, const DenseMesh& m) {
   std::array<float, 256> linear;
-  for (int c = 0; c < 256; ++c) {
-    const double s = c / 255.0;
-    linear[c] = static_cast<float>(s <= 0.04045 ? s / 12.92 : std::pow((s + 0.055) / 1.055, 2.4));
-  }
+  for (int c = 0; c < 256; ++c) linear[c] = static_cast<float>(srgb_to_linear(c / 255.0));
   std::vector<float> rgb;
   rgb.reserve(3 * m.colours.size());
   for (const auto& c : m.colours) {
@@ -206,37 +244,94 @@ Json asset_json(const ExportFrame& frame, const Eigen::Vector3d& origin) {
             {"units", "metres"}}}};
 }
 
-// The whole glTF JSON; fills `bin` with the data it refers to.
-Json gltf_json(std::span<const GltfMesh> meshes, const ExportFrame& frame, BinaryBuffer& bin) {
-  const Eigen::Vector3d origin = local_origin(meshes, frame.site_origin);
-  const Eigen::Vector3d shift = frame.site_origin - origin;  // site frame -> local, metres
-  const Eigen::Vector3d t = to_gltf_axes(origin);
-  Json accessors = Json::array(), gl_meshes = Json::array(), nodes = Json::array(), scene_nodes = Json::array();
-  for (std::size_t i = 0; i < meshes.size(); ++i) {
-    const DenseMesh& m = *meshes[i].mesh;
-    Json attributes = {{"POSITION", add_positions(bin, accessors, m, shift)}};
-    if (!m.normals.empty()) attributes["NORMAL"] = add_normals(bin, accessors, m);
-    if (!m.colours.empty()) attributes["COLOR_0"] = add_colours(bin, accessors, m);
-    const int indices = add_indices(bin, accessors, m);
-    const std::string name = mesh_name(meshes[i], i);
-    const Json primitive = {{"attributes", attributes}, {"indices", indices}, {"material", 0}, {"mode", kTriangles}};
-    gl_meshes.push_back({{"name", name}, {"primitives", Json::array({primitive})}});
-    nodes.push_back({{"name", name}, {"mesh", i}, {"translation", {t.x(), t.y(), t.z()}}});
-    scene_nodes.push_back(i);
+// The surface material every uncoloured mesh shares, then one per flat-coloured mesh.
+Json materials_json(const GltfScene& scene, std::vector<int>& material_of_mesh) {
+  Json materials = Json::array();
+  materials.push_back({{"name", "surface"},
+                       {"pbrMetallicRoughness",
+                        {{"baseColorFactor", {1.0, 1.0, 1.0, 1.0}}, {"metallicFactor", 0.0}, {"roughnessFactor", 1.0}}},
+                       {"doubleSided", true}});
+  for (std::size_t i = 0; i < scene.meshes.size(); ++i) {
+    const auto& c = scene.meshes[i].colour;
+    if (!c) {
+      material_of_mesh.push_back(0);
+      continue;
+    }
+    Json m = {{"name", mesh_name(scene.meshes[i], i)},
+              {"pbrMetallicRoughness", {{"baseColorFactor", *c}, {"metallicFactor", 0.0}, {"roughnessFactor", 1.0}}}};
+    if ((*c)[3] < 1) m["alphaMode"] = "BLEND";  // OPAQUE, the default, would ignore alpha
+    m["doubleSided"] = true;
+    material_of_mesh.push_back(int(materials.size()));
+    materials.push_back(std::move(m));
   }
-  const Json material = {{"name", "surface"},
-                         {"pbrMetallicRoughness",
-                          {{"baseColorFactor", {1.0, 1.0, 1.0, 1.0}}, {"metallicFactor", 0.0}, {"roughnessFactor", 1.0}}},
-                         {"doubleSided", true}};
-  return {{"asset", asset_json(frame, origin)},
-          {"scene", 0},
-          {"scenes", Json::array({Json{{"nodes", scene_nodes}}})},
-          {"nodes", nodes},
-          {"meshes", gl_meshes},
-          {"materials", Json::array({material})},
-          {"accessors", accessors},
-          {"bufferViews", bin.views()},
-          {"buffers", Json::array({Json{{"byteLength", bin.bytes().size()}}})}};
+  return materials;
+}
+
+Json mesh_json(const GltfMesh& gm, std::size_t i, int material, const Eigen::Vector3d& shift, BinaryBuffer& bin,
+               Json& accessors) {
+  const DenseMesh& m = *gm.mesh;
+  Json attributes = {{"POSITION", add_positions(bin, accessors, m, shift)}};
+  if (!m.normals.empty()) attributes["NORMAL"] = add_normals(bin, accessors, m);
+  if (!m.colours.empty()) attributes["COLOR_0"] = add_colours(bin, accessors, m);
+  const int indices = add_indices(bin, accessors, m);
+  const Json primitive = {{"attributes", attributes}, {"indices", indices}, {"material", material}, {"mode", kTriangles}};
+  return {{"name", mesh_name(gm, i)}, {"primitives", Json::array({primitive})}};
+}
+
+// (E, N, Z) -> glTF axes as a matrix, for rotations: A R maps the node's axes to glTF's.
+Eigen::Matrix3d gltf_axes_matrix() {
+  Eigen::Matrix3d a;
+  a << 1, 0, 0, 0, 0, 1, 0, -1, 0;
+  return a;
+}
+
+// Mesh nodes sit at the local origin; positioned nodes at their own site CRS place.
+Json node_json(const GltfNode& n, const Eigen::Vector3d& origin, const Eigen::Vector3d& site_origin, Json& cameras) {
+  Json j = {{"name", n.name}};
+  if (n.mesh >= 0) j["mesh"] = n.mesh;
+  if (n.camera) {
+    Json perspective = {{"yfov", n.camera->yfov_rad}, {"znear", n.camera->znear_m}};
+    if (n.camera->aspect_ratio > 0) perspective["aspectRatio"] = n.camera->aspect_ratio;
+    cameras.push_back({{"name", n.name}, {"type", "perspective"}, {"perspective", perspective}});
+    j["camera"] = cameras.size() - 1;
+  }
+  const Eigen::Vector3d t = to_gltf_axes(n.position ? Eigen::Vector3d(site_origin + *n.position) : origin);
+  j["translation"] = {t.x(), t.y(), t.z()};
+  if (n.rotation) {
+    const Eigen::Quaterniond q(gltf_axes_matrix() * *n.rotation);
+    j["rotation"] = {q.x(), q.y(), q.z(), q.w()};  // glTF order: x, y, z, w
+  }
+  if (!n.extras_json.empty()) j["extras"] = Json::parse(n.extras_json);
+  return j;
+}
+
+// The whole glTF JSON; fills `bin` with the data it refers to.
+Json gltf_json(const GltfScene& scene, const ExportFrame& frame, BinaryBuffer& bin) {
+  const Eigen::Vector3d origin = local_origin(scene, frame.site_origin);
+  const Eigen::Vector3d shift = frame.site_origin - origin;  // site frame -> local, metres
+  std::vector<int> material_of_mesh;
+  const Json materials = materials_json(scene, material_of_mesh);
+  Json accessors = Json::array(), gl_meshes = Json::array(), nodes = Json::array(), scene_nodes = Json::array();
+  Json cameras = Json::array();
+  for (std::size_t i = 0; i < scene.meshes.size(); ++i)
+    gl_meshes.push_back(mesh_json(scene.meshes[i], i, material_of_mesh[i], shift, bin, accessors));
+  for (const auto& n : scene.nodes) {
+    nodes.push_back(node_json(n, origin, frame.site_origin, cameras));
+    scene_nodes.push_back(nodes.size() - 1);
+  }
+  Json j = {{"asset", asset_json(frame, origin)},
+            {"scene", 0},
+            {"scenes", Json::array({Json{{"nodes", scene_nodes}}})},
+            {"nodes", nodes}};
+  if (!gl_meshes.empty()) j["meshes"] = gl_meshes;
+  if (!cameras.empty()) j["cameras"] = cameras;
+  j["materials"] = materials;
+  if (!accessors.empty()) {
+    j["accessors"] = accessors;
+    j["bufferViews"] = bin.views();
+    j["buffers"] = Json::array({Json{{"byteLength", bin.bytes().size()}}});
+  }
+  return j;
 }
 
 void put_u32(std::string& out, std::uint32_t v) {
@@ -290,10 +385,40 @@ void write_bytes(const fs::path& path, const std::string& bytes) {
 
 }  // namespace
 
+double srgb_to_linear(double s) { return s <= 0.04045 ? s / 12.92 : std::pow((s + 0.055) / 1.055, 2.4); }
+
+GltfNode gltf_camera_node(const std::string& name, const Pose& pose, const Intrinsics& intrinsics) {
+  GltfNode n;
+  n.name = name;
+  n.position = pose.centre();
+  // glTF camera axes -> OpenCV camera axes (flip y and z), then camera -> site (R^T).
+  const Eigen::Matrix3d flip = Eigen::Vector3d(1, -1, -1).asDiagonal();
+  n.rotation = pose.R.transpose() * flip;
+  GltfCamera c;
+  if (intrinsics.height > 0 && intrinsics.fy > 0) c.yfov_rad = 2 * std::atan(0.5 * intrinsics.height / intrinsics.fy);
+  if (intrinsics.height > 0) c.aspect_ratio = double(intrinsics.width) / intrinsics.height;
+  if (c.yfov_rad > 0) n.camera = c;
+  return n;
+}
+
 void write_glb(const fs::path& path, std::span<const GltfMesh> meshes, const ExportFrame& frame) {
-  check_meshes(path, meshes);
+  if (meshes.empty()) throw input_error(path, "no mesh to write");
+  GltfScene scene;
+  scene.meshes.assign(meshes.begin(), meshes.end());
+  for (std::size_t i = 0; i < meshes.size(); ++i) {
+    GltfNode n;
+    n.name = mesh_name(meshes[i], i);
+    n.mesh = int(i);
+    scene.nodes.push_back(std::move(n));
+  }
+  write_glb(path, scene, frame);
+}
+
+void write_glb(const fs::path& path, const GltfScene& scene, const ExportFrame& frame) {
+  check_meshes(path, scene.meshes);
+  check_nodes(path, scene);
   BinaryBuffer bin;
-  const Json json = gltf_json(meshes, frame, bin);
+  const Json json = gltf_json(scene, frame, bin);
   write_bytes(path, glb_bytes(path, json.dump(), bin.bytes()));
 }
 

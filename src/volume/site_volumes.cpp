@@ -78,6 +78,8 @@ double surface_noise(Database& db, std::int64_t layer_id, double fallback) {
   return median > 0 ? kMadToSigma * median : fallback;
 }
 
+}  // namespace
+
 std::vector<LayerRecord> capture_order(std::vector<LayerRecord> layers) {
   const bool timed = std::all_of(layers.begin(), layers.end(), [](const auto& l) { return l.captured_at.has_value(); });
   std::stable_sort(layers.begin(), layers.end(), [&](const LayerRecord& a, const LayerRecord& b) {
@@ -86,8 +88,6 @@ std::vector<LayerRecord> capture_order(std::vector<LayerRecord> layers) {
   });
   return layers;
 }
-
-}  // namespace
 
 void SiteVolumeOptions::validate() const {
   volume.validate();

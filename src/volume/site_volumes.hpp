@@ -51,6 +51,10 @@ struct SiteModel {
   std::vector<RelationRecord> relations;
 };
 
+// Layers in the order they were captured, the top of the stratigraphy first: by
+// captured_at when every layer has one, else by id.
+std::vector<LayerRecord> capture_order(std::vector<LayerRecord> layers);
+
 // Loads every layer's surface (surface_files, else its "surface" product .vdb,
 // else its "dtm" product GeoTIFF) onto one grid, fills their gaps inside the
 // trench outline (fill_surface_gaps) and builds the unit solids.

@@ -114,5 +114,44 @@ TEST(CliExportModel, GlbCarriesTheSiteFrame) {
   EXPECT_NEAR(z_max, 1450.0102, kSubMillimetre);
 }
 
+// The site model without unit solids or cameras (no layer surfaces, no alignment
+// here: the unit test covers the scene writer, the full example the whole path):
+// processed layers in layer order, markers at their surveyed place, and the refusal
+// of a project with no processed layer naming the command to run.
+TEST(CliExportModel, SiteModelHasLayersAndMarkersAndRefusesAnUnprocessedProject) {
+  test::ScratchDir dir("model_site");
+  const fs::path site = project_with_layer(dir);
+  auto r = run_strata({"export", "model", site.string(), "--out", (dir / "site.glb").string()});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(lines(r.err), 1) << r.err;
+  EXPECT_NE(r.err.find("strata process"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir / "site.glb"));
+
+  r = run_strata({"layer", "add", site.string(), "L2", "--unit", "101"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  record_dense_mesh(site, quad());
+  const Eigen::Vector3d gcp = kSiteOrigin + Eigen::Vector3d(101.5, 101.0, -0.05);
+  {
+    Project p = Project::open(site);
+    MarkerRecord m;
+    m.name = "GCP1";
+    m.position = gcp;
+    upsert_marker(p.db(), m, p.site().srs_id);
+  }
+  r = run_strata({"export", "model", site.string(), "--out", (dir / "site.glb").string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("L2 has no dense mesh"), std::string::npos) << r.err;
+  const nlohmann::json j = glb_json(dir / "site.glb");
+  ASSERT_TRUE(j.is_object());
+  ASSERT_EQ(j["nodes"].size(), 2u);
+  EXPECT_EQ(j["nodes"][0]["name"], "layer L1");
+  EXPECT_EQ(j["nodes"][1]["name"], "marker GCP1");
+  const auto& t = j["nodes"][1]["translation"];
+  EXPECT_NEAR(double(t[0]), gcp.x(), kSubMillimetre);
+  EXPECT_NEAR(-double(t[2]), gcp.y(), kSubMillimetre);
+  EXPECT_NEAR(double(t[1]), gcp.z(), kSubMillimetre);
+  EXPECT_EQ(j["nodes"][1]["extras"]["kind"], "control");
+}
+
 }  // namespace
 }  // namespace strata

@@ -28,6 +28,8 @@ constexpr double kSubMillimetre = 1e-4;
 constexpr double kUnitTolerance = 1e-6;
 // float32 of a linear colour value in [0, 1].
 constexpr double kColourTolerance = 1e-6;
+// radians / metres / unit quaternion norm: double arithmetic on exact inputs.
+constexpr double kExact = 1e-9;
 const Eigen::Vector3d kSiteOrigin(733900.0, 4173900.0, 1450.0);  // E, N, Z: rounded like Project's
 
 // ---- a reader for the GLB container, independent of the writer ----------------------
@@ -296,7 +298,7 @@ TEST(GltfExport, MeshWithoutFacesIsRefusedNamingFileAndMesh) {
     EXPECT_NE(what.find("'L7' has no faces"), std::string::npos) << what;
   }
   EXPECT_FALSE(fs::exists(dir / "l.glb"));
-  EXPECT_THROW(write_glb(dir / "l.glb", {}, utm_frame()), InputError);
+  EXPECT_THROW(write_glb(dir / "l.glb", std::span<const GltfMesh>{}, utm_frame()), InputError);
 }
 
 TEST(GltfExport, UnwritablePathIsAnIoErrorNamingTheFile) {
@@ -312,6 +314,91 @@ TEST(GltfExport, UnwritablePathIsAnIoErrorNamingTheFile) {
   fs::create_directories(dir / "l.glb");  // a folder where the file should go
   EXPECT_THROW(write_one(dir / "l.glb", utm_grid()), IoError);
   EXPECT_FALSE(fs::exists(dir / "l.next.glb"));
+}
+
+// ---- a scene: meshes, a mesh-less node with extras, a camera ------------------------
+
+// A mesh-less node's translation back in site CRS (E, N, Z).
+Eigen::Vector3d site_crs_of(const json& node) {
+  const json& t = node.at("translation");
+  return {t[0].get<double>(), -t[2].get<double>(), t[1].get<double>()};
+}
+
+TEST(GltfExport, SceneKeepsNodeOrderExtrasMaterialsAndCameras) {
+  test::ScratchDir dir("gltf_scene");
+  DenseMesh layer = utm_grid(), solid = utm_grid();
+  for (auto& v : solid.vertices) v.z() -= 0.25;
+  GltfScene scene;
+  scene.meshes.push_back({"layer L1", &layer});
+  scene.meshes.push_back({"unit 101", &solid, std::array<double, 4>{0.2, 0.4, 0.6, 0.5}});
+  GltfNode l1{.name = "layer L1", .mesh = 0};
+  GltfNode u101{.name = "unit 101", .mesh = 1};
+  u101.extras_json = R"({"unit": "101", "volume_m3": 1.25, "interval_m3": [1.2, 1.3]})";
+  GltfNode gcp{.name = "marker GCP1", .position = Eigen::Vector3d(100.1234, 100.5678, 0.1)};
+  gcp.extras_json = R"({"kind": "control"})";
+  // Straight down from 2 m above the ground, north up in the image; a 6000 x 4000 photo.
+  const Pose down = Pose::look_at({100, 100, 2}, {100, 100, 0}, Eigen::Vector3d::UnitY());
+  const Intrinsics lens{6000, 4000, 5000, 5000, 2999.5, 1999.5};
+  scene.nodes = {l1, u101, gcp, gltf_camera_node("camera L1/IMG_0001.jpg", down, lens)};
+  write_glb(dir / "site.glb", scene, utm_frame());
+
+  const Glb g = read_glb(dir / "site.glb");
+  EXPECT_EQ(layout_problems(g), "");
+  const json& j = g.gltf;
+  ASSERT_EQ(j["nodes"].size(), 4u);
+  const char* names[] = {"layer L1", "unit 101", "marker GCP1", "camera L1/IMG_0001.jpg"};
+  for (int i = 0; i < 4; ++i) EXPECT_EQ(j["nodes"][i]["name"], names[i]) << i;
+  EXPECT_EQ(j["scenes"][int(j["scene"])]["nodes"], json({0, 1, 2, 3}));
+  // The origin covers the camera 2 m up: Z from -0.65 to 2, centre 1450.675 -> 1451.
+  EXPECT_EQ(j["asset"]["extras"]["origin"], json({734000.0, 4174000.0, 1451.0}));
+  EXPECT_EQ(j["nodes"][0]["translation"], json({734000.0, 1451.0, -4174000.0}));
+
+  EXPECT_EQ(j["nodes"][1]["extras"], json::parse(u101.extras_json));
+  EXPECT_FALSE(j["nodes"][0].contains("extras"));
+  const json& marker = j["nodes"][2];
+  EXPECT_FALSE(marker.contains("mesh"));
+  EXPECT_EQ(marker["extras"]["kind"], "control");
+  EXPECT_LT((site_crs_of(marker) - (kSiteOrigin + *gcp.position)).cwiseAbs().maxCoeff(), kSubMillimetre);
+
+  // Materials: the shared white surface, then the unit's own translucent colour.
+  const json& mats = j["materials"];
+  EXPECT_EQ(j["meshes"][0]["primitives"][0]["material"], 0);
+  const json& unit_mat = mats[int(j["meshes"][1]["primitives"][0]["material"])];
+  EXPECT_EQ(unit_mat["pbrMetallicRoughness"]["baseColorFactor"], json({0.2, 0.4, 0.6, 0.5}));
+  EXPECT_EQ(unit_mat["alphaMode"], "BLEND");
+  EXPECT_FALSE(mats[0].contains("alphaMode"));
+
+  const json& cam_node = j["nodes"][3];
+  const json& cam = j["cameras"][int(cam_node["camera"])];
+  EXPECT_EQ(cam["type"], "perspective");
+  EXPECT_NEAR(double(cam["perspective"]["yfov"]), 2 * std::atan(2000.0 / 5000.0), kExact);
+  EXPECT_NEAR(double(cam["perspective"]["aspectRatio"]), 1.5, kExact);
+  EXPECT_GT(double(cam["perspective"]["znear"]), 0.0);
+  EXPECT_LT((site_crs_of(cam_node) - (kSiteOrigin + Eigen::Vector3d(100, 100, 2))).cwiseAbs().maxCoeff(), kSubMillimetre);
+  const json& r = cam_node["rotation"];  // x, y, z, w
+  const Eigen::Quaterniond q(r[3].get<double>(), r[0].get<double>(), r[1].get<double>(), r[2].get<double>());
+  EXPECT_NEAR(q.norm(), 1.0, kExact);
+  // A glTF camera looks along its -z with +y up the image: down (-y in glTF axes), north
+  // (-z in glTF axes) up the image.
+  EXPECT_LT((q * Eigen::Vector3d(0, 0, -1) - Eigen::Vector3d(0, -1, 0)).norm(), kExact);
+  EXPECT_LT((q * Eigen::Vector3d(0, 1, 0) - Eigen::Vector3d(0, 0, -1)).norm(), kExact);
+}
+
+TEST(GltfExport, SceneRefusesBrokenNodes) {
+  test::ScratchDir dir("gltf_scene_bad");
+  const DenseMesh m = utm_grid();
+  GltfScene scene;
+  scene.meshes.push_back({"m", &m});
+  scene.nodes.push_back({.name = "ghost", .mesh = 1});
+  EXPECT_THROW(write_glb(dir / "s.glb", scene, utm_frame()), InputError);
+  scene.nodes = {{.name = "m", .mesh = 0, .extras_json = "[1, 2]"}};
+  EXPECT_THROW(write_glb(dir / "s.glb", scene, utm_frame()), InputError);
+  scene.nodes = {{.name = "skew", .rotation = Eigen::Matrix3d(Eigen::Vector3d(1, 1, 1).asDiagonal() * 2.0)}};
+  EXPECT_THROW(write_glb(dir / "s.glb", scene, utm_frame()), InputError);
+  scene.nodes = {{.name = "m", .mesh = 0}};
+  scene.meshes[0].colour = std::array<double, 4>{1.5, 0, 0, 1};
+  EXPECT_THROW(write_glb(dir / "s.glb", scene, utm_frame()), InputError);
+  EXPECT_FALSE(fs::exists(dir / "s.glb"));
 }
 
 }  // namespace
