@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Installs the Debian 12 packages strata needs, only when some are missing.
 # Idempotent and quiet when everything is present.
-# Usage: scripts/setup.sh [--gis]   (--gis also installs GRASS and Graphviz for the
-#                                   integration tests that drive real GIS clients)
+# Usage: scripts/setup.sh [--gis]   (--gis also installs GRASS, Graphviz and Chromium for
+#                                   the integration tests that drive real GIS clients and
+#                                   load the viewer page in a headless browser)
 set -euo pipefail
 
 packages=(
@@ -11,10 +12,11 @@ packages=(
   libcgal-dev libopenvdb-dev libboost-iostreams-dev libopencv-dev libopencv-contrib-dev
   libceres-dev libeigen3-dev libtbb-dev libgtest-dev googletest libexiv2-dev
   nlohmann-json3-dev libcli11-dev libfmt-dev libspdlog-dev
+  libjs-three  # three.js r111, inlined by 'strata export viewer'
   python3  # bench scripts; the crash-injection sample of the test suite
 )
 if [[ "${1:-}" == "--gis" ]]; then
-  packages+=(grass-core graphviz)
+  packages+=(grass-core graphviz chromium)
 fi
 
 missing=()

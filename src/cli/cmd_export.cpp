@@ -1,8 +1,8 @@
 // strata export ...
 #include "cli/commands.hpp"
+#include "cli/site_scene.hpp"
 #include "core/error.hpp"
 #include "core/fault.hpp"
-#include "core/hash.hpp"
 #include "core/log.hpp"
 #include "dense/dense_mesh.hpp"
 #include "exporters/cameras/camera_export.hpp"
@@ -10,17 +10,11 @@
 #include "pipeline/alignment_store.hpp"
 #include "project/project.hpp"
 #include "project/records.hpp"
-#include "volume/site_volumes.hpp"
-#include "volume/volume.hpp"
 
 #include <fmt/format.h>
-#include <nlohmann/json.hpp>
 
 #include <algorithm>
-#include <array>
 #include <cctype>
-#include <cmath>
-#include <deque>
 #include <memory>
 
 namespace strata::cli {
@@ -41,163 +35,23 @@ std::shared_ptr<LayerExportArgs> add_layer_export_options(CLI::App* cmd, const s
   return a;
 }
 
-// The file of a product the dense stage recorded, refused when it has gone or changed
-// since (an export must not pass off another file as the layer's).
-std::filesystem::path checked_product_file(Project& p, const LayerRecord& l, const ProductRecord& product,
-                                           const std::string& dir) {
-  const auto src = p.dir() / product.path;
-  if (!std::filesystem::exists(src) || sha256_file(src) != product.sha256) {
-    throw IoError(fmt::format("{}: missing or changed since it was recorded; rerun 'strata process {} --layer "
-                              "{} --force'", src.string(), dir, l.name));
-  }
-  return src;
-}
-
-// The dense stage's PLY holds site CRS coordinates (double) or site-frame floats with
-// their offset in a comment; the glTF writer takes the site frame.
-DenseMesh site_frame_mesh(PlyContents ply, const Eigen::Vector3d& site_origin) {
-  const Eigen::Vector3d shift = (ply.has_offset_comment ? ply.offset : Eigen::Vector3d::Zero()) - site_origin;
-  for (auto& v : ply.mesh.vertices) v += shift;
-  return std::move(ply.mesh);
-}
-
 std::string lower_extension(const std::string& path) {
   std::string ext = std::filesystem::path(path).extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
   return ext;
 }
 
-// The site model under construction: the scene and the meshes it points to (a deque:
-// adding a mesh must not move the others).
-struct SiteScene {
-  std::deque<DenseMesh> meshes;
-  GltfScene scene;
-
-  void add_mesh(std::string name, DenseMesh mesh, std::optional<std::array<double, 4>> colour,
-                std::string extras_json = "") {
-    meshes.push_back(std::move(mesh));
-    scene.meshes.push_back({name, &meshes.back(), colour});
-    GltfNode n;
-    n.name = std::move(name);
-    n.mesh = int(scene.meshes.size()) - 1;
-    n.extras_json = std::move(extras_json);
-    scene.nodes.push_back(std::move(n));
-  }
-};
-
-// A distinct colour per unit, the same on every export of the same units: hues a golden
-// angle apart in the units' order (so neighbouring units differ most), as glTF's linear
-// RGBA; the alpha lets the layer surfaces show through the solids.
-std::array<double, 4> unit_colour(std::size_t index) {
-  constexpr double kGoldenAngleDeg = 137.50776405;
-  constexpr double kSaturation = 0.7, kValue = 0.9, kAlpha = 0.45;
-  const double h = std::fmod(double(index) * kGoldenAngleDeg, 360.0) / 60.0;  // sextant of the HSV hexcone
-  const double c = kValue * kSaturation, x = c * (1 - std::abs(std::fmod(h, 2.0) - 1)), m = kValue - c;
-  const std::array<std::array<double, 3>, 6> sextants = {
-      {{c, x, 0}, {x, c, 0}, {0, c, x}, {0, x, c}, {x, 0, c}, {c, 0, x}}};
-  std::array<double, 4> rgba{0, 0, 0, kAlpha};
-  for (int k = 0; k < 3; ++k) {
-    rgba[k] = srgb_to_linear(sextants[std::size_t(h) % 6][k] + m);
-  }
-  return rgba;
-}
-
-// Every layer's dense mesh, top layer first; the number added.
-int add_layer_meshes(Project& p, const std::vector<LayerRecord>& layers, const std::string& dir, SiteScene& site) {
-  const Eigen::Vector3d origin = p.site().origin;
-  int added = 0;
-  for (const auto& l : layers) {
-    const auto product = find_product(p.db(), l.id, "mesh");
-    if (!product) {
-      log::warn("export model: layer {} has no dense mesh yet: left out", l.name);
-      continue;
-    }
-    site.add_mesh("layer " + l.name, site_frame_mesh(read_ply(checked_product_file(p, l, *product, dir)), origin),
-                  std::nullopt);
-    ++added;
-  }
-  return added;
-}
-
-// The unit solids as `strata volume` computes them (default options, the kept trench
-// outline). load_site_model writes only when given a new outline file, which the
-// default options never are: the export stays read-only.
-void add_unit_solids(Project& p, const std::vector<LayerRecord>& layers, SiteScene& site) {
-  const auto with_surface = std::count_if(layers.begin(), layers.end(), [&](const LayerRecord& l) {
-    return find_product(p.db(), l.id, "surface") || find_product(p.db(), l.id, "dtm");
-  });
-  if (with_surface < 2) {
-    log::warn("export model: {} layer(s) have a surface; unit solids need two: none in the model", with_surface);
-    return;
-  }
-  const SiteModel model = load_site_model(p, SiteVolumeOptions{});
-  for (std::size_t i = 0; i < model.solids.size(); ++i) {
-    const UnitSolid& s = model.solids[i];
-    DenseMesh mesh = unit_solid_mesh(s);
-    if (mesh.faces.empty()) continue;  // a unit dug nowhere on the grid
-    const nlohmann::ordered_json extras = {{"unit", s.unit},
-                                           {"volume_m3", s.measures.volume_m3},
-                                           {"interval_m3", {s.measures.interval_low_m3, s.measures.interval_high_m3}}};
-    site.add_mesh("unit " + s.unit, std::move(mesh), unit_colour(i), extras.dump());
-  }
-}
-
-void add_markers(Project& p, SiteScene& site) {
-  const Eigen::Vector3d origin = p.site().origin;
-  for (const auto& m : list_markers(p.db())) {
-    GltfNode n;
-    n.name = "marker " + m.name;
-    n.position = m.position - origin;
-    n.extras_json = nlohmann::ordered_json{{"marker", m.name},
-                                           {"kind", m.kind},
-                                           {"site_crs", {m.position.x(), m.position.y(), m.position.z()}}}
-                        .dump();
-    site.scene.nodes.push_back(std::move(n));
-  }
-}
-
-// The registered photos of every georeferenced layer, top layer first.
-void add_cameras(Project& p, const std::vector<LayerRecord>& layers, SiteScene& site) {
-  for (const auto& l : layers) {
-    const auto a = load_alignment(p.db(), l);
-    if (!a) continue;
-    if (!a->rec.georeferenced) {
-      log::warn("export model: layer {} is aligned but not georeferenced: its cameras are left out", l.name);
-      continue;
-    }
-    for (const auto& img : a->rec.images) {
-      if (!img.registered) continue;
-      GltfNode n = gltf_camera_node(fmt::format("camera {}/{}", l.name, img.name), img.pose,
-                                    a->rec.groups.at(std::size_t(img.group)).intrinsics);
-      n.extras_json = nlohmann::ordered_json{{"layer", l.name}, {"image", img.name}}.dump();
-      site.scene.nodes.push_back(std::move(n));
-    }
-  }
-}
-
 // The whole site in one .glb: layer meshes, unit solids, markers, cameras.
 void export_site_model(const std::string& dir, const std::string& out) {
   Project p = Project::open(dir);
-  const std::vector<LayerRecord> layers = capture_order(list_layers(p.db()));
-  // Refused before any warning about single layers: the error stays one line.
-  if (std::none_of(layers.begin(), layers.end(), [&](const LayerRecord& l) { return find_product(p.db(), l.id, "mesh"); })) {
-    throw InputError(fmt::format("export model: no layer of {} has a dense mesh yet; run 'strata process {} --layer L "
-                                 "--until dense' first", dir, dir));
-  }
-  SiteScene site;
-  const std::size_t n_layers = std::size_t(add_layer_meshes(p, layers, dir, site));
-  add_unit_solids(p, layers, site);
-  const std::size_t n_units = site.scene.nodes.size() - n_layers;
-  add_markers(p, site);
-  const std::size_t n_markers = site.scene.nodes.size() - n_layers - n_units;
-  add_cameras(p, layers, site);
+  const SiteScene site = build_site_scene(p, dir, SiteSceneOptions{});
   const SiteInfo info = p.site();
   ExportFrame frame;
   frame.site_origin = info.origin;
   frame.crs = info.crs;
   write_glb(out, site.scene, frame);
-  log::info("wrote {} ({} layers, {} units, {} markers, {} cameras)", out, n_layers, n_units, n_markers,
-            site.scene.nodes.size() - n_layers - n_units - n_markers);
+  log::info("wrote {} ({} layers, {} units, {} markers, {} cameras)", out, site.layers, site.units, site.markers,
+            site.cameras);
 }
 
 void register_model_command(CLI::App& exp) {
@@ -316,6 +170,7 @@ void register_export_commands(CLI::App& app) {
     });
   }
   register_model_command(*exp);
+  register_viewer_command(*exp);
 }
 
 }  // namespace strata::cli

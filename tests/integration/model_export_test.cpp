@@ -1,4 +1,4 @@
-// `strata export model` on a project whose layer has a recorded dense mesh (written
+// `strata export model` and `strata export viewer` on a project whose layer has a recorded dense mesh (written
 // here, as the dense stage writes it: double site CRS coordinates): the refusals, and
 // the .glb's frame checked against the mesh's known coordinates. The container
 // itself is checked in tests/unit/exporters/gltf_test.cpp.
@@ -11,7 +11,9 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <cstdlib>
 #include <cstring>
+#include <regex>
 
 namespace strata {
 namespace {
@@ -151,6 +153,96 @@ TEST(CliExportModel, SiteModelHasLayersAndMarkersAndRefusesAnUnprocessedProject)
   EXPECT_NEAR(-double(t[2]), gcp.y(), kSubMillimetre);
   EXPECT_NEAR(double(t[1]), gcp.z(), kSubMillimetre);
   EXPECT_EQ(j["nodes"][1]["extras"]["kind"], "control");
+}
+
+// The viewer's embedded model: the base64 text of <script id="model"> decoded.
+std::string embedded_model(const std::string& html) {
+  const std::string open = "<script id=\"model\" type=\"application/octet-stream\">";
+  const auto b = html.find(open);
+  if (b == std::string::npos) return {};
+  const auto e = html.find("</script>", b);
+  std::string out;
+  unsigned bits = 0;
+  int n = 0;
+  for (std::size_t i = b + open.size(); i < e; ++i) {
+    const char c = html[i];
+    int v = -1;
+    if (c >= 'A' && c <= 'Z') v = c - 'A';
+    else if (c >= 'a' && c <= 'z') v = c - 'a' + 26;
+    else if (c >= '0' && c <= '9') v = c - '0' + 52;
+    else if (c == '+') v = 62;
+    else if (c == '/') v = 63;
+    if (v < 0) continue;  // newlines and '=' padding
+    bits = bits << 6 | unsigned(v);
+    if ((n += 6) >= 8) out += char((bits >> (n -= 8)) & 0xFF);
+  }
+  return out;
+}
+
+// Layer L1 processed and one marker surveyed: two scene nodes.
+void record_mesh_and_marker(const fs::path& site) {
+  record_dense_mesh(site, quad());
+  Project p = Project::open(site);
+  MarkerRecord m;
+  m.name = "GCP1";
+  m.position = kSiteOrigin + Eigen::Vector3d(101.5, 101.0, -0.05);
+  upsert_marker(p.db(), m, p.site().srs_id);
+}
+
+TEST(CliExportViewer, OneSelfContainedPageWithTheModelEmbedded) {
+  test::ScratchDir dir("viewer_page");
+  const std::string site = project_with_layer(dir).string();
+  const std::string html_path = (dir / "site.html").string();
+  auto r = run_strata({"export", "viewer", site, "--out", html_path});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(lines(r.err), 1) << r.err;
+  EXPECT_NE(r.err.find("strata process"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(html_path));
+
+  record_mesh_and_marker(site);
+  r = run_strata({"export", "viewer", site, "--out", html_path});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const std::string html = test::read_text(html_path);
+  EXPECT_NE(html.find("THREE.GLTFLoader"), std::string::npos);
+  EXPECT_NE(html.find("THREE.OrbitControls"), std::string::npos);
+  EXPECT_NE(html.find("WebGLRenderer"), std::string::npos);  // three.min.js itself
+  // Self-contained: nothing fetched from the network.
+  EXPECT_FALSE(std::regex_search(html, std::regex(R"((src|href)\s*=\s*["']?\s*(https?:)?//)", std::regex::icase)));
+  EXPECT_EQ(html.find("<link"), std::string::npos);
+  const std::string glb = embedded_model(html);
+  ASSERT_GE(glb.size(), 20u);
+  std::uint32_t magic = 0, length = 0;
+  std::memcpy(&magic, glb.data(), 4);
+  std::memcpy(&length, glb.data() + 8, 4);
+  EXPECT_EQ(magic, 0x46546C67u);  // "glTF"
+  EXPECT_EQ(length, glb.size());
+  test::write_text(dir / "embedded.glb", glb);
+  const nlohmann::json j = glb_json(dir / "embedded.glb");
+  ASSERT_TRUE(j.is_object());
+  EXPECT_EQ(j["nodes"].size(), 2u);
+}
+
+// The page run in headless Chromium (software WebGL): its script writes "loaded N
+// nodes" once the model is in the scene, so a JavaScript error fails the test.
+TEST(CliExportViewer, PageLoadsTheModelInHeadlessChromium) {
+  const fs::path chromium = "/usr/bin/chromium";
+  if (!fs::exists(chromium)) GTEST_SKIP() << "no /usr/bin/chromium (apt-get install chromium)";
+  test::ScratchDir dir("viewer_chromium");
+  const std::string site = project_with_layer(dir).string();
+  record_mesh_and_marker(site);
+  const fs::path html_path = dir / "site.html", dom = dir / "dom.html";
+  const auto r = run_strata({"export", "viewer", site, "--out", html_path.string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const std::string cmd = "timeout 120 " + chromium.string() +
+                          " --headless --no-sandbox --disable-gpu --use-gl=swiftshader --enable-unsafe-swiftshader"
+                          " --virtual-time-budget=10000 --dump-dom 'file://" + html_path.string() + "' > '" +
+                          dom.string() + "' 2> '" + (dir / "chromium.err").string() + "'";
+  ASSERT_EQ(std::system(cmd.c_str()), 0) << test::read_text(dir / "chromium.err");
+  const std::string page = test::read_text(dom);
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(page, m, std::regex(R"(<div id="status"[^>]*>([^<]*)</div>)"))) << page.substr(0, 2000);
+  EXPECT_EQ(m[1].str(), "loaded 2 nodes");
+  EXPECT_NE(m[0].str().find("data-webgl=\"yes\""), std::string::npos) << m[0].str();
 }
 
 }  // namespace

@@ -1,0 +1,180 @@
+// strata export viewer: the site model in one self-contained HTML page (three.js from
+// Debian's libjs-three inlined, the .glb embedded as base64), for any browser offline.
+#include "cli/site_scene.hpp"
+#include "core/error.hpp"
+#include "core/log.hpp"
+
+#include <fmt/format.h>
+
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <sstream>
+#include <string>
+
+namespace strata::cli {
+
+extern const char* const kViewerJs;  // viewer_js.cpp: the page's script
+
+namespace {
+
+namespace fs = std::filesystem;
+
+// Debian's libjs-three (r111): the non-module builds that define the global THREE.
+const char* const kThreeDir = "/usr/share/javascript/three";
+const char* const kThreeFiles[] = {"build/three.min.js", "examples/js/loaders/GLTFLoader.js",
+                                   "examples/js/controls/OrbitControls.js"};
+// Above this a browser tab needs several times as much memory to decode and upload it.
+constexpr std::uintmax_t kLargeModelBytes = 150'000'000;
+
+std::string read_file_bytes(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw IoError(fmt::format("export viewer: {}: cannot read", path.string()));
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+// Inlined into <script>: a literal "</script" inside would end the element early.
+std::string script_safe(std::string js) {
+  for (std::size_t i = js.find("</script"); i != std::string::npos; i = js.find("</script", i + 2)) {
+    js.replace(i, 2, "<\\/");
+  }
+  return js;
+}
+
+std::string three_js_sources() {
+  std::string out;
+  for (const char* f : kThreeFiles) {
+    const fs::path path = fs::path(kThreeDir) / f;
+    if (!fs::exists(path)) {
+      throw InputError(fmt::format("export viewer: {} not found: the viewer inlines three.js from Debian's "
+                                   "libjs-three; run 'apt-get install libjs-three'", path.string()));
+    }
+    out += "<script>\n" + script_safe(read_file_bytes(path)) + "\n</script>\n";
+  }
+  return out;
+}
+
+std::string base64(const std::string& bytes) {
+  static const char* const kAlphabet = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string out;
+  out.reserve((bytes.size() + 2) / 3 * 4);
+  std::size_t i = 0;
+  for (; i + 2 < bytes.size(); i += 3) {
+    const unsigned v = unsigned(std::uint8_t(bytes[i])) << 16 | unsigned(std::uint8_t(bytes[i + 1])) << 8 |
+                       unsigned(std::uint8_t(bytes[i + 2]));
+    for (int k = 3; k >= 0; --k) out += kAlphabet[(v >> (6 * k)) & 63];
+  }
+  if (i < bytes.size()) {
+    const bool two = i + 1 < bytes.size();
+    const unsigned v = unsigned(std::uint8_t(bytes[i])) << 16 | (two ? unsigned(std::uint8_t(bytes[i + 1])) << 8 : 0u);
+    out += kAlphabet[(v >> 18) & 63];
+    out += kAlphabet[(v >> 12) & 63];
+    out += two ? kAlphabet[(v >> 6) & 63] : '=';
+    out += '=';
+  }
+  return out;
+}
+
+// The page's own CSS and markup; the script follows in kViewerJs.
+const char* const kViewerHead = R"HTML(<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8"><title>{title}</title>
+<style>
+html, body {{ margin: 0; height: 100%; overflow: hidden; font: 13px sans-serif; }}
+#view {{ position: absolute; inset: 0; }}
+#panel {{ position: absolute; top: 8px; left: 8px; max-height: 90%; overflow-y: auto; background: rgba(255,255,255,0.88);
+  padding: 6px 10px; border-radius: 4px; min-width: 200px; }}
+#panel h3 {{ margin: 6px 0 2px; font-size: 13px; }}
+#panel label {{ display: block; white-space: nowrap; }}
+#readout {{ position: absolute; bottom: 8px; left: 8px; background: rgba(255,255,255,0.88); padding: 4px 8px;
+  border-radius: 4px; font-family: monospace; white-space: pre; }}
+#tip {{ position: absolute; pointer-events: none; background: #ffd; border: 1px solid #999; padding: 2px 5px; display: none; }}
+.label {{ position: absolute; pointer-events: none; font-size: 11px; color: #000; text-shadow: 0 0 3px #fff; }}
+#status {{ position: absolute; top: 8px; right: 8px; background: rgba(255,255,255,0.88); padding: 2px 6px; }}
+#status.error {{ color: #b00; }}
+</style></head><body>
+<div id="view"></div><div id="labels"></div>
+<div id="panel"><b>{title}</b>
+<h3>Layers</h3><div id="layers"></div>
+<h3>Units</h3><div id="units"></div>
+<h3>Show</h3>
+<label><input type="checkbox" id="show-markers" checked> markers</label>
+<label><input type="checkbox" id="show-cameras"> cameras</label>
+<h3>Section</h3>
+<label><input type="checkbox" id="section"> vertical section plane</label>
+<label>position <input type="range" id="section-pos" min="-1" max="1" step="0.001" value="0"></label>
+<label>azimuth <input type="range" id="section-az" min="0" max="180" step="1" value="90"> <span id="az-deg">90</span>&deg;</label>
+<h3>Measure</h3>
+<label><input type="checkbox" id="measure"> click two points</label>
+</div>
+<div id="readout">{crs}</div><div id="tip"></div><div id="status">loading</div>
+)HTML";
+
+std::string viewer_page(const std::string& title, const std::string& crs, const std::string& three_js,
+                        const std::string& glb) {
+  std::string html = fmt::format(fmt::runtime(kViewerHead), fmt::arg("title", title), fmt::arg("crs", crs));
+  html += three_js;
+  html += "<script id=\"model\" type=\"application/octet-stream\">\n" + base64(glb) + "\n</script>\n";
+  html += "<script>\n" + std::string(kViewerJs) + "\n</script>\n</body></html>\n";
+  return html;
+}
+
+struct ViewerArgs {
+  std::string dir, layer, out;
+  std::size_t max_faces = 300000;
+};
+
+void export_viewer(const ViewerArgs& a) {
+  const std::string three_js = three_js_sources();  // read first: a missing package is refused before the slow part
+  Project p = Project::open(a.dir);
+  SiteSceneOptions options;
+  options.max_layer_faces = a.max_faces;
+  options.command = "export viewer";
+  options.only_layer = a.layer;
+  const SiteScene site = build_site_scene(p, a.dir, options);
+  const SiteInfo info = p.site();
+  ExportFrame frame;
+  frame.site_origin = info.origin;
+  frame.crs = info.crs;
+  // The glTF writer writes files only: the model passes through a temporary one.
+  const fs::path glb_tmp = a.out + ".glb.tmp";
+  write_glb(glb_tmp, site.scene, frame);
+  const std::string glb = read_file_bytes(glb_tmp);
+  fs::remove(glb_tmp);
+  if (glb.size() > kLargeModelBytes) {
+    log::warn("export viewer: the embedded model is {:.0f} MB: browsers may be slow or run out of memory; lower "
+              "--max-faces (now {}) or view one --layer", double(glb.size()) / 1e6, a.max_faces);
+  }
+  const std::string title = fs::path(a.dir).filename().string() + (a.layer.empty() ? "" : " layer " + a.layer);
+  const std::string tmp = a.out + ".tmp";
+  {
+    std::ofstream out(tmp, std::ios::binary);
+    out << viewer_page(title, info.crs, three_js, glb);
+    if (!out) throw IoError(fmt::format("export viewer: {}: cannot write", tmp));
+  }
+  fs::rename(tmp, a.out);
+  log::info("wrote {} ({} layers, {} units, {} markers, {} cameras; model {:.1f} MB)", a.out, site.layers, site.units,
+            site.markers, site.cameras, double(glb.size()) / 1e6);
+}
+
+}  // namespace
+
+void register_viewer_command(CLI::App& exp) {
+  auto* cmd = exp.add_subcommand(
+      "viewer",
+      "the site model (as 'export model' builds it) in one self-contained HTML page that opens\n"
+      "in any browser offline: three.js inlined from Debian's libjs-three, the model embedded.\n"
+      "Layers and units toggle, unit volumes on hover, markers named, a movable vertical section\n"
+      "plane, and a measuring tool showing site CRS coordinates and distances. Layer meshes above\n"
+      "--max-faces are simplified first (their vertex colours are then dropped). See docs/model.md.");
+  auto a = std::make_shared<ViewerArgs>();
+  cmd->add_option("DIR", a->dir, "project folder")->required();
+  cmd->add_option("--layer", a->layer, "only this layer's mesh (default: every layer)");
+  cmd->add_option("--out", a->out, "output file, .html")->required();
+  cmd->add_option("--max-faces", a->max_faces, "faces per layer mesh at most (simplified above; 0: keep all)")
+      ->capture_default_str();
+  cmd->callback([=] { export_viewer(*a); });
+}
+
+}  // namespace strata::cli

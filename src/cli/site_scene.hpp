@@ -1,0 +1,50 @@
+#pragma once
+// The site model as a glTF scene: what `export model` writes and `export viewer`
+// embeds, built once here so the two cannot drift apart.
+#include "dense/dense_mesh.hpp"
+#include "exporters/gltf/gltf_writer.hpp"
+#include "project/project.hpp"
+#include "project/records.hpp"
+
+#include <CLI/CLI.hpp>
+
+#include <cstddef>
+#include <deque>
+#include <filesystem>
+#include <string>
+
+namespace strata::cli {
+
+// The scene and the meshes it points to (a deque: adding a mesh must not move the others).
+struct SiteScene {
+  std::deque<DenseMesh> meshes;
+  GltfScene scene;
+  std::size_t layers = 0, units = 0, markers = 0, cameras = 0;  // nodes of each kind
+
+  void add_mesh(std::string name, DenseMesh mesh, std::optional<std::array<double, 4>> colour,
+                std::string extras_json = "");
+};
+
+struct SiteSceneOptions {
+  // Faces per layer mesh; larger meshes are simplified (CGAL edge collapse, vertex
+  // colours dropped). 0: keep every face.
+  std::size_t max_layer_faces = 0;
+  std::string only_layer;  // "": every layer and the unit solids; else this layer alone (no unit solids)
+  std::string command = "export model";  // names the command in warnings and errors
+};
+
+// Layer meshes (top first), unit solids, markers, cameras of the project in `dir`.
+// Throws InputError when no layer has a dense mesh yet.
+SiteScene build_site_scene(Project& p, const std::string& dir, const SiteSceneOptions& options);
+
+// The file of a product the dense stage recorded, refused (IoError) when it has gone or
+// changed since.
+std::filesystem::path checked_product_file(Project& p, const LayerRecord& l, const ProductRecord& product,
+                                           const std::string& dir);
+
+// A dense-stage PLY's mesh in the site frame (relative to the site origin).
+DenseMesh site_frame_mesh(PlyContents ply, const Eigen::Vector3d& site_origin);
+
+void register_viewer_command(CLI::App& exp);  // export viewer
+
+}  // namespace strata::cli
