@@ -6,6 +6,7 @@
 
 #include <fmt/format.h>
 
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -21,7 +22,11 @@ namespace {
 namespace fs = std::filesystem;
 
 // Debian's libjs-three (r111): the non-module builds that define the global THREE.
-const char* const kThreeDir = "/usr/share/javascript/three";
+// STRATA_LIBJS_THREE_DIR replaces the folder (tests of a missing package).
+fs::path three_dir() {
+  const char* env = std::getenv("STRATA_LIBJS_THREE_DIR");
+  return env && *env ? fs::path(env) : fs::path("/usr/share/javascript/three");
+}
 const char* const kThreeFiles[] = {"build/three.min.js", "examples/js/loaders/GLTFLoader.js",
                                    "examples/js/controls/OrbitControls.js"};
 // Above this a browser tab needs several times as much memory to decode and upload it.
@@ -46,7 +51,7 @@ std::string script_safe(std::string js) {
 std::string three_js_sources() {
   std::string out;
   for (const char* f : kThreeFiles) {
-    const fs::path path = fs::path(kThreeDir) / f;
+    const fs::path path = three_dir() / f;
     if (!fs::exists(path)) {
       throw InputError(fmt::format("export viewer: {} not found: the viewer inlines three.js from Debian's "
                                    "libjs-three; run 'apt-get install libjs-three'", path.string()));

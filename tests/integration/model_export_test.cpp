@@ -222,6 +222,19 @@ TEST(CliExportViewer, OneSelfContainedPageWithTheModelEmbedded) {
   EXPECT_EQ(j["nodes"].size(), 2u);
 }
 
+TEST(CliExportViewer, MissingLibjsThreeIsOneErrorNamingThePackage) {
+  test::ScratchDir dir("viewer_no_three");
+  const fs::path site = project_with_layer(dir);
+  record_mesh_and_marker(site);
+  ::setenv("STRATA_LIBJS_THREE_DIR", (dir / "no-three").c_str(), 1);
+  const auto r = run_strata({"export", "viewer", site.string(), "--out", (dir / "site.html").string()});
+  ::unsetenv("STRATA_LIBJS_THREE_DIR");
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(lines(r.err), 1) << r.err;
+  EXPECT_NE(r.err.find("apt-get install libjs-three"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir / "site.html"));
+}
+
 // The page run in headless Chromium (software WebGL): its script writes "loaded N
 // nodes" once the model is in the scene, so a JavaScript error fails the test.
 TEST(CliExportViewer, PageLoadsTheModelInHeadlessChromium) {
@@ -243,6 +256,69 @@ TEST(CliExportViewer, PageLoadsTheModelInHeadlessChromium) {
   ASSERT_TRUE(std::regex_search(page, m, std::regex(R"(<div id="status"[^>]*>([^<]*)</div>)"))) << page.substr(0, 2000);
   EXPECT_EQ(m[1].str(), "loaded 2 nodes");
   EXPECT_NE(m[0].str().find("data-webgl=\"yes\""), std::string::npos) << m[0].str();
+
+  // The measuring tool: two clicks near the view's centre (where the quad is) must give
+  // site CRS points on the quad and the distances between them.
+  const std::string probe = R"(<script>setTimeout(function () {
+    var v = document.getElementById('view'), r = v.getBoundingClientRect();
+    document.getElementById('measure').checked = true;
+    [[0, 0], [30, 10]].forEach(function (d) {
+      var o = { clientX: r.width / 2 + d[0], clientY: r.height / 2 + d[1], bubbles: true };
+      v.dispatchEvent(new PointerEvent('pointerdown', o));
+      v.dispatchEvent(new PointerEvent('pointerup', o));
+    });
+    var out = document.createElement('div');
+    out.id = 'probe';
+    out.textContent = document.getElementById('readout').textContent.replace(/\n/g, ' | ');
+    document.body.appendChild(out);
+  }, 2000);</script>)";
+  std::string html = test::read_text(html_path);
+  html.insert(html.rfind("</body>"), probe);
+  test::write_text(dir / "probe.html", html);
+  const std::string probe_cmd = "timeout 120 " + chromium.string() +
+                                " --headless --no-sandbox --disable-gpu --enable-unsafe-swiftshader --window-size=800,600"
+                                " --virtual-time-budget=10000 --dump-dom 'file://" + (dir / "probe.html").string() +
+                                "' > '" + dom.string() + "' 2> /dev/null";
+  ASSERT_EQ(std::system(probe_cmd.c_str()), 0);
+  const std::string measured = test::read_text(dom);
+  ASSERT_TRUE(std::regex_search(measured, m, std::regex(R"(P1  E ([0-9.]+)  N ([0-9.]+)  Z ([0-9.]+) \| P2 .*\| 3D ([0-9.]+) m   horizontal ([0-9.]+) m)")))
+      << measured.substr(measured.find("probe") == std::string::npos ? 0 : measured.find("probe"), 500);
+  EXPECT_GT(std::stod(m[1]), 734000.1234);  // inside the quad (docs: E 734000.1234-734002.6234)
+  EXPECT_LT(std::stod(m[1]), 734002.6234);
+  EXPECT_GT(std::stod(m[2]), 4174000.5678);
+  EXPECT_LT(std::stod(m[2]), 4174002.0678);
+  EXPECT_NEAR(std::stod(m[3]), 1449.9, 0.15);  // the quad's Z spans 1449.7969-1450.0102
+  EXPECT_GT(std::stod(m[4]), 0.0);
+  EXPECT_LE(std::stod(m[5]), std::stod(m[4]));
+}
+
+// --max-faces: a layer mesh above it is simplified before it is embedded.
+TEST(CliExportViewer, MaxFacesSimplifiesLargeLayerMeshes) {
+  test::ScratchDir dir("viewer_max_faces");
+  const fs::path site = project_with_layer(dir);
+  DenseMesh grid;  // 20 x 20 vertices, 1 m apart, a gentle slope: 722 faces
+  constexpr int kSide = 20;
+  for (int i = 0; i < kSide; ++i) {
+    for (int j = 0; j < kSide; ++j) grid.vertices.emplace_back(100.0 + i, 100.0 + j, 0.01 * i);
+  }
+  for (int i = 0; i + 1 < kSide; ++i) {
+    for (int j = 0; j + 1 < kSide; ++j) {
+      const int a = i * kSide + j, b = a + kSide;
+      grid.faces.push_back({a, b, b + 1});
+      grid.faces.push_back({a, b + 1, a + 1});
+    }
+  }
+  record_dense_mesh(site, grid);
+  const auto r = run_strata({"export", "viewer", site.string(), "--out", (dir / "site.html").string(),
+                             "--max-faces", "100"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("722 faces simplified to at most 100"), std::string::npos) << r.err;
+  test::write_text(dir / "embedded.glb", embedded_model(test::read_text(dir / "site.html")));
+  const nlohmann::json j = glb_json(dir / "embedded.glb");
+  ASSERT_TRUE(j.is_object());
+  const int indices = j["meshes"][0]["primitives"][0]["indices"];
+  EXPECT_LE(int(j["accessors"][indices]["count"]), 3 * 100);
+  EXPECT_GT(int(j["accessors"][indices]["count"]), 0);
 }
 
 }  // namespace
