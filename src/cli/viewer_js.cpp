@@ -223,6 +223,7 @@ R"JS(
     sortNodes(nodes, fit.size);
     document.getElementById('show-markers').addEventListener('change', function (e) {
       markers.forEach(function (m) { m.node.visible = e.target.checked; });
+      placeLabels();  // now, not at the next frame: a hidden tab draws none
     });
     document.getElementById('show-cameras').addEventListener('change', function (e) {
       cameras.forEach(function (c) { c.visible = e.target.checked; });

@@ -220,6 +220,15 @@ TEST(CliExportViewer, OneSelfContainedPageWithTheModelEmbedded) {
   const nlohmann::json j = glb_json(dir / "embedded.glb");
   ASSERT_TRUE(j.is_object());
   EXPECT_EQ(j["nodes"].size(), 2u);
+
+  // --layer: that layer (and the markers); an unknown layer is refused.
+  r = run_strata({"export", "viewer", site, "--layer", "L1", "--out", (dir / "l1.html").string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  test::write_text(dir / "l1.glb", embedded_model(test::read_text(dir / "l1.html")));
+  EXPECT_EQ(glb_json(dir / "l1.glb")["nodes"][0]["name"], "layer L1");
+  r = run_strata({"export", "viewer", site, "--layer", "L9", "--out", (dir / "l9.html").string()});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_FALSE(fs::exists(dir / "l9.html"));
 }
 
 TEST(CliExportViewer, MissingLibjsThreeIsOneErrorNamingThePackage) {
