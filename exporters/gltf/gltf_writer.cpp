@@ -414,12 +414,16 @@ void write_glb(const fs::path& path, std::span<const GltfMesh> meshes, const Exp
   write_glb(path, scene, frame);
 }
 
-void write_glb(const fs::path& path, const GltfScene& scene, const ExportFrame& frame) {
-  check_meshes(path, scene.meshes);
-  check_nodes(path, scene);
+std::string encode_glb(const GltfScene& scene, const ExportFrame& frame, const fs::path& name) {
+  check_meshes(name, scene.meshes);
+  check_nodes(name, scene);
   BinaryBuffer bin;
   const Json json = gltf_json(scene, frame, bin);
-  write_bytes(path, glb_bytes(path, json.dump(), bin.bytes()));
+  return glb_bytes(name, json.dump(), bin.bytes());
+}
+
+void write_glb(const fs::path& path, const GltfScene& scene, const ExportFrame& frame) {
+  write_bytes(path, encode_glb(scene, frame, path));
 }
 
 }  // namespace strata

@@ -89,4 +89,8 @@ void write_glb(const std::filesystem::path& path, std::span<const GltfMesh> mesh
 // JSON object; meshes no node uses are still written.
 void write_glb(const std::filesystem::path& path, const GltfScene& scene, const ExportFrame& frame);
 
+// The same file's bytes, for a caller that embeds them (the viewer page); `name`
+// stands for the file in error messages.
+std::string encode_glb(const GltfScene& scene, const ExportFrame& frame, const std::filesystem::path& name);
+
 }  // namespace strata

@@ -1,8 +1,10 @@
 // strata export viewer: the site model in one self-contained HTML page (three.js from
 // Debian's libjs-three inlined, the .glb embedded as base64), for any browser offline.
 #include "cli/site_scene.hpp"
+#include "core/base64.hpp"
 #include "core/error.hpp"
 #include "core/log.hpp"
+#include "core/staged_files.hpp"
 
 #include <fmt/format.h>
 
@@ -57,27 +59,6 @@ std::string three_js_sources() {
                                    "libjs-three; run 'apt-get install libjs-three'", path.string()));
     }
     out += "<script>\n" + script_safe(read_file_bytes(path)) + "\n</script>\n";
-  }
-  return out;
-}
-
-std::string base64(const std::string& bytes) {
-  static const char* const kAlphabet = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-  std::string out;
-  out.reserve((bytes.size() + 2) / 3 * 4);
-  std::size_t i = 0;
-  for (; i + 2 < bytes.size(); i += 3) {
-    const unsigned v = unsigned(std::uint8_t(bytes[i])) << 16 | unsigned(std::uint8_t(bytes[i + 1])) << 8 |
-                       unsigned(std::uint8_t(bytes[i + 2]));
-    for (int k = 3; k >= 0; --k) out += kAlphabet[(v >> (6 * k)) & 63];
-  }
-  if (i < bytes.size()) {
-    const bool two = i + 1 < bytes.size();
-    const unsigned v = unsigned(std::uint8_t(bytes[i])) << 16 | (two ? unsigned(std::uint8_t(bytes[i + 1])) << 8 : 0u);
-    out += kAlphabet[(v >> 18) & 63];
-    out += kAlphabet[(v >> 12) & 63];
-    out += two ? kAlphabet[(v >> 6) & 63] : '=';
-    out += '=';
   }
   return out;
 }
@@ -142,23 +123,21 @@ void export_viewer(const ViewerArgs& a) {
   ExportFrame frame;
   frame.site_origin = info.origin;
   frame.crs = info.crs;
-  // The glTF writer writes files only: the model passes through a temporary one.
-  const fs::path glb_tmp = a.out + ".glb.tmp";
-  write_glb(glb_tmp, site.scene, frame);
-  const std::string glb = read_file_bytes(glb_tmp);
-  fs::remove(glb_tmp);
+  const std::string glb = encode_glb(site.scene, frame, a.out);
   if (glb.size() > kLargeModelBytes) {
     log::warn("export viewer: the embedded model is {:.0f} MB: browsers may be slow or run out of memory; lower "
               "--max-faces (now {}) or view one --layer", double(glb.size()) / 1e6, a.max_faces);
   }
   const std::string title = fs::path(a.dir).filename().string() + (a.layer.empty() ? "" : " layer " + a.layer);
-  const std::string tmp = a.out + ".tmp";
+  StagedFiles staged("export viewer");
+  const fs::path tmp = staged.add(a.out);
   {
     std::ofstream out(tmp, std::ios::binary);
     out << viewer_page(title, info.crs, three_js, glb);
-    if (!out) throw IoError(fmt::format("export viewer: {}: cannot write", tmp));
+    out.close();
+    if (!out) throw IoError(fmt::format("export viewer: {}: cannot write (disk full?)", tmp.string()));
   }
-  fs::rename(tmp, a.out);
+  staged.swap_in();
   log::info("wrote {} ({} layers, {} units, {} markers, {} cameras; model {:.1f} MB)", a.out, site.layers, site.units,
             site.markers, site.cameras, double(glb.size()) / 1e6);
 }

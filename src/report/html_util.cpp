@@ -1,5 +1,6 @@
 #include "report/html_util.hpp"
 
+#include "core/base64.hpp"
 #include "core/error.hpp"
 #include "core/fault.hpp"
 
@@ -44,33 +45,6 @@ std::string escape(std::string_view text) {
   return out;
 }
 
-std::string base64(const std::vector<std::uint8_t>& bytes) {
-  static constexpr char kAlphabet[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-  std::string out;
-  out.reserve((bytes.size() + 2) / 3 * 4);
-  std::size_t i = 0;
-  for (; i + 2 < bytes.size(); i += 3) {
-    const std::uint32_t v = (std::uint32_t(bytes[i]) << 16) | (std::uint32_t(bytes[i + 1]) << 8) | bytes[i + 2];
-    out += kAlphabet[(v >> 18) & 63];
-    out += kAlphabet[(v >> 12) & 63];
-    out += kAlphabet[(v >> 6) & 63];
-    out += kAlphabet[v & 63];
-  }
-  if (i + 1 == bytes.size()) {
-    const std::uint32_t v = std::uint32_t(bytes[i]) << 16;
-    out += kAlphabet[(v >> 18) & 63];
-    out += kAlphabet[(v >> 12) & 63];
-    out += "==";
-  } else if (i + 2 == bytes.size()) {
-    const std::uint32_t v = (std::uint32_t(bytes[i]) << 16) | (std::uint32_t(bytes[i + 1]) << 8);
-    out += kAlphabet[(v >> 18) & 63];
-    out += kAlphabet[(v >> 12) & 63];
-    out += kAlphabet[(v >> 6) & 63];
-    out += '=';
-  }
-  return out;
-}
-
 std::string png_data_uri(const Image& image) {
   STRATA_CHECK(image.width > 0 && image.height > 0, "empty image");
   const int type = image.channels == 1 ? CV_8UC1 : image.channels == 3 ? CV_8UC3 : CV_8UC4;
@@ -86,7 +60,7 @@ std::string png_data_uri(const Image& image) {
   }
   std::vector<std::uint8_t> png;
   if (!cv::imencode(".png", bgr, png)) throw IoError("report: cannot encode a PNG image");
-  return "data:image/png;base64," + base64(png);
+  return "data:image/png;base64," + base64(std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
 }
 
 Image enlarge(const Image& image, int factor) {

@@ -13,7 +13,6 @@
 namespace strata::report_detail {
 
 std::string escape(std::string_view text);
-std::string base64(const std::vector<std::uint8_t>& bytes);
 
 // 8-bit image, row-major, `channels` 1, 3 (RGB) or 4 (RGBA).
 struct Image {
