@@ -1,0 +1,367 @@
+// importer.scans.ply: the vertices of a PLY file (Turk's format as CloudCompare,
+// Meshlab, phone LiDAR apps and scanner software write it), ascii or binary of either
+// byte order. Read: x, y, z (any numeric type), red/green/blue, intensity or
+// scalar_intensity, nx/ny/nz; other vertex properties are skipped by their declared
+// type; elements before the vertices are skipped, the ones after (faces) not read.
+#include "importers/scans/scan_formats.hpp"
+
+#include <algorithm>
+#include <bit>
+#include <charconv>
+#include <cmath>
+#include <cstring>
+#include <istream>
+#include <optional>
+
+namespace strata::scan_formats {
+namespace {
+
+enum class Encoding { ascii, little_endian, big_endian };
+enum class Type { int8, uint8, int16, uint16, int32, uint32, float32, float64 };
+
+// A header longer than this is not a PLY header (a binary file with "ply" in front).
+constexpr std::uint64_t kMaxHeaderLines = 100000;
+
+std::optional<Type> parse_type(std::string_view t) {
+  if (t == "char" || t == "int8") return Type::int8;
+  if (t == "uchar" || t == "uint8") return Type::uint8;
+  if (t == "short" || t == "int16") return Type::int16;
+  if (t == "ushort" || t == "uint16") return Type::uint16;
+  if (t == "int" || t == "int32") return Type::int32;
+  if (t == "uint" || t == "uint32") return Type::uint32;
+  if (t == "float" || t == "float32") return Type::float32;
+  if (t == "double" || t == "float64") return Type::float64;
+  return std::nullopt;
+}
+
+std::size_t size_of(Type t) {
+  switch (t) {
+    case Type::int8:
+    case Type::uint8:
+      return 1;
+    case Type::int16:
+    case Type::uint16:
+      return 2;
+    case Type::int32:
+    case Type::uint32:
+    case Type::float32:
+      return 4;
+    case Type::float64:
+      return 8;
+  }
+  return 0;
+}
+
+bool is_float(Type t) { return t == Type::float32 || t == Type::float64; }
+
+struct Property {
+  std::string name;
+  Type type = Type::float32;
+  bool list = false;
+  Type count_type = Type::uint8;  // of a list
+};
+
+struct Element {
+  std::string name;
+  std::uint64_t count = 0;
+  std::uint64_t line = 0;  // of its "element" line
+  std::vector<Property> properties;
+};
+
+struct Header {
+  Encoding encoding = Encoding::ascii;
+  std::vector<Element> elements;
+  std::uint64_t lines = 0;  // header lines, end_header included
+};
+
+std::vector<std::string_view> words(std::string_view s) {
+  std::vector<std::string_view> out;
+  std::size_t i = 0;
+  while (i < s.size()) {
+    while (i < s.size() && (s[i] == ' ' || s[i] == '\t')) ++i;
+    const std::size_t start = i;
+    while (i < s.size() && s[i] != ' ' && s[i] != '\t') ++i;
+    if (i > start) out.push_back(s.substr(start, i - start));
+  }
+  return out;
+}
+
+Header read_header(std::istream& in, const ChunkBuilder& out) {
+  Header h;
+  bool have_format = false;
+  std::string line;
+  auto at = [&] { return FilePosition::line(h.lines); };
+  while (h.lines < kMaxHeaderLines && std::getline(in, line)) {
+    ++h.lines;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    const auto w = words(line);
+    if (h.lines == 1) {
+      if (line != "ply") throw out.error(at(), "not a PLY file: it must start with a line 'ply'");
+      continue;
+    }
+    if (w.empty() || w[0] == "comment" || w[0] == "obj_info") continue;
+    if (w[0] == "end_header") {
+      if (!have_format) throw out.error(at(), "the header has no 'format' line");
+      return h;
+    }
+    if (w[0] == "format") {
+      if (w.size() < 2) throw out.error(at(), "'format' without an encoding");
+      if (w[1] == "ascii") h.encoding = Encoding::ascii;
+      else if (w[1] == "binary_little_endian") h.encoding = Encoding::little_endian;
+      else if (w[1] == "binary_big_endian") h.encoding = Encoding::big_endian;
+      else throw out.error(at(), fmt::format("unknown encoding '{}' (ascii, binary_little_endian or "
+                                             "binary_big_endian)", w[1]));
+      have_format = true;
+    } else if (w[0] == "element") {
+      Element e;
+      e.line = h.lines;
+      const auto [end, ec] = w.size() == 3 ? std::from_chars(w[2].data(), w[2].data() + w[2].size(), e.count)
+                                           : std::from_chars_result{nullptr, std::errc::invalid_argument};
+      if (ec != std::errc() || end != w[2].data() + w[2].size()) {
+        throw out.error(at(), "expected 'element NAME COUNT' with a whole number COUNT");
+      }
+      e.name = std::string(w[1]);
+      h.elements.push_back(std::move(e));
+    } else if (w[0] == "property") {
+      if (h.elements.empty()) throw out.error(at(), "a property before any element");
+      Property p;
+      const bool list = w.size() == 5 && w[1] == "list";
+      if (!list && w.size() != 3) throw out.error(at(), "expected 'property TYPE NAME' or 'property list TYPE TYPE NAME'");
+      const auto type = parse_type(list ? w[3] : w[1]);
+      const auto count_type = list ? parse_type(w[2]) : Type::uint8;
+      if (!type || !count_type || is_float(*count_type)) {
+        throw out.error(at(), fmt::format("unknown property type in '{}'", line));
+      }
+      p.list = list;
+      p.type = *type;
+      p.count_type = *count_type;
+      p.name = std::string(w.back());
+      h.elements.back().properties.push_back(std::move(p));
+    } else {
+      throw out.error(at(), fmt::format("unknown header line '{}'", line));
+    }
+  }
+  throw out.error("the header has no 'end_header' line: not a PLY file, or cut short");
+}
+
+// Where each attribute is among the vertex properties (-1: absent).
+struct VertexLayout {
+  int xyz[3] = {-1, -1, -1};
+  int rgb[3] = {-1, -1, -1};
+  int intensity = -1;
+  int normal[3] = {-1, -1, -1};
+  std::vector<Type> types;
+  bool has(const int (&v)[3]) const { return v[0] >= 0 && v[1] >= 0 && v[2] >= 0; }
+};
+
+VertexLayout vertex_layout(const Element& vertex, const ChunkBuilder& out) {
+  VertexLayout l;
+  for (std::size_t i = 0; i < vertex.properties.size(); ++i) {
+    const Property& p = vertex.properties[i];
+    const int k = int(i);
+    l.types.push_back(p.type);
+    if (p.list) continue;
+    const std::string& n = p.name;
+    if (n == "x") l.xyz[0] = k;
+    else if (n == "y") l.xyz[1] = k;
+    else if (n == "z") l.xyz[2] = k;
+    else if (n == "red" || n == "diffuse_red") l.rgb[0] = k;
+    else if (n == "green" || n == "diffuse_green") l.rgb[1] = k;
+    else if (n == "blue" || n == "diffuse_blue") l.rgb[2] = k;
+    else if ((n == "intensity" || n == "scalar_intensity") && l.intensity < 0) l.intensity = k;
+    else if (n == "nx") l.normal[0] = k;
+    else if (n == "ny") l.normal[1] = k;
+    else if (n == "nz") l.normal[2] = k;
+  }
+  if (!l.has(l.xyz)) {
+    throw out.error(FilePosition::line(vertex.line), "the vertex element lacks an x, y or z property");
+  }
+  return l;
+}
+
+// A colour channel of any type to 8 bits: floats are 0-1, 16-bit integers 0-65535.
+std::uint8_t channel(double v, Type t) {
+  if (is_float(t)) v *= 255.0;
+  else if (t == Type::uint16 || t == Type::int16) v /= 257.0;
+  return std::uint8_t(std::clamp(std::round(v), 0.0, 255.0));
+}
+
+ScanPoint to_point(const VertexLayout& l, const std::vector<double>& v) {
+  ScanPoint p;
+  p.position = {v[std::size_t(l.xyz[0])], v[std::size_t(l.xyz[1])], v[std::size_t(l.xyz[2])]};
+  if (l.has(l.rgb)) {
+    for (int c = 0; c < 3; ++c) p.colour[std::size_t(c)] = channel(v[std::size_t(l.rgb[c])], l.types[std::size_t(l.rgb[c])]);
+  }
+  if (l.intensity >= 0) p.intensity = float(v[std::size_t(l.intensity)]);
+  if (l.has(l.normal)) {
+    p.normal = Eigen::Vector3d(v[std::size_t(l.normal[0])], v[std::size_t(l.normal[1])], v[std::size_t(l.normal[2])])
+                   .cast<float>();
+  }
+  return p;
+}
+
+// Buffered bytes of the binary body, with the offset of the next one for messages.
+class ByteStream {
+ public:
+  ByteStream(std::istream& in, std::uint64_t offset) : in_(in), offset_(offset) {}
+  // The next n bytes, or nullptr when the file ends before them.
+  const unsigned char* take(std::size_t n) {
+    if (end_ - pos_ < n) refill(n);
+    if (end_ - pos_ < n) return nullptr;
+    const unsigned char* p = buffer_.data() + pos_;
+    pos_ += n;
+    offset_ += n;
+    return p;
+  }
+  std::uint64_t offset() const { return offset_; }
+  std::uint64_t file_end() const { return offset_ + (end_ - pos_); }  // valid after take() failed
+
+ private:
+  static constexpr std::size_t kBlock = 1 << 20;
+  void refill(std::size_t n) {
+    std::memmove(buffer_.data(), buffer_.data() + pos_, end_ - pos_);
+    end_ -= pos_;
+    pos_ = 0;
+    buffer_.resize(std::max(kBlock, n));
+    in_.read(reinterpret_cast<char*>(buffer_.data() + end_), std::streamsize(buffer_.size() - end_));
+    end_ += std::size_t(in_.gcount());
+  }
+  std::istream& in_;
+  std::uint64_t offset_;
+  std::vector<unsigned char> buffer_;
+  std::size_t pos_ = 0, end_ = 0;
+};
+
+double decode(const unsigned char* p, Type t, bool swap) {
+  switch (t) {
+    case Type::int8: return load<std::int8_t>(p, swap);
+    case Type::uint8: return load<std::uint8_t>(p, swap);
+    case Type::int16: return load<std::int16_t>(p, swap);
+    case Type::uint16: return load<std::uint16_t>(p, swap);
+    case Type::int32: return load<std::int32_t>(p, swap);
+    case Type::uint32: return load<std::uint32_t>(p, swap);
+    case Type::float32: return load<float>(p, swap);
+    case Type::float64: return load<double>(p, swap);
+  }
+  return 0;
+}
+
+class BinaryBody {
+ public:
+  BinaryBody(std::istream& in, std::uint64_t offset, bool big_endian, ChunkBuilder& out)
+      : bytes_(in, offset), swap_(big_endian != (std::endian::native == std::endian::big)), out_(out) {}
+
+  // Reads one item of `e` (number `index`) into `values`, one per property (a
+  // list's value is its length, its items are skipped).
+  void read(const Element& e, std::uint64_t index, std::vector<double>& values) {
+    item_start_ = bytes_.offset();
+    values.resize(e.properties.size());
+    for (std::size_t i = 0; i < e.properties.size(); ++i) {
+      const Property& p = e.properties[i];
+      if (!p.list) {
+        values[i] = decode(take(size_of(p.type), e, index), p.type, swap_);
+        continue;
+      }
+      const double n = decode(take(size_of(p.count_type), e, index), p.count_type, swap_);
+      if (n < 0) throw out_.error(item_position(), fmt::format("{} {}: negative list length", e.name, index));
+      for (std::uint64_t k = 0; k < std::uint64_t(n); ++k) take(size_of(p.type), e, index);
+      values[i] = n;
+    }
+  }
+  // Where the item last read starts.
+  FilePosition item_position() const { return FilePosition::byte(item_start_); }
+
+ private:
+  const unsigned char* take(std::size_t n, const Element& e, std::uint64_t index) {
+    if (const unsigned char* p = bytes_.take(n)) return p;
+    throw out_.error(FilePosition::byte(bytes_.file_end()),
+                     fmt::format("the file ends inside {} {} of the {} declared (truncated)", e.name, index, e.count));
+  }
+  ByteStream bytes_;
+  bool swap_;
+  ChunkBuilder& out_;
+  std::uint64_t item_start_ = 0;
+};
+
+class AsciiBody {
+ public:
+  AsciiBody(std::istream& in, std::uint64_t header_lines, ChunkBuilder& out) : lines_(in, header_lines), out_(out) {}
+
+  // One item a line: its values, a list as its length followed by its items.
+  void read(const Element& e, std::uint64_t index, std::vector<double>& values) {
+    if (!lines_.next()) {
+      throw out_.error(FilePosition::line(lines_.line_number()),
+                       fmt::format("the file ends after {} of the {} items of element '{}' (truncated)", index,
+                                   e.count, e.name));
+    }
+    const auto& f = lines_.fields();
+    const FilePosition at = lines_.position();
+    values.resize(e.properties.size());
+    std::size_t k = 0;
+    for (std::size_t i = 0; i < e.properties.size(); ++i) {
+      const Property& p = e.properties[i];
+      if (k >= f.size()) {
+        throw out_.error(at, fmt::format("{} {} has {} values, fewer than its properties declare", e.name, index,
+                                         f.size()));
+      }
+      values[i] = parse_number(f[k++], p.name.c_str(), out_, at);
+      if (p.type == Type::float32) values[i] = double(float(values[i]));  // as a binary file would hold it
+      if (p.list) k += std::size_t(std::max(values[i], 0.0));
+    }
+    if (k != f.size()) {
+      throw out_.error(at, fmt::format("{} {} has {} values, its properties declare {}", e.name, index, f.size(), k));
+    }
+  }
+  FilePosition item_position() const { return lines_.position(); }
+
+ private:
+  TextLines lines_;
+  ChunkBuilder& out_;
+};
+
+// Reads the elements up to and including the vertices.
+template <typename Body>
+void read_vertices(Body& body, const Header& h, ChunkBuilder& out) {
+  std::vector<double> values;
+  for (const Element& e : h.elements) {
+    if (e.name != "vertex") {
+      for (std::uint64_t i = 0; i < e.count; ++i) body.read(e, i, values);
+      continue;
+    }
+    const VertexLayout layout = vertex_layout(e, out);
+    out.declare(layout.has(layout.rgb), layout.intensity >= 0, layout.has(layout.normal));
+    for (std::uint64_t i = 0; i < e.count; ++i) {
+      body.read(e, i, values);
+      out.add(to_point(layout, values), body.item_position());
+    }
+    return;
+  }
+}
+
+const char* encoding_name(Encoding e) {
+  switch (e) {
+    case Encoding::ascii: return "ascii";
+    case Encoding::little_endian: return "binary_little_endian";
+    case Encoding::big_endian: return "binary_big_endian";
+  }
+  return "";
+}
+
+}  // namespace
+
+std::string read_ply(std::istream& in, ChunkBuilder& out) {
+  const Header h = read_header(in, out);
+  if (std::none_of(h.elements.begin(), h.elements.end(), [](const Element& e) { return e.name == "vertex"; })) {
+    throw out.error("the header declares no vertex element");
+  }
+  if (h.encoding == Encoding::ascii) {
+    AsciiBody body(in, h.lines, out);
+    read_vertices(body, h, out);
+  } else {
+    BinaryBody body(in, std::uint64_t(in.tellg()), h.encoding == Encoding::big_endian, out);
+    read_vertices(body, h, out);
+  }
+  return fmt::format("ply {}", encoding_name(h.encoding));
+}
+
+}  // namespace strata::scan_formats
