@@ -1,4 +1,4 @@
-// strata import photos|markers|finds, strata markers, strata find add
+// strata import photos|scan|markers|finds, strata markers, strata find add
 #include "cli/commands.hpp"
 #include "cli/common.hpp"
 #include "core/error.hpp"
@@ -6,6 +6,7 @@
 #include "importers/finds/find_importer.hpp"
 #include "importers/markers/marker_importer.hpp"
 #include "importers/photos/photo_importer.hpp"
+#include "importers/scans/scan_importer.hpp"
 #include "project/project.hpp"
 #include "project/records.hpp"
 
@@ -77,10 +78,69 @@ void register_find_imports(CLI::App& app, CLI::App& import) {
   });
 }
 
+std::string scan_summary(const ImportedScan& s) {
+  std::vector<std::string> has;
+  if (s.info.has_colour) has.push_back("colour");
+  if (s.info.has_intensity) has.push_back("intensity");
+  if (s.info.has_normals) has.push_back("normals");
+  std::string where;
+  if (s.bounds) {
+    const Eigen::Vector3d size = s.bounds->max - s.bounds->min;
+    where = fmt::format(", {:.2f} x {:.2f} x {:.2f} m in the site frame", size.x(), size.y(), size.z());
+  }
+  return fmt::format("{}: {} points, {}{}, registration {}{}", s.file, s.info.points, s.info.format,
+                     has.empty() ? "" : fmt::format(" (with {})", fmt::join(has, ", ")), to_string(s.registration),
+                     where);
+}
+
+// strata import scan DIR --layer L [--crs EPSG:n | --transform FILE] [--sigma M] FILE...
+void register_scan_import(CLI::App& import) {
+  auto* cmd = import.add_subcommand(
+      "scan",
+      "copy range scans (point clouds) of a layer into media/ (named by SHA-256, never modified) and\n"
+      "record them. Formats: PLY (ascii or binary; x y z, colour, intensity, normals), PTS (a count, then\n"
+      "x y z [intensity [r g b]]), XYZ/TXT (x y z [r g b]), LAS 1.2-1.4 point formats 0-3 and 6-8\n"
+      "(uncompressed). E57 and LAZ: convert to LAS or PLY first (CloudCompare, PDAL). Every point is\n"
+      "read and checked; a wrong header, a truncated file, a NaN coordinate or an empty cloud imports\n"
+      "nothing. Registration states: 'survey' (--crs: the scanner software already registered the\n"
+      "scan to the survey), 'transform' (--transform: its pose into the site frame is known),\n"
+      "'unregistered' (its own frame; target or ICP registration is not built yet). See docs/range.md.");
+  auto dir = std::make_shared<std::string>();
+  auto options = std::make_shared<ScanImportOptions>();
+  auto files = std::make_shared<std::vector<std::string>>();
+  auto crs = std::make_shared<std::string>();
+  auto transform = std::make_shared<std::string>();
+  cmd->add_option("DIR", *dir, "project folder")->required();
+  cmd->add_option("--layer", options->layer, "layer the scans record")->required();
+  cmd->add_option("--crs", *crs,
+                  "CRS of the scans' coordinates (e.g. EPSG:32636): the scan is registered to the survey and\n"
+                  "transformed into the site CRS with PROJ");
+  cmd->add_option("--transform", *transform,
+                  "text file of a 4x4 row-major matrix (16 numbers) taking the scanner frame into the site\n"
+                  "frame (site CRS minus the site origin); rigid or similarity only");
+  cmd->add_option("--sigma", options->sigma_m,
+                  fmt::format("instrument range noise, metres, one sigma (default {}; phone LiDAR about 0.015)",
+                              kDefaultScanSigmaM));
+  cmd->add_option("FILE", *files, "point clouds (.ply, .pts, .xyz, .txt, .las)")->required();
+  cmd->footer("Example: strata import scan site --layer L101 --crs EPSG:32636 --sigma 0.003 station1.las station2.las");
+  cmd->callback([=] {
+    if (!crs->empty()) options->crs = *crs;
+    if (!transform->empty()) options->transform = *transform;
+    const ProjectLock lock = lock_project(*dir);
+    Project p = Project::open(*dir);
+    const std::vector<std::filesystem::path> paths(files->begin(), files->end());
+    const auto s = import_scans(p, *options, paths);
+    for (const auto& a : s.already_present) log::info("already imported, skipped: {}", a);
+    for (const auto& scan : s.imported) fmt::print("{}\n", scan_summary(scan));
+    fmt::print("layer {}: {} scan(s) imported, {} already present\n", options->layer, s.imported.size(),
+               s.already_present.size());
+  });
+}
+
 }  // namespace
 
 void register_import_commands(CLI::App& app) {
-  auto* import = app.add_subcommand("import", "bring photos and surveyed markers into a project");
+  auto* import = app.add_subcommand("import", "bring photos, range scans and surveyed markers into a project");
   import->require_subcommand(1);
   {
     auto* cmd = import->add_subcommand(
@@ -153,6 +213,7 @@ void register_import_commands(CLI::App& app) {
       }
     });
   }
+  register_scan_import(*import);
   register_find_imports(app, *import);
   {
     auto* cmd = app.add_subcommand(
