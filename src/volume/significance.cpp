@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 #include <numbers>
 
 namespace strata::volume_detail {
@@ -17,6 +18,11 @@ constexpr double kClip = 4.0;
 // Bins of stated sigma for the heteroscedastic factor, and the cells a bin needs.
 constexpr std::size_t kSigmaBins = 8;
 constexpr std::size_t kMinCellsPerBin = 500;
+// Upper edges of the bins of coverage (share of measured cells around a cell).
+// Fixed, not of equal count: most stable cells are fully covered (coverage 1,
+// all tied) and the ragged edge, the few cells this is for, must get bins of its
+// own. A bin short of kMinCellsPerBin joins the next, better covered one.
+constexpr double kCoverageEdges[] = {0.5, 0.7, 0.85, 0.95};
 
 double median_of(std::vector<double> v) {
   if (v.empty()) return 0;
@@ -136,20 +142,25 @@ std::vector<double> smoothing_residual(const HeightField& z, double sigma_m) {
   return residual;
 }
 
-double StableGround::factor(double stated_sigma_m) const {
-  if (bin_sigma_m.empty()) return scale;
-  if (stated_sigma_m <= bin_sigma_m.front()) return bin_factor.front();
-  if (stated_sigma_m >= bin_sigma_m.back()) return bin_factor.back();
-  const auto it = std::upper_bound(bin_sigma_m.begin(), bin_sigma_m.end(), stated_sigma_m);
-  const std::size_t k = std::size_t(it - bin_sigma_m.begin());
-  const double span = bin_sigma_m[k] - bin_sigma_m[k - 1];
-  const double w = span > 0 ? (stated_sigma_m - bin_sigma_m[k - 1]) / span : 0.0;
-  return (1 - w) * bin_factor[k - 1] + w * bin_factor[k];
+double FactorBins::operator()(double x, double fallback) const {
+  if (at.empty()) return fallback;
+  if (!(x > at.front())) return factor.front();  // NaN x too: the end bin
+  if (x >= at.back()) return factor.back();
+  const auto it = std::upper_bound(at.begin(), at.end(), x);
+  const std::size_t k = std::size_t(it - at.begin());
+  const double span = at[k] - at[k - 1];
+  const double w = span > 0 ? (x - at[k - 1]) / span : 0.0;
+  return (1 - w) * factor[k - 1] + w * factor[k];
+}
+
+double StableGround::factor(double stated_sigma_m, double coverage) const {
+  const double f = by_sigma(stated_sigma_m, scale);
+  return std::isfinite(coverage) ? f * by_coverage(coverage, 1.0) : f;
 }
 
 StableGround judge_stable_ground(const std::vector<double>& difference, const std::vector<double>& sigma,
-                                 const std::vector<std::uint8_t>& stable, const SiteGrid& grid,
-                                 std::size_t min_cells, double fallback_correlation_m) {
+                                 const std::vector<std::uint8_t>& stable, const std::vector<double>& coverage,
+                                 const SiteGrid& grid, std::size_t min_cells, double fallback_correlation_m) {
   StableGround s;
   s.correlation_m = fallback_correlation_m;
   const std::size_t n = grid.size();
@@ -210,17 +221,51 @@ StableGround judge_stable_ground(const std::vector<double>& difference, const st
     std::stable_sort(by_sigma.begin(), by_sigma.end(),
                      [](const auto& a, const auto& b) { return a.first < b.first; });
     const std::size_t bins = std::min<std::size_t>(kSigmaBins, by_sigma.size() / kMinCellsPerBin);
-    for (std::size_t b = 0; b < bins; ++b) {
-      const std::size_t lo = b * by_sigma.size() / bins, hi = (b + 1) * by_sigma.size() / bins;
+    std::size_t hi = 0;
+    for (std::size_t b = 0; b < bins && hi < by_sigma.size(); ++b) {
+      // A bin never splits equal sigmas (with one stated sigma everywhere, bins of
+      // equal count would be bands of rows, the first one's factor taken for all).
+      const std::size_t lo = hi;
+      hi = std::max(lo + 1, (b + 1) * by_sigma.size() / bins);
+      while (hi < by_sigma.size() && by_sigma[hi].first == by_sigma[hi - 1].first) ++hi;
       std::vector<double> stated, dev;
       for (std::size_t k = lo; k < hi; ++k) {
         stated.push_back(by_sigma[k].first);
         dev.push_back(by_sigma[k].second);
       }
       const double median_sigma = median_of(stated);
-      s.bin_sigma_m.push_back(median_sigma);
-      s.bin_factor.push_back(nmad_of(dev, 0.0) / median_sigma);
+      s.by_sigma.at.push_back(median_sigma);
+      s.by_sigma.factor.push_back(nmad_of(dev, 0.0) / median_sigma);
     }
+  }
+  // Then, of the differences so standardised, the factor per bin of coverage.
+  if (coverage.size() == n && !s.by_sigma.at.empty()) {
+    constexpr std::size_t kBins = std::size(kCoverageEdges) + 1;
+    std::vector<double> cov[kBins], dev[kBins];
+    for (std::size_t c = 0; c < n; ++c) {
+      if (!(stable[c] && std::isfinite(difference[c]) && sigma[c] > 0 && std::isfinite(coverage[c]))) continue;
+      const double scaled = s.by_sigma(sigma[c], s.scale) * sigma[c];
+      if (!(scaled > 0)) continue;  // noise-free surfaces (synthetic truth): nothing to judge
+      const std::size_t b = std::size_t(std::upper_bound(std::begin(kCoverageEdges), std::end(kCoverageEdges),
+                                                         coverage[c]) - std::begin(kCoverageEdges));
+      cov[b].push_back(coverage[c]);
+      dev[b].push_back((difference[c] - s.bias_m) / scaled);
+    }
+    for (std::size_t b = 0; b < kBins; ++b) {
+      if (cov[b].size() < kMinCellsPerBin && b + 1 < kBins) {  // too few: into the next bin
+        cov[b + 1].insert(cov[b + 1].end(), cov[b].begin(), cov[b].end());
+        dev[b + 1].insert(dev[b + 1].end(), dev[b].begin(), dev[b].end());
+        continue;
+      }
+      if (cov[b].size() < kMinCellsPerBin) continue;
+      s.by_coverage.at.push_back(median_of(cov[b]));
+      s.by_coverage.factor.push_back(nmad_of(dev[b], 0.0));
+    }
+    // Only one bin, or a bin without spread: the coverage says nothing the sigma
+    // bins did not.
+    const bool spread = std::all_of(s.by_coverage.factor.begin(), s.by_coverage.factor.end(),
+                                    [](double f) { return std::isfinite(f) && f > 0; });
+    if (s.by_coverage.at.size() < 2 || !spread) s.by_coverage = {};
   }
   // Correlation of the standardised differences (scaled to unit spread, clipped)
   // along rows and columns at growing lags: rho(h) = 1 - gamma(h) / variance;
@@ -230,7 +275,7 @@ StableGround judge_stable_ground(const std::vector<double>& difference, const st
     std::size_t count = 0;
     for (std::size_t c = 0; c < n; ++c)
       if (double& x = u[c]; std::isfinite(x)) {
-        const double f = s.factor(sigma[c]);
+        const double f = s.factor(sigma[c], coverage.size() == n ? coverage[c] : std::nan(""));
         x = f > 0 ? std::clamp(x / f, -kClip, kClip) : 0.0;
         var += x * x;
         ++count;

@@ -26,6 +26,14 @@ double two_sided_normal_quantile(double confidence);
 // windows, which the Gaussian model describes better.)
 double correlation_area_m2(double correlation_m);
 
+// A factor on the stated sigma as a function of one predictor of quality, read in
+// bins of the stable ground: linear between the bins' medians `at`, the end bins'
+// factor beyond them; `fallback` when there are no bins.
+struct FactorBins {
+  std::vector<double> at, factor;
+  double operator()(double x, double fallback) const;
+};
+
 // What the stable ground between a unit's top and bottom surfaces says.
 struct StableGround {
   std::size_t cells = 0;       // cells used
@@ -35,24 +43,30 @@ struct StableGround {
   double offset_spread_m = 0;  // standard deviation of the four quadrants' medians about the unit
   double nmad_m = 0;           // 1.4826 x median absolute deviation of the differences
   double scale = 1;            // NMAD of (difference - bias) / stated sigma: >1 = sigmas too small
-  // The same, as a function of the stated sigma (heteroscedasticity, as Hugonnet
-  // et al. 2022 bin by a quality predictor): the stable cells in bins of equal
-  // count by stated sigma, each bin's median stated sigma and NMAD / that median.
-  std::vector<double> bin_sigma_m, bin_factor;
-  // The factor for a cell of this stated sigma: linear between bins, the end
-  // bins' factor beyond them; `scale` when there are no bins.
-  double factor(double stated_sigma_m) const;
+  // The same, as a function of two predictors of quality (heteroscedasticity,
+  // standardised one predictor after the other, as Hugonnet et al. 2022 do):
+  // - by_sigma: the stable cells in bins of equal count by stated sigma, each
+  //   bin's median stated sigma and NMAD / that median;
+  // - by_coverage: what is left, by the share of measured cells around the cell
+  //   (the ragged edge of a layer's photo coverage, seen by few and grazing
+  //   views, disagrees more than its stated sigma says): each bin's median
+  //   coverage and the NMAD of the differences standardised by by_sigma.
+  FactorBins by_sigma, by_coverage;
+  // The factor for a cell of this stated sigma and coverage (NaN coverage: the
+  // coverage factor is 1).
+  double factor(double stated_sigma_m, double coverage) const;
   double correlation_m = 0;    // e-folding distance of the standardised differences' correlation
   bool used = false;           // enough cells to judge (else the georeference figures are used)
 };
 
 // `difference`: top - bottom per cell (NaN where unknown); `sigma`: the stated
 // one-sigma of that difference per cell; `stable`: the cells that may serve
-// (both surfaces measured, not dug, away from the dug area). Needs `min_cells`;
-// `fallback_correlation_m` is kept when the variogram cannot be read.
+// (both surfaces measured, not dug, away from the dug area); `coverage`: the
+// share of measured cells around each cell, 0-1 (empty: not judged). Needs
+// `min_cells`; `fallback_correlation_m` is kept when the variogram cannot be read.
 StableGround judge_stable_ground(const std::vector<double>& difference, const std::vector<double>& sigma,
-                                 const std::vector<std::uint8_t>& stable, const SiteGrid& grid,
-                                 std::size_t min_cells, double fallback_correlation_m);
+                                 const std::vector<std::uint8_t>& stable, const std::vector<double>& coverage,
+                                 const SiteGrid& grid, std::size_t min_cells, double fallback_correlation_m);
 
 // Mean of the finite values within `radius_cells` (square neighbourhood) of
 // every cell; NaN where there is none.

@@ -305,7 +305,7 @@ nlohmann::ordered_json unit_measures_json(const UnitSolid& s) {
             {"fold", m.fold_sigma_m3}}},
           {"interval_method",
            "one-sigma parts in quadrature: random (per-cell surface sigmas, from the fused depth maps' agreement, "
-           "scaled per bin of stated sigma on stable ground, correlated over correlation_m: Gaussian model, pi L^2), "
+           "scaled per bin of stated sigma, then of coverage (share of measured cells within coverage_radius_m, 10 cm by default), on stable ground, correlated over correlation_m: Gaussian model, pi L^2), "
            "systematic (the surfaces' relative offset on stable ground, its standard error and its spread between "
            "the four quadrants; else check-marker RMSE z; over the whole area), fill (summed "
            "linearly over interpolated cells), extent (volumes with the level of detection halved and doubled, "

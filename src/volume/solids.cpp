@@ -273,6 +273,8 @@ void VolumeOptions::validate() const {
     throw InputError(fmt::format("volume options: fold_slope_deg = {} is not in (0, 90) degrees", fold_slope_deg));
   if (!(fold_reach_m >= 0 && fold_reach_m <= 1))
     throw InputError(fmt::format("volume options: fold_reach_m = {} is not in 0..1 m", fold_reach_m));
+  if (!(coverage_radius_m >= 0 && coverage_radius_m <= 5))
+    throw InputError(fmt::format("volume options: coverage_radius_m = {} is not in 0..5 m", coverage_radius_m));
   if (!(min_stable_area_m2 >= 0 && min_stable_area_m2 <= 1000))
     throw InputError(fmt::format("volume options: min_stable_area_m2 = {} is not in 0..1000 m2", min_stable_area_m2));
   if (!(fill.closing_m >= 0 && fill.closing_m <= 10))
@@ -461,24 +463,36 @@ std::vector<UnitSolid> build_unit_solids(const std::vector<LayerSurface>& layers
     ground.correlation_m = options.noise_correlation_m;
     if (options.use_stable_ground) {
       const int buffer = int(std::ceil(options.stable_buffer_m / grid.cell - 1e-9));
+      // The share of cells within coverage_radius_m where both surfaces were
+      // measured: low at the ragged edge of a layer's photo coverage.
+      std::vector<double> coverage;
+      if (options.coverage_radius_m > 0) {
+        std::vector<double> ones(n);
+        for (std::size_t c = 0; c < n; ++c) ones[c] = measured[c] ? 1.0 : 0.0;
+        coverage = volume_detail::box_mean(ones, grid.nx, grid.ny, std::max(1, int(std::lround(options.coverage_radius_m / grid.cell))));
+      }
       for (int pass = 0; pass < 2; ++pass) {
         const std::vector<std::uint8_t> near = dilate(dug, grid.nx, grid.ny, buffer);
         std::vector<std::uint8_t> stable(n, 0);
         for (std::size_t c = 0; c < n; ++c) stable[c] = measured[c] && !near[c];
         const std::size_t min_cells = std::size_t(std::ceil(options.min_stable_area_m2 / cell_area));
-        ground = volume_detail::judge_stable_ground(t, sigma_d, stable, grid, min_cells, options.noise_correlation_m);
+        ground = volume_detail::judge_stable_ground(t, sigma_d, stable, coverage, grid, min_cells,
+                                                    options.noise_correlation_m);
         if (!ground.used) break;
         // Never believe the surfaces more than four times as good as they state: the
         // stable ground lies around the trench, not in it.
         for (std::size_t c = 0; c < n; ++c)
-          if (finite(sigma_d[c])) factor[c] = std::max(ground.factor(sigma_d[c]), kMinNoiseScale);
-        std::string bins;
-        for (std::size_t b = 0; b < ground.bin_sigma_m.size(); ++b)
-          bins += fmt::format(" {:.1f} mm x {:.2f}", 1000 * ground.bin_sigma_m[b], ground.bin_factor[b]);
+          if (finite(sigma_d[c]))
+            factor[c] = std::max(ground.factor(sigma_d[c], coverage.empty() ? kNaN : coverage[c]), kMinNoiseScale);
+        std::string bins, coverage_bins;
+        for (std::size_t b = 0; b < ground.by_sigma.at.size(); ++b)
+          bins += fmt::format(" {:.1f} mm x {:.2f}", 1000 * ground.by_sigma.at[b], ground.by_sigma.factor[b]);
+        for (std::size_t b = 0; b < ground.by_coverage.at.size(); ++b)
+          coverage_bins += fmt::format(" {:.0f} % x {:.2f}", 100 * ground.by_coverage.at[b], ground.by_coverage.factor[b]);
         log::debug("volume: unit {}: stable ground {:.2f} m2, offset {:+.2f} mm (quadrants +/- {:.2f}), NMAD {:.2f} "
-                   "mm, L {:.1f} mm; stated sigma -> factor:{}",
+                   "mm, L {:.1f} mm; stated sigma -> factor:{}; coverage -> factor:{}",
                    unit, ground.area_m2, 1000 * ground.bias_m, 1000 * ground.offset_spread_m, 1000 * ground.nmad_m,
-                   1000 * ground.correlation_m, bins);
+                   1000 * ground.correlation_m, bins, coverage_bins.empty() ? " (one bin)" : coverage_bins);
         offset2 = ground.bias_m * ground.bias_m + ground.bias_se_m * ground.bias_se_m +
                   ground.offset_spread_m * ground.offset_spread_m;
         lod = levels();

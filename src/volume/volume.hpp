@@ -154,6 +154,11 @@ struct VolumeOptions {
   double normal_scale_m = 0.05;
   double stable_buffer_m = 0.10;
   double min_stable_area_m2 = 0.05;
+  // The stable ground also judges the sigmas by coverage: the share of cells
+  // within this distance, metres, where both surfaces were measured (the ragged
+  // edge of a layer's photos is seen by few, grazing views). 0 = by stated sigma
+  // only. 10 cm: a few matching windows at a layer's GSD, small beside a unit.
+  double coverage_radius_m = 0.10;
   // Where height fields fold (check_folds): dug cells whose top or bottom is
   // steeper than fold_slope_deg, and every cell within fold_reach_m of them (the
   // ground under an overhang is flat in a height field), are integrated again
