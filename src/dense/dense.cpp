@@ -115,7 +115,19 @@ DenseSummary run_dense(const DenseOptions& options, const Reconstruction& rec,
                        const std::vector<std::filesystem::path>& image_paths,
                        const Eigen::Vector3d& site_origin, const std::filesystem::path& cache_dir,
                        const std::filesystem::path& out_dir) {
+  return run_dense(options, rec, image_paths, {}, site_origin, cache_dir, out_dir);
+}
+
+DenseSummary run_dense(const DenseOptions& options, const Reconstruction& rec,
+                       const std::vector<std::filesystem::path>& image_paths,
+                       const std::vector<RangeScanInput>& scans, const Eigen::Vector3d& site_origin,
+                       const std::filesystem::path& cache_dir, const std::filesystem::path& out_dir) {
   options.validate();
+  for (const auto& scan : scans) {
+    if (!(scan.sigma_m > 0) || !scan.read) {
+      throw InputError(fmt::format("dense: scan {} needs a positive sigma_m and a reader", scan.name));
+    }
+  }
   if (image_paths.size() != rec.images.size()) {
     throw InputError(fmt::format("dense: {} image paths for {} images in the reconstruction",
                                  image_paths.size(), rec.images.size()));
@@ -152,14 +164,18 @@ DenseSummary run_dense(const DenseOptions& options, const Reconstruction& rec,
     needed[i] = 1;
     for (int s : neighbours[i].sources) needed[s] = 1;
   }
-  if (refs.empty()) {
+  if (refs.empty() && scans.empty()) {
     throw ProcessingError("dense: no registered image has overlapping neighbours with shared sparse points");
+  }
+  if (refs.empty() && n > 0) {
+    log::warn("dense: no registered photo has overlapping neighbours; the surface comes from the {} scan(s) alone",
+              scans.size());
   }
   if (pm.scale == 0) pm.scale = choose_scale(rec, neighbours, refs, pm.target_gsd_m);
   summary.depth_scale = pm.scale;
   summary.view_selection = figures(sw);
   fault::point("process.dense.views_selected");
-  log::info("dense: {} of {} images have source views; depth maps at scale {}", refs.size(), n, pm.scale);
+  if (n > 0) log::info("dense: {} of {} images have source views; depth maps at scale {}", refs.size(), n, pm.scale);
 
   auto camera_of = [&](int i) {
     const auto& im = rec.images[i];
@@ -258,7 +274,8 @@ DenseSummary run_dense(const DenseOptions& options, const Reconstruction& rec,
       progress.step();
     }
   }
-  summary.valid_depth_fraction = valid_sum / static_cast<double>(refs.size());
+  const double ref_count = static_cast<double>(std::max<std::size_t>(refs.size(), 1));
+  summary.valid_depth_fraction = valid_sum / ref_count;
   summary.depth_maps = figures(sw);
   fault::point("process.dense.depth_maps_done");
 
@@ -301,7 +318,7 @@ DenseSummary run_dense(const DenseOptions& options, const Reconstruction& rec,
       progress.step();
     }
   }
-  summary.consistent_depth_fraction = kept_sum / static_cast<double>(refs.size());
+  summary.consistent_depth_fraction = kept_sum / ref_count;
   summary.filtering = figures(sw);
 
   // ---- 5. TSDF fusion ------------------------------------------------------------
@@ -311,8 +328,16 @@ DenseSummary run_dense(const DenseOptions& options, const Reconstruction& rec,
   summary.smoothing_m = options.patch_match.smoothing_m(summary.gsd_m);
   double voxel = fo.voxel_size_m;
   if (voxel == 0) {
-    if (summary.gsd_m <= 0) throw ProcessingError("dense: no depth estimated, cannot choose a voxel size");
-    voxel = std::clamp(fo.voxel_gsd_factor * summary.gsd_m, fo.min_voxel_size_m, fo.max_voxel_size_m);
+    if (summary.gsd_m > 0) {
+      voxel = std::clamp(fo.voxel_gsd_factor * summary.gsd_m, fo.min_voxel_size_m, fo.max_voxel_size_m);
+    } else if (!scans.empty()) {
+      // No photo depth: the scans' own point spacing takes the place of the GSD.
+      const double spacing = dense::scan_point_spacing(scans);
+      voxel = std::clamp(fo.voxel_gsd_factor * spacing, fo.min_voxel_size_m, fo.max_voxel_size_m);
+      log::info("dense: no photo depth; voxel from the scans' median point spacing {:.1f} mm", spacing * 1e3);
+    } else {
+      throw ProcessingError("dense: no depth estimated, cannot choose a voxel size");
+    }
   }
   summary.voxel_size_m = voxel;
   summary.truncation_m = fo.truncation_voxels * voxel;
@@ -328,6 +353,19 @@ DenseSummary run_dense(const DenseOptions& options, const Reconstruction& rec,
       if (map.valid_count() > 0) volume.integrate(camera_of(i), map, load_image(i).rgb);
       progress.step();
     }
+  }
+  if (!scans.empty()) {
+    // Photos and scans in one unit of weight: 1 for a confidence-1 photo depth seen
+    // head-on, whose noise is photo_depth_sigma_gsd depth-map GSDs (dense.hpp).
+    summary.unit_sigma_m = summary.gsd_m > 0 ? fo.photo_depth_sigma_gsd * summary.gsd_m : voxel;
+    const double photo_weight = volume.total_weight();
+    const dense::ScanFusionFigures f = dense::fuse_scans(volume, scans, summary.unit_sigma_m);
+    summary.scans_fused = f.scans;
+    summary.scan_points = f.points;
+    const double all = photo_weight + f.weight;
+    summary.scan_weight_share = all > 0 ? f.weight / all : 0;
+    log::info("dense: {} scan(s), {} points fused ({:.0f} % of the weight; unit sigma {:.1f} mm)", f.scans, f.points,
+              100 * summary.scan_weight_share, summary.unit_sigma_m * 1e3);
   }
   volume.finalise(fo.min_weight);
   summary.floating_voxels_removed = volume.remove_small_components(fo.min_component_fraction);

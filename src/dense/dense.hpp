@@ -17,7 +17,9 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -106,6 +108,30 @@ struct FusionOptions {
   // the full example every piece but the surface itself held under 0.025 %.
   // 0 = keep every piece.
   double min_component_fraction = 0.001;
+  // The noise that the unit weight stands for (docs/range.md, "Fusion"): a photo
+  // depth of confidence 1 seen head-on has weight 1 and one sigma of this many
+  // depth-map GSDs along its ray (PatchMatch with a slanted window matches to about
+  // a pixel). A range scan point of sigma s then weighs (unit sigma / s)^2, so photos
+  // and scans are averaged by their inverse variances. A layer without photos takes
+  // the voxel size as its unit sigma (only min_weight depends on it there).
+  double photo_depth_sigma_gsd = 1.0;
+};
+
+// A registered range scan of the layer (terrestrial laser scanner, phone LiDAR),
+// handed to the dense stage as a source of points in the site frame.
+struct RangeScanInput {
+  std::string name;                       // for messages: the scan's file name
+  double sigma_m = 0;                     // range noise, one sigma, metres; > 0
+  // The sensor's position (site frame, metres): each point is fused along its ray
+  // from here. Without it (a scan registered to the survey by its own software, no
+  // station known), along the point's normal when the file has normals (turned to
+  // face up), else along the vertical, as if seen from straight above.
+  std::optional<Eigen::Vector3d> station;
+  // Reads the scan: calls `sink` with consecutive chunks of points (site frame,
+  // metres) and their unit normals (site frame; empty when the file has none).
+  using ChunkSink = std::function<void(const std::vector<Eigen::Vector3d>& points,
+                                       const std::vector<Eigen::Vector3f>& normals)>;
+  std::function<void(const ChunkSink& sink)> read;
 };
 
 struct MeshOptions {
@@ -171,6 +197,12 @@ struct DenseSummary {
   double p95_distance_sparse_m = 0;
   std::size_t sparse_points_compared = 0;
 
+  // Range scans fused beside the depth maps (docs/range.md, "Fusion").
+  int scans_fused = 0;
+  std::uint64_t scan_points = 0;
+  double unit_sigma_m = 0;        // noise of one unit of fusion weight, metres (FusionOptions)
+  double scan_weight_share = 0;   // share of all fused weight that came from scans, [0, 1]
+
   StepFigures view_selection, undistortion, depth_maps, filtering, fusion, meshing, writing;
   StepFigures total;
   std::vector<DenseProduct> products;
@@ -183,6 +215,14 @@ struct DenseSummary {
 // each written to a temporary file and renamed.
 DenseSummary run_dense(const DenseOptions& options, const Reconstruction& reconstruction,
                        const std::vector<std::filesystem::path>& image_paths,
+                       const Eigen::Vector3d& site_origin,
+                       const std::filesystem::path& cache_dir,
+                       const std::filesystem::path& out_dir);
+// The same with the layer's registered range scans fused into the same volume. A
+// layer may have photos only, scans only (a reconstruction without images) or both.
+DenseSummary run_dense(const DenseOptions& options, const Reconstruction& reconstruction,
+                       const std::vector<std::filesystem::path>& image_paths,
+                       const std::vector<RangeScanInput>& scans,
                        const Eigen::Vector3d& site_origin,
                        const std::filesystem::path& cache_dir,
                        const std::filesystem::path& out_dir);

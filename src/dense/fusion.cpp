@@ -63,6 +63,9 @@ struct TsdfVolume::Impl {
   openvdb::Vec3SGrid::Ptr colour;  // RGB 0..255 weighted mean; background 0 (may be null)
   openvdb::FloatGrid::Ptr spread;  // weighted variance of the distances, m2 (may be null: older files)
   openvdb::FloatGrid::Ptr weight2; // sum of squared weights (null with spread)
+  // The range scan being added (add_scan_points .. end_scan): per voxel, the sums of
+  // the lateral weights g, of g times the signed distance (metres) and of g^2.
+  openvdb::Vec3SGrid::Ptr scan;
 
   // True when the 2x2x2 voxels from `base` are all observed: a zero crossing there
   // is surface, not the edge of the narrow band next to unseen space.
@@ -190,6 +193,97 @@ void TsdfVolume::integrate(const PinholeCamera& cam, const DepthMap& depth,
       cl->setValueOnly(off, (cl->getValue(off) * W + c * obs_w) / Wn);
     }
   });
+}
+
+void TsdfVolume::add_scan_points(const std::vector<Eigen::Vector3d>& points,
+                                 const std::vector<Eigen::Vector3d>& dirs) {
+  STRATA_CHECK(points.size() == dirs.size(), "{} scan points but {} ray directions", points.size(), dirs.size());
+  STRATA_CHECK(impl_->weight && impl_->colour && impl_->spread && impl_->weight2,
+               "volume read from a file cannot integrate");
+  auto& I = *impl_;
+  if (!I.scan) {
+    I.scan = openvdb::Vec3SGrid::create(openvdb::Vec3s(0.f));
+    I.scan->setTransform(I.tsdf->transform().copy());
+  }
+  const auto& xform = I.tsdf->transform();
+  auto acc = I.scan->getAccessor();
+  const double step = 0.5 * I.voxel;
+  const int n_steps = static_cast<int>(std::ceil(2 * I.trunc / step));
+  const double inv_v2 = 1.0 / (I.voxel * I.voxel);
+  std::vector<openvdb::Coord> cells;
+  cells.reserve(8 * static_cast<std::size_t>(n_steps + 1));
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const Eigen::Vector3d& p = points[i];
+    const Eigen::Vector3d& u = dirs[i];
+    // Every voxel of the 2 x 2 x 2 blocks around the samples, once per point.
+    cells.clear();
+    for (int s = 0; s <= n_steps; ++s) {
+      const Eigen::Vector3d X = p - u * (I.trunc - s * step);
+      const openvdb::Coord base = openvdb::Coord::floor(xform.worldToIndex(to_vdb(X)));
+      for (int k = 0; k < 8; ++k) cells.push_back(base.offsetBy(k & 1, (k >> 1) & 1, (k >> 2) & 1));
+    }
+    std::sort(cells.begin(), cells.end());
+    cells.erase(std::unique(cells.begin(), cells.end()), cells.end());
+    for (const openvdb::Coord& c : cells) {
+      const openvdb::Vec3d w = xform.indexToWorld(c);
+      const Eigen::Vector3d off = p - Eigen::Vector3d(w.x(), w.y(), w.z());
+      // Signed distance of the voxel centre along the ray: positive in front of the
+      // point (towards the sensor), as for depth maps.
+      const double d = off.dot(u);
+      if (std::abs(d) > I.trunc) continue;
+      const double lateral2 = (off - d * u).squaredNorm();
+      const float g = static_cast<float>(std::exp(-0.5 * lateral2 * inv_v2));
+      const openvdb::Vec3s old = acc.getValue(c);
+      acc.setValue(c, openvdb::Vec3s(old[0] + g, old[1] + g * static_cast<float>(d), old[2] + g * g));
+    }
+  }
+}
+
+TsdfVolume::ScanFusion TsdfVolume::end_scan(double weight_per_point) {
+  STRATA_CHECK(weight_per_point > 0 && std::isfinite(weight_per_point), "bad scan weight {}", weight_per_point);
+  auto& I = *impl_;
+  ScanFusion out;
+  if (!I.scan) return out;
+  I.tsdf->tree().topologyUnion(I.scan->tree());
+  I.weight->tree().topologyUnion(I.scan->tree());
+  I.colour->tree().topologyUnion(I.scan->tree());
+  I.spread->tree().topologyUnion(I.scan->tree());
+  I.weight2->tree().topologyUnion(I.scan->tree());
+  auto tacc = I.tsdf->getAccessor();
+  auto wacc = I.weight->getAccessor();
+  auto cacc = I.colour->getAccessor();
+  auto sacc = I.spread->getAccessor();
+  auto qacc = I.weight2->getAccessor();
+  for (auto it = I.scan->cbeginValueOn(); it; ++it) {
+    if (!it.isVoxelValue()) continue;
+    const openvdb::Vec3s a = *it;
+    if (!(a[0] > 0) || !(a[2] > 0)) continue;
+    const openvdb::Coord c = it.getCoord();
+    const float sdf = std::clamp(a[1] / a[0], -static_cast<float>(I.trunc), static_cast<float>(I.trunc));
+    const double n_eff = double(a[0]) * a[0] / a[2];
+    const float obs_w = static_cast<float>(weight_per_point * n_eff);
+    // The same running weighted mean and variance as integrate() (West 1979).
+    const float W = wacc.getValue(c);
+    const float Wn = W + obs_w;
+    const float mean = W > 0 ? tacc.getValue(c) : sdf;
+    const float mean_n = (mean * W + sdf * obs_w) / Wn;
+    tacc.setValueOnly(c, mean_n);
+    wacc.setValueOnly(c, Wn);
+    sacc.setValueOnly(c, (sacc.getValue(c) * W + obs_w * (sdf - mean) * (sdf - mean_n)) / Wn);
+    qacc.setValueOnly(c, qacc.getValue(c) + obs_w * obs_w);
+    // A scan brings no colour of the photos: keep theirs, grey where none saw it.
+    if (!(W > 0)) cacc.setValueOnly(c, openvdb::Vec3s(128.f));
+    ++out.voxels;
+    out.weight += obs_w;
+  }
+  I.scan = nullptr;
+  return out;
+}
+
+double TsdfVolume::total_weight() const {
+  double sum = 0;
+  for (auto it = impl_->weight->cbeginValueOn(); it; ++it) sum += double(*it) * double(it.getVoxelCount());
+  return sum;
 }
 
 void TsdfVolume::finalise(double min_weight) {

@@ -116,6 +116,25 @@ class TsdfVolume {
   // the view rays of one depth map; colours averaged with the same weights.
   void integrate(const PinholeCamera& camera, const DepthMap& depth,
                  const std::vector<std::uint8_t>& rgb);
+  // One range scan (a laser scanner's or phone LiDAR's points, site frame), fused
+  // along each point's own ray: `dirs[i]` is the unit direction of point i's ray,
+  // from the sensor towards the point. Call add_scan_points() with every chunk of
+  // the scan, then end_scan() once. Within the scan, each voxel within the narrow
+  // band of a ray (the 2 x 2 x 2 voxels around samples every half voxel along it)
+  // collects the signed distance of its centre along that ray, weighted by a
+  // Gaussian of its distance from the ray (one voxel sigma); end_scan() then adds
+  // to the voxel one observation: the weighted mean distance, with the weight
+  // `weight_per_point` x n_eff, n_eff = (sum g)^2 / sum g^2 the effective number of
+  // points averaged (the inverse variance of their mean, in the fusion's unit
+  // weight). Voxels no photo saw get a mid grey colour.
+  void add_scan_points(const std::vector<Eigen::Vector3d>& points, const std::vector<Eigen::Vector3d>& dirs);
+  struct ScanFusion {
+    std::size_t voxels = 0;  // voxels that received an observation from the scan
+    double weight = 0;       // sum of the weights added
+  };
+  ScanFusion end_scan(double weight_per_point);
+  // Sum of the accumulated weight over the observed voxels.
+  double total_weight() const;
   // Drops voxels seen with less than min_weight; call once after integration.
   void finalise(double min_weight);
   // Drops the connected pieces of the narrow band (6-connected active voxels) with
@@ -154,6 +173,25 @@ class TsdfVolume {
   explicit TsdfVolume(std::unique_ptr<Impl> impl);
   std::unique_ptr<Impl> impl_;
 };
+
+// ---- range scans (range_scans.cpp; the volume maths is in fusion.cpp) -------------
+// Unit ray directions (sensor towards point) of a chunk of a scan's points: from
+// its station when known, else against the point's normal turned to face up, else
+// straight down (RangeScanInput::station).
+std::vector<Eigen::Vector3d> scan_ray_directions(const RangeScanInput& scan,
+                                                 const std::vector<Eigen::Vector3d>& points,
+                                                 const std::vector<Eigen::Vector3f>& normals);
+// Median spacing of the scans' points over the ground, metres: per 1 cm cell of the
+// XY plane that holds points, 1 cm / sqrt(points in it); the median over cells.
+// Reads every scan once.
+double scan_point_spacing(const std::vector<RangeScanInput>& scans);
+struct ScanFusionFigures {
+  int scans = 0;
+  std::uint64_t points = 0;
+  double weight = 0;  // sum of the weights the scans added
+};
+// Fuses every scan into `volume`, each point weighing (unit_sigma_m / sigma_m)^2.
+ScanFusionFigures fuse_scans(TsdfVolume& volume, const std::vector<RangeScanInput>& scans, double unit_sigma_m);
 
 // Writes `bytes` to path via a temporary file in the same folder and a rename, so a
 // reader never sees half a file. Throws IoError naming `stage`.

@@ -85,6 +85,9 @@ void DenseOptions::validate() const {
   require(fusion.min_component_fraction >= 0 && fusion.min_component_fraction < 1,
           "fusion.min_component_fraction", "must be in [0, 1)");
 
+  require(fusion.photo_depth_sigma_gsd > 0 && std::isfinite(fusion.photo_depth_sigma_gsd),
+          "fusion.photo_depth_sigma_gsd", "must be positive (depth-map GSDs)");
+
   require(mesh.adaptivity >= 0 && mesh.adaptivity <= 1, "mesh.adaptivity", "must be in [0, 1]");
   require(quality.cell_size_m > 0, "quality.cell_size_m", "must be positive metres");
   require(quality.area.empty() || quality.area.size() >= 3, "quality.area",

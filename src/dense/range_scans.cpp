@@ -1,0 +1,83 @@
+// Range scans in the dense stage: the rays their points are fused along, their point
+// spacing (the voxel size of a layer without photos) and the loop that hands their
+// chunks to the volume (fusion.cpp, the only file that includes OpenVDB).
+#include "core/error.hpp"
+#include "core/progress.hpp"
+#include "dense/internal.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <unordered_map>
+
+namespace strata::dense {
+namespace {
+
+constexpr double kSpacingCell = 0.01;  // metres: XY cell over which the point density is counted
+
+}  // namespace
+
+std::vector<Eigen::Vector3d> scan_ray_directions(const RangeScanInput& scan, const std::vector<Eigen::Vector3d>& points,
+                                                 const std::vector<Eigen::Vector3f>& normals) {
+  std::vector<Eigen::Vector3d> dirs(points.size(), -Eigen::Vector3d::UnitZ());
+  const bool with_normals = normals.size() == points.size();
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (scan.station) {
+      const Eigen::Vector3d d = points[i] - *scan.station;
+      const double r = d.norm();
+      if (r > 0) dirs[i] = d / r;
+    } else if (with_normals) {
+      Eigen::Vector3d n = normals[i].cast<double>();
+      const double len = n.norm();
+      if (!(len > 0)) continue;
+      n /= len;
+      if (n.z() < 0) n = -n;  // a normal's sign is not known: the sensor looked from above
+      dirs[i] = -n;
+    }
+  }
+  return dirs;
+}
+
+double scan_point_spacing(const std::vector<RangeScanInput>& scans) {
+  std::unordered_map<std::int64_t, std::uint32_t> cells;
+  for (const auto& scan : scans) {
+    scan.read([&](const std::vector<Eigen::Vector3d>& points, const std::vector<Eigen::Vector3f>&) {
+      for (const auto& p : points) {
+        const auto i = static_cast<std::int64_t>(std::floor(p.x() / kSpacingCell));
+        const auto j = static_cast<std::int64_t>(std::floor(p.y() / kSpacingCell));
+        ++cells[(i << 32) ^ (j & 0xffffffff)];
+      }
+    });
+  }
+  if (cells.empty()) throw ProcessingError("dense: the scans hold no points");
+  std::vector<double> spacing;
+  spacing.reserve(cells.size());
+  for (const auto& [key, count] : cells) spacing.push_back(kSpacingCell / std::sqrt(double(count)));
+  std::nth_element(spacing.begin(), spacing.begin() + std::ptrdiff_t(spacing.size() / 2), spacing.end());
+  return spacing[spacing.size() / 2];
+}
+
+ScanFusionFigures fuse_scans(TsdfVolume& volume, const std::vector<RangeScanInput>& scans, double unit_sigma_m) {
+  STRATA_CHECK(unit_sigma_m > 0, "bad unit sigma {}", unit_sigma_m);
+  ScanFusionFigures f;
+  Progress progress("dense: scans", scans.size());
+  for (const auto& scan : scans) {
+    check_cancelled();
+    std::uint64_t points = 0;
+    scan.read([&](const std::vector<Eigen::Vector3d>& chunk, const std::vector<Eigen::Vector3f>& normals) {
+      volume.add_scan_points(chunk, scan_ray_directions(scan, chunk, normals));
+      points += chunk.size();
+    });
+    // Inverse variance in the fusion's unit weight (FusionOptions::photo_depth_sigma_gsd).
+    const double per_point = std::pow(unit_sigma_m / scan.sigma_m, 2);
+    const TsdfVolume::ScanFusion added = volume.end_scan(per_point);
+    f.weight += added.weight;
+    f.points += points;
+    ++f.scans;
+    progress.step();
+  }
+  return f;
+}
+
+}  // namespace strata::dense

@@ -1,0 +1,211 @@
+// Range scans fused into the TSDF (docs/range.md, "Fusion"): a simulated scan of an
+// analytic scene (a block on a plane) must give its surface to the millimetre, and
+// the weights must follow the noise: a 1 mm scan beside a noisier depth map pulls
+// the surface to itself, a 20 mm scan hardly moves the depth map's.
+#include "dense/dense.hpp"
+#include "dense/internal.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+
+namespace strata {
+namespace {
+
+// ---- the analytic scene: the plane z = 0 with a block on it ------------------------
+constexpr double kBlockHalf = 0.1;   // metres: the block spans -0.1..0.1 in x and y
+constexpr double kBlockTop = 0.08;   // metres
+constexpr double kVoxel = 0.004;     // metres
+constexpr double kTruncation = 4 * kVoxel;
+constexpr double kAngularStep = 1.5e-3;  // radians: 2-4 mm between rays at 1.5-2.5 m
+// Tolerances: the fused height of a 1 mm scan at 4 mm voxels (median over cells;
+// the zero crossing is interpolated between voxel centres, ~0.1 voxel).
+constexpr double kHeightMedianTol = 0.001;   // metres
+constexpr double kHeightP95Tol = 0.003;      // metres
+constexpr double kMinCoverage = 0.95;        // of the cells both stations see
+
+bool in_block(double x, double y) { return std::abs(x) <= kBlockHalf && std::abs(y) <= kBlockHalf; }
+double truth(double x, double y) { return in_block(x, y) ? kBlockTop : 0.0; }
+
+// First hit of the ray o + t d (d unit, going down) with the block or the plane.
+std::optional<double> hit(const Eigen::Vector3d& o, const Eigen::Vector3d& d) {
+  double t0 = 0, t1 = 1e9;  // slab test of the block [-h, h]^2 x [0, top]
+  const Eigen::Vector3d lo(-kBlockHalf, -kBlockHalf, 0), hi(kBlockHalf, kBlockHalf, kBlockTop);
+  for (int k = 0; k < 3; ++k) {
+    if (std::abs(d[k]) < 1e-12) {
+      if (o[k] < lo[k] || o[k] > hi[k]) t1 = -1;
+      continue;
+    }
+    double a = (lo[k] - o[k]) / d[k], b = (hi[k] - o[k]) / d[k];
+    if (a > b) std::swap(a, b);
+    t0 = std::max(t0, a);
+    t1 = std::min(t1, b);
+  }
+  if (t0 <= t1 && t1 > 0) return t0;
+  if (d.z() < 0) return -o.z() / d.z();
+  return std::nullopt;
+}
+
+// A scan from `station` over the square |x|, |y| < 0.4 m, each range with Gaussian noise.
+std::vector<Eigen::Vector3d> scan_points(const Eigen::Vector3d& station, double sigma, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> noise(0, sigma);
+  std::vector<Eigen::Vector3d> out;
+  for (double el = -1.45; el < -0.3; el += kAngularStep)
+    for (double az = -3.1416; az < 3.1416; az += kAngularStep) {
+      const Eigen::Vector3d d(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el));
+      const auto t = hit(station, d);
+      if (!t) continue;
+      const Eigen::Vector3d p = station + *t * d;
+      if (std::abs(p.x()) > 0.4 || std::abs(p.y()) > 0.4) continue;
+      out.push_back(station + (*t + noise(rng)) * d);
+    }
+  return out;
+}
+
+RangeScanInput in_memory(const std::vector<Eigen::Vector3d>& points, const Eigen::Vector3d& station, double sigma) {
+  RangeScanInput in;
+  in.name = "test scan";
+  in.sigma_m = sigma;
+  in.station = station;
+  in.read = [points](const RangeScanInput::ChunkSink& sink) {
+    for (std::size_t i = 0; i < points.size(); i += 50000) {
+      const std::vector<Eigen::Vector3d> chunk(points.begin() + std::ptrdiff_t(i),
+                                               points.begin() + std::ptrdiff_t(std::min(points.size(), i + 50000)));
+      sink(chunk, {});
+    }
+  };
+  return in;
+}
+
+struct Errors {
+  double median = 0, p95 = 0, coverage = 0;
+};
+
+// |fused - truth| over the cells of the square, away from the block's vertical sides.
+Errors height_errors(const HeightField& hf) {
+  std::vector<double> e;
+  std::size_t cells = 0;
+  for (int j = 0; j < hf.ny; ++j)
+    for (int i = 0; i < hf.nx; ++i) {
+      const double x = hf.x0 + i * hf.cell, y = hf.y0 + j * hf.cell;
+      if (std::abs(std::abs(x) - kBlockHalf) < 0.01 || std::abs(std::abs(y) - kBlockHalf) < 0.01) continue;
+      ++cells;
+      if (std::isfinite(hf.at(i, j))) e.push_back(std::abs(hf.at(i, j) - truth(x, y)));
+    }
+  Errors r;
+  if (e.empty()) return r;
+  std::sort(e.begin(), e.end());
+  r.median = e[e.size() / 2];
+  r.p95 = e[std::size_t(0.95 * double(e.size() - 1))];
+  r.coverage = double(e.size()) / double(cells);
+  return r;
+}
+
+TEST(ScanFusion, TwoStationsOfABlockOnAPlaneGiveItsSurfaceToTheMillimetre) {
+  const Eigen::Vector3d west(-0.9, 0.05, 1.5), east(0.9, -0.05, 1.5);
+  const double sigma = 0.001;
+  dense::TsdfVolume volume(kVoxel, kTruncation);
+  const std::vector<RangeScanInput> scans = {in_memory(scan_points(west, sigma, 1), west, sigma),
+                                             in_memory(scan_points(east, sigma, 2), east, sigma)};
+  const dense::ScanFusionFigures f = dense::fuse_scans(volume, scans, kVoxel);
+  EXPECT_EQ(f.scans, 2);
+  EXPECT_GT(f.points, 100000u);
+  EXPECT_GT(f.weight, 0);
+  volume.finalise(0.2);
+  const HeightField hf = volume.top_surface(-0.3, -0.3, 0.005, 121, 121);
+  const Errors e = height_errors(hf);
+  EXPECT_LT(e.median, kHeightMedianTol);
+  EXPECT_LT(e.p95, kHeightP95Tol);
+  EXPECT_GT(e.coverage, kMinCoverage);
+  EXPECT_NEAR(hf.at(60, 60), kBlockTop, kHeightMedianTol) << "the block's top at the centre";
+  // Each cell states its height sigma from the agreement of the stations: below the
+  // one-voxel prior when many 1 mm points agree.
+  ASSERT_TRUE(hf.has_sigma());
+  EXPECT_LT(hf.sigma[std::size_t(60) * 121 + 60], kVoxel);
+  EXPECT_GT(hf.sigma[std::size_t(60) * 121 + 60], 0);
+}
+
+TEST(ScanFusion, OneStationLeavesTheBlocksShadowUnseen) {
+  const Eigen::Vector3d west(-0.9, 0.0, 1.5);
+  dense::TsdfVolume volume(kVoxel, kTruncation);
+  dense::fuse_scans(volume, {in_memory(scan_points(west, 0.001, 3), west, 0.001)}, kVoxel);
+  volume.finalise(0.2);
+  // The plane just east of the block is in its shadow from the west (the block is
+  // 8 cm tall, the station 1.5 m up 0.8 m away: the shadow is ~4 cm long).
+  const HeightField shadow = volume.top_surface(kBlockHalf + 0.015, -0.05, 0.005, 1, 21);
+  for (double z : shadow.z) EXPECT_FALSE(std::isfinite(z) && std::abs(z) < 0.003) << z;
+  const HeightField lit = volume.top_surface(-kBlockHalf - 0.03, -0.05, 0.005, 1, 21);
+  for (double z : lit.z) EXPECT_NEAR(z, 0.0, 0.002);
+}
+
+// A depth map of the plane z = `height` from a camera 1 m straight above.
+dense::DepthMap plane_depth(const dense::PinholeCamera& cam, double height) {
+  dense::DepthMap m;
+  m.resize(cam.width, cam.height);
+  for (std::size_t p = 0; p < m.depth.size(); ++p) {
+    m.depth[p] = float(1.0 - height);
+    m.normal[3 * p + 2] = -1.f;
+    m.confidence[p] = 1.f;
+  }
+  return m;
+}
+
+TEST(ScanFusion, WeightsFollowTheNoiseOfScansAndDepthMaps) {
+  dense::PinholeCamera cam;
+  cam.width = cam.height = 200;
+  cam.fx = cam.fy = 200;
+  cam.cx = cam.cy = 99.5;
+  cam.pose.R << 1, 0, 0, 0, -1, 0, 0, 0, -1;  // looking straight down from (0, 0, 1)
+  cam.pose.t = Eigen::Vector3d(0, 0, 1);
+  const std::vector<std::uint8_t> grey(std::size_t(cam.width) * cam.height * 3, 128);
+  // The depth map stands 6 mm above the truth (a photo depth of 5 mm sigma, its unit
+  // sigma); the scans see the truth with 1 mm or 20 mm noise.
+  constexpr double kPhotoOffset = 0.006, kUnitSigma = 0.005;
+  const Eigen::Vector3d station(-0.9, 0.0, 1.5);
+  auto fused_height = [&](double scan_sigma) {
+    dense::TsdfVolume volume(kVoxel, 2 * kTruncation);
+    volume.integrate(cam, plane_depth(cam, kPhotoOffset), grey);
+    dense::fuse_scans(volume, {in_memory(scan_points(station, scan_sigma, 4), station, scan_sigma)}, kUnitSigma);
+    volume.finalise(0.2);
+    const HeightField hf = volume.top_surface(-0.3, 0.15, 0.01, 20, 10);  // the plane, clear of the block
+    std::vector<double> z;
+    for (double v : hf.z)
+      if (std::isfinite(v)) z.push_back(v);
+    EXPECT_GT(z.size(), 150u);
+    std::nth_element(z.begin(), z.begin() + std::ptrdiff_t(z.size() / 2), z.end());
+    return z[z.size() / 2];
+  };
+  const double precise = fused_height(0.001), noisy = fused_height(0.02);
+  std::printf("fused plane height: depth map at +%.1f mm with a 1 mm scan %.2f mm, with a 20 mm scan %.2f mm\n",
+              1000 * kPhotoOffset, 1000 * precise, 1000 * noisy);
+  // 1 mm: each point weighs (5/1)^2 = 25 photo depths; the scan wins.
+  EXPECT_LT(std::abs(precise), 0.1 * kPhotoOffset);
+  // 20 mm: each point weighs 1/16 of a depth, but a voxel averages about 30 points
+  // (n_eff of its Gaussian tube), an observation of 20 / sqrt 30 = 3.7 mm against the
+  // depth's 5 mm: by inverse variances 6 x 5^-2 / (5^-2 + 3.7^-2) = 2.1 mm.
+  EXPECT_GT(noisy, 0.2 * kPhotoOffset);
+  EXPECT_LT(noisy, 0.6 * kPhotoOffset);
+  EXPECT_GT(noisy, 10 * std::abs(precise));
+}
+
+TEST(ScanFusion, RaysWithoutAStationFollowTheNormalsOrTheVertical) {
+  RangeScanInput scan;
+  scan.sigma_m = 0.003;
+  const std::vector<Eigen::Vector3d> points = {{0, 0, 0}, {1, 0, 0}};
+  // Normals pointing down are turned up: the sensor looked from above.
+  const std::vector<Eigen::Vector3f> normals = {{0, 0, -1}, {1, 0, 0}};
+  auto d = dense::scan_ray_directions(scan, points, normals);
+  EXPECT_TRUE(d[0].isApprox(Eigen::Vector3d(0, 0, -1)));
+  EXPECT_TRUE(d[1].isApprox(Eigen::Vector3d(-1, 0, 0)));
+  d = dense::scan_ray_directions(scan, points, {});
+  EXPECT_TRUE(d[1].isApprox(Eigen::Vector3d(0, 0, -1)));
+  scan.station = Eigen::Vector3d(0, 0, 2);
+  d = dense::scan_ray_directions(scan, points, normals);
+  EXPECT_TRUE(d[1].isApprox(Eigen::Vector3d(1, 0, -2).normalized()));
+}
+
+}  // namespace
+}  // namespace strata
