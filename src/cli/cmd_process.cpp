@@ -13,6 +13,7 @@
 #include "project/media.hpp"
 #include "project/project.hpp"
 #include "project/records.hpp"
+#include "project/scan_records.hpp"
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -108,13 +109,23 @@ void print_quality(const nlohmann::json& q, bool skipped) {
 
 void print_dense(const nlohmann::json& q, bool skipped) {
   fmt::print("  dense surface{}\n", skipped ? " (up to date, not recomputed)" : "");
-  fmt::print("    depth maps          {} / {} photos at scale {}\n", q["images_with_depth"].get<int>(),
-             q["images_total"].get<int>(), q["depth_scale"].get<double>());
+  const bool photos = q.value("photos", true);
+  if (photos) {
+    fmt::print("    depth maps          {} / {} photos at scale {}\n", q["images_with_depth"].get<int>(),
+               q["images_total"].get<int>(), q["depth_scale"].get<double>());
+  }
+  if (q.value("scans_fused", 0) > 0) {
+    fmt::print("    range scans         {} fused, {} points, {:.0f} % of the weight (unit sigma {:.1f} mm)\n",
+               q["scans_fused"].get<int>(), q["scan_points"].get<std::uint64_t>(),
+               100 * q["scan_weight_share"].get<double>(), 1000 * q["unit_sigma_m"].get<double>());
+  }
   fmt::print("    voxel size          {:.1f} mm\n", 1000 * q["voxel_size_m"].get<double>());
   fmt::print("    completeness        {:.1f} % of {:.2f} m2\n", 100 * q["completeness"].get<double>(),
              q["area_m2"].get<double>());
-  fmt::print("    to sparse points    median {:.1f} mm, 95% {:.1f} mm\n",
-             1000 * q["median_distance_sparse_m"].get<double>(), 1000 * q["p95_distance_sparse_m"].get<double>());
+  if (q["median_distance_sparse_m"].is_number()) {
+    fmt::print("    to sparse points    median {:.1f} mm, 95% {:.1f} mm\n",
+               1000 * q["median_distance_sparse_m"].get<double>(), 1000 * q["p95_distance_sparse_m"].get<double>());
+  }
   fmt::print("    mesh                {} faces; {} points\n", q["mesh_faces"].get<int>(), q["points"].get<int>());
   fmt::print("    time                {:.1f} s\n", q["steps"]["total"]["seconds"].get<double>());
 }
@@ -127,8 +138,12 @@ void print_products(const nlohmann::json& q, bool skipped) {
              1000 * d["cell_m"].get<double>(), d["area_m2"].get<double>(), d["min_m"].get<double>(),
              d["max_m"].get<double>());
   const auto& o = q["ortho"];
-  fmt::print("    orthophoto          {}  coverage {:.1f} %, {} photos used\n", o["path"].get<std::string>(),
-             100 * o["coverage"].get<double>(), o["views_used"].get<int>());
+  if (o.is_null()) {
+    fmt::print("    orthophoto          none: the layer has no photos to drape on its surface\n");
+  } else {
+    fmt::print("    orthophoto          {}  coverage {:.1f} %, {} photos used\n", o["path"].get<std::string>(),
+               100 * o["coverage"].get<double>(), o["views_used"].get<int>());
+  }
   if (q.contains("ortho_markers")) {
     // Coded targets found in the orthophoto against their survey (issue 6).
     const auto& m = q["ortho_markers"];
@@ -246,10 +261,22 @@ void register_process_commands(CLI::App& app) {
     }
     nlohmann::json out = nlohmann::json::array();
     for (const auto& name : layers) {
-      log::info("== layer {}: alignment", name);
-      const AlignResult r = align_layer(p, name, *options);
+      // A layer recorded by range scans alone has nothing to align: its registered
+      // scans are fused directly (docs/range.md).
+      const LayerRecord rec = require_layer(p.db(), name);
+      const bool scans_only = list_images(p.db(), rec.id).empty() && !list_scans(p.db(), rec.id).empty();
+      AlignResult r;
+      if (scans_only) {
+        log::info("== layer {}: no photos, {} range scan(s): no alignment", name, list_scans(p.db(), rec.id).size());
+        r.skipped = true;  // nothing upstream changed: the dense stage decides by its own inputs
+        r.quality = {{"layer", name}, {"photos", false}};
+        if (!*json) fmt::print("layer {}\n  no photos: the surface comes from its range scans\n", name);
+      } else {
+        log::info("== layer {}: alignment", name);
+        r = align_layer(p, name, *options);
+        if (!*json) print_quality(r.quality, r.skipped);
+      }
       nlohmann::json q = r.quality;
-      if (!*json) print_quality(r.quality, r.skipped);
       if (*until != "sparse") {
         log::info("== layer {}: dense surface", name);
         const DenseLayerResult d = dense_layer(p, name, *dense, options->force || !r.skipped);

@@ -6,6 +6,7 @@
 #include "core/log.hpp"
 #include "core/progress.hpp"
 #include "pipeline/alignment_store.hpp"
+#include "pipeline/layer_scans.hpp"
 #include "project/records.hpp"
 
 #include <fmt/format.h>
@@ -45,8 +46,17 @@ DenseLayerResult dense_layer(Project& project, const std::string& layer_name, co
   auto& db = project.db();
   const LayerRecord layer = require_layer(db, layer_name);
   const auto alignment = load_alignment(db, layer);
-  if (!alignment) {
-    throw ProcessingError(fmt::format("layer {} is not aligned; run 'strata process --layer {} --until sparse' first",
+  const LayerScans scans = layer_scans(project, layer);
+  if (!scans.unregistered.empty()) {
+    std::string names;
+    for (const auto& n : scans.unregistered) names += (names.empty() ? "" : ", ") + n;
+    log::warn("layer {}: {} unregistered scan(s) not fused: {} (registration by targets/ICP is not built yet; "
+              "import them again with --crs or --transform)",
+              layer.name, scans.unregistered.size(), names);
+  }
+  if (!alignment && scans.registered.empty()) {
+    throw ProcessingError(fmt::format("layer {} is not aligned and has no registered scan; run 'strata process "
+                                      "--layer {} --until sparse' first",
                                       layer.name, layer.name));
   }
   const SiteInfo site = project.site();
@@ -56,14 +66,19 @@ DenseLayerResult dense_layer(Project& project, const std::string& layer_name, co
   DenseOptions o = options;
   DenseLayerResult result;
   // Every option that changes the surface is part of the key (a changed option
-  // recomputes; the depth-map cache below still reuses what did not change).
+  // recomputes; the depth-map cache below still reuses what did not change). A
+  // layer without scans keeps the key it had before scans were fused.
+  const std::string scans_key =
+      scans.registered.empty() ? std::string()
+                               : fmt::format("|scans {} unit {}", scans.key, o.fusion.photo_depth_sigma_gsd);
   const std::string inputs_key = sha256_hex(
-      alignment->inputs_key +
+      (alignment ? alignment->inputs_key : std::string("no photos")) +
       fmt::format("|fusion v{}|views {} {} {} {}|{}|{}|fusion {} {} {} {} {} {} {}", kFusionVersion, o.views.max_neighbours,
                   o.views.min_shared_points, o.views.min_angle_deg, o.views.max_angle_deg, o.patch_match.fingerprint(),
                   o.consistency.fingerprint(), o.fusion.voxel_size_m, o.fusion.voxel_gsd_factor,
                   o.fusion.min_voxel_size_m, o.fusion.max_voxel_size_m, o.fusion.truncation_voxels,
-                  o.fusion.min_weight, o.fusion.min_component_fraction));
+                  o.fusion.min_weight, o.fusion.min_component_fraction) +
+      scans_key);
   if (!force) {
     auto st = db.prepare("SELECT inputs_key, quality_json FROM reconstructions WHERE layer_id = ? AND stage = 'dense'");
     st.bind(1, layer.id);
@@ -76,8 +91,17 @@ DenseLayerResult dense_layer(Project& project, const std::string& layer_name, co
   }
 
   std::vector<fs::path> paths;
-  for (const auto& im : alignment->images) paths.push_back(project.dir() / im.media_path);
-  if (o.quality.area.empty()) o.quality.area = sparse_area(alignment->rec);
+  const Reconstruction no_photos;
+  const Reconstruction& rec = alignment ? alignment->rec : no_photos;
+  if (alignment)
+    for (const auto& im : alignment->images) paths.push_back(project.dir() / im.media_path);
+  if (o.quality.area.empty()) o.quality.area = sparse_area(rec);
+  if (o.quality.area.empty() && scans.bounds) {
+    // No photos: completeness over the box the scans cover.
+    const Eigen::Vector3d& lo = scans.bounds->min;
+    const Eigen::Vector3d& hi = scans.bounds->max;
+    o.quality.area = {{lo.x(), lo.y()}, {hi.x(), lo.y()}, {hi.x(), hi.y()}, {lo.x(), hi.y()}};
+  }
 
   // Write into a fresh temporary folder, then swap it into place: a failed or
   // interrupted run leaves the previous products as they were.
@@ -87,7 +111,7 @@ DenseLayerResult dense_layer(Project& project, const std::string& layer_name, co
   fs::create_directories(tmp_dir);
   DenseSummary s;
   try {
-    s = run_dense(o, alignment->rec, paths, site.origin, project.cache_dir() / "layers" / layer.name, tmp_dir);
+    s = run_dense(o, rec, paths, scans.registered, site.origin, project.cache_dir() / "layers" / layer.name, tmp_dir);
   } catch (...) {
     std::error_code ec;
     fs::remove_all(tmp_dir, ec);
@@ -109,6 +133,12 @@ DenseLayerResult dense_layer(Project& project, const std::string& layer_name, co
   q["area_m2"] = s.area_m2;
   q["median_distance_sparse_m"] = s.median_distance_sparse_m;
   q["p95_distance_sparse_m"] = s.p95_distance_sparse_m;
+  q["photos"] = alignment.has_value();
+  q["scans_fused"] = s.scans_fused;
+  q["scans_unregistered"] = scans.unregistered;
+  q["scan_points"] = s.scan_points;
+  q["scan_weight_share"] = s.scan_weight_share;
+  q["unit_sigma_m"] = s.unit_sigma_m;
   auto step = [](const StepFigures& f) {
     return nlohmann::json{{"seconds", f.seconds}, {"peak_memory_mb", double(f.peak_memory_bytes) / 1048576.0}};
   };
@@ -145,7 +175,7 @@ DenseLayerResult dense_layer(Project& project, const std::string& layer_name, co
     db.prepare(
           "INSERT INTO reconstructions(layer_id, stage, created_at, inputs_key, georeferenced, quality_json) "
           "VALUES (?, 'dense', strftime('%Y-%m-%dT%H:%M:%SZ','now'), ?, ?, ?)")
-        .bind_all(layer.id, inputs_key, alignment->rec.georeferenced ? 1 : 0, q.dump())
+        .bind_all(layer.id, inputs_key, !alignment || alignment->rec.georeferenced ? 1 : 0, q.dump())
         .run();
     for (const auto& p : s.products) {
       ProductRecord r;

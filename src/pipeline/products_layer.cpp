@@ -139,14 +139,16 @@ ProductsLayerResult products_layer(Project& project, const std::string& layer_na
   auto& db = project.db();
   const LayerRecord layer = require_layer(db, layer_name);
   const fs::path vdb = layer_surface_path(project, layer.name);
+  // A layer recorded by range scans alone has a surface but no photos: its DTM,
+  // contours and footprint are made; the orthophoto and its marker check need photos.
   const auto alignment = load_alignment(db, layer);
-  if (!alignment) throw ProcessingError(fmt::format("layer {} is not aligned", layer.name));
   const SiteInfo site = project.site();
   const auto surface = find_product(db, layer.id, "surface");
   const auto [surveyed, markers_digest] = surveyed_markers(db, site.origin);
 
   const std::string inputs_key = sha256_hex(fmt::format(
-      "{}|{}|{}|{}|{}|{}|{}|{}|ortho-v3|{}|{}|{}|{}|markers-v6|{}|{}|{}|{}|{}|{}", surface->sha256, alignment->inputs_key,
+      "{}|{}|{}|{}|{}|{}|{}|{}|ortho-v3|{}|{}|{}|{}|markers-v6|{}|{}|{}|{}|{}|{}", surface->sha256,
+      alignment ? alignment->inputs_key : std::string("no photos"),
       options.dtm.cell_m, options.ortho_cell_m, options.contours.interval_m, options.ortho.radiometric_balance,
       options.ortho.antialias, options.ortho.rectify_median_radius_m,
       options.ortho.smoothness, options.ortho.feather_m, options.ortho.normal_radius_m, options.geotiff.cog,
@@ -210,15 +212,18 @@ ProductsLayerResult products_layer(Project& project, const std::string& layer_na
 
   // True orthophoto
   w = Stopwatch();
+  const bool photos = alignment.has_value();
+  if (!photos) log::info("layer {}: no photos, so no orthophoto (the DTM comes from its scans)", layer.name);
   Dtm ortho_dtm;
-  if (options.ortho_cell_m > 0 && std::abs(options.ortho_cell_m - options.dtm.cell_m) > 1e-12) {
+  if (photos && options.ortho_cell_m > 0 && std::abs(options.ortho_cell_m - options.dtm.cell_m) > 1e-12) {
     DtmOptions o = options.dtm;
     o.cell_m = options.ortho_cell_m;
     ortho_dtm = build_dtm(vdb, o);
   }
-  const std::vector<OrthoView> views = layer_ortho_views(project, layer.name);
+  const std::vector<OrthoView> views = photos ? layer_ortho_views(project, layer.name) : std::vector<OrthoView>{};
   OrthoSummary os;
   const RgbaRaster ortho = [&] {
+    if (!photos) return RgbaRaster{};
     try {
       return build_orthophoto(ortho_dtm.z.empty() ? dtm : ortho_dtm, views, options.ortho, &os);
     } catch (const ProcessingError& e) {
@@ -231,14 +236,16 @@ ProductsLayerResult products_layer(Project& project, const std::string& layer_na
                                         e.what(), layer.name));
     }
   }();
-  write_rgba_geotiff(stage_path("ortho.tif"), ortho, geo, options.geotiff);
-  fault::point("process.products.ortho_written");
-  steps["ortho"] = step_json(w);
+  if (photos) {
+    write_rgba_geotiff(stage_path("ortho.tif"), ortho, geo, options.geotiff);
+    fault::point("process.products.ortho_written");
+    steps["ortho"] = step_json(w);
+  }
   check_cancelled();
 
   // The orthophoto against the surveyed markers
   std::optional<OrthoMarkerCheck> marker_check;
-  if (options.check_ortho_markers) {
+  if (photos && options.check_ortho_markers) {
     w = Stopwatch();
     marker_check = check_ortho_markers(ortho, surveyed, options.ortho_markers, &os.source_pixel_m);
     steps["ortho_markers"] = step_json(w);
@@ -264,7 +271,8 @@ ProductsLayerResult products_layer(Project& project, const std::string& layer_na
   steps["vectors"] = step_json(w);
   fault::point("process.products.vectors_done");
 
-  const auto [sparse_median, sparse_n] = median_sparse_distance(dtm, alignment->rec);
+  const auto [sparse_median, sparse_n] =
+      photos ? median_sparse_distance(dtm, alignment->rec) : std::pair<double, std::size_t>{0.0, 0};
   double gain_min = 1, gain_max = 1;
   for (const auto& g : os.gains) {
     for (double v : g) {
@@ -279,10 +287,14 @@ ProductsLayerResult products_layer(Project& project, const std::string& layer_na
               {"min_m", stats.min},               {"max_m", stats.max},            {"mean_m", stats.mean},
               {"median_distance_sparse_m", sparse_median}, {"sparse_points_compared", sparse_n}};
   if (!sigma_q.is_null()) q["dtm"]["sigma"] = sigma_q;
-  q["ortho"] = {{"path", rel_dir + "/ortho.tif"},  {"cell_m", ortho.grid.cell},     {"views", os.views},
-                {"views_used", os.views_used},     {"coverage", os.coverage},       {"seam_fraction", os.seam_fraction},
-                {"balance_rms_before", os.balance_rms_before}, {"balance_rms_after", os.balance_rms_after},
-                {"gain_min", gain_min},            {"gain_max", gain_max}};
+  if (photos) {
+    q["ortho"] = {{"path", rel_dir + "/ortho.tif"},  {"cell_m", ortho.grid.cell},     {"views", os.views},
+                  {"views_used", os.views_used},     {"coverage", os.coverage},       {"seam_fraction", os.seam_fraction},
+                  {"balance_rms_before", os.balance_rms_before}, {"balance_rms_after", os.balance_rms_after},
+                  {"gain_min", gain_min},            {"gain_max", gain_max}};
+  } else {
+    q["ortho"] = nullptr;  // an orthophoto drapes photos on the surface: none without photos
+  }
   if (marker_check) q["ortho_markers"] = marker_check_json(*marker_check, site.origin);
   q["contours"] = {{"interval_m", options.contours.interval_m}, {"lines", contours.size()}};
   q["footprint"] = {{"area_m2", footprint.area_m2}, {"perimeter_m", footprint.perimeter_m},
@@ -307,8 +319,9 @@ ProductsLayerResult products_layer(Project& project, const std::string& layer_na
     write_gpkg_raster(project.database_path(), out_dir / "dtm.tif", raster_table_name("dtm", layer.name),
                       GpkgRasterKind::gridded_coverage, fmt::format("DTM of layer {} (metres, {})", layer.name, site.crs));
     fault::point("process.products.gpkg_dtm_written");
-    write_gpkg_raster(project.database_path(), out_dir / "ortho.tif", raster_table_name("ortho", layer.name),
-                      GpkgRasterKind::tiles_png, fmt::format("true orthophoto of layer {}", layer.name));
+    if (photos)
+      write_gpkg_raster(project.database_path(), out_dir / "ortho.tif", raster_table_name("ortho", layer.name),
+                        GpkgRasterKind::tiles_png, fmt::format("true orthophoto of layer {}", layer.name));
     fault::point("process.products.gpkg_ortho_written");
     steps["gpkg_rasters"] = step_json(g);
   }
@@ -321,13 +334,14 @@ ProductsLayerResult products_layer(Project& project, const std::string& layer_na
     db.prepare(
           "INSERT INTO reconstructions(layer_id, stage, created_at, inputs_key, georeferenced, quality_json) "
           "VALUES (?, 'products', strftime('%Y-%m-%dT%H:%M:%SZ','now'), ?, ?, ?)")
-        .bind_all(layer.id, inputs_key, alignment->rec.georeferenced ? 1 : 0, q.dump())
+        .bind_all(layer.id, inputs_key, !photos || alignment->rec.georeferenced ? 1 : 0, q.dump())
         .run();
     for (const auto& [kind, file, params] :
          {std::tuple{"dtm", "dtm.tif", nlohmann::json{{"cell_m", dtm.grid.cell}, {"nodata", kDtmNoData}}},
           std::tuple{"ortho", "ortho.tif", nlohmann::json{{"cell_m", ortho.grid.cell}}},
           std::tuple{"dtm_sigma", "dtm_sigma.tif", nlohmann::json{{"cell_m", dtm.grid.cell}, {"nodata", kDtmNoData}}}}) {
       if (std::string(kind) == "dtm_sigma" && sigma_q.is_null()) continue;
+      if (std::string(kind) == "ortho" && !photos) continue;
       ProductRecord r;
       r.layer_id = layer.id;
       r.kind = kind;

@@ -1,0 +1,87 @@
+#include "pipeline/layer_scans.hpp"
+
+#include "core/error.hpp"
+#include "core/hash.hpp"
+#include "crs/crs.hpp"
+#include "pipeline/scan_points.hpp"
+
+#include <fmt/format.h>
+
+#include <Eigen/Dense>
+
+#include <memory>
+
+namespace fs = std::filesystem;
+
+namespace strata {
+namespace {
+
+// The reader of a scan in its scanner's frame, mapped by a similarity into the site frame.
+RangeScanInput transformed_scan(const fs::path& file, const ScanRecord& s) {
+  const Eigen::Matrix4d M = *s.transform;
+  const Eigen::Matrix3d A = M.topLeftCorner<3, 3>();
+  const Eigen::Vector3d t = M.topRightCorner<3, 1>();
+  ScanFrameMap map;
+  map.point = [A, t](const Eigen::Vector3d& p) -> Eigen::Vector3d { return A * p + t; };
+  map.normal = A.inverse().transpose().cast<float>();  // normals under a similarity
+  RangeScanInput in;
+  in.name = s.name;
+  in.sigma_m = s.sigma_m;
+  in.station = t;  // the scanner's origin, where every ray starts
+  in.read = [file, map](const RangeScanInput::ChunkSink& sink) { read_scan_points(file, map, sink); };
+  return in;
+}
+
+// The reader of a scan in a CRS (registered by the scanner's software): into the
+// site CRS with PROJ (identity when they are the same), minus the site origin.
+RangeScanInput survey_scan(const fs::path& file, const ScanRecord& s, const SiteInfo& site) {
+  auto to_site = std::make_shared<CrsTransform>(
+      transform_into_site(*s.crs, site.crs, fmt::format("dense.scans: {}: CRS", s.name)));
+  const Eigen::Vector3d origin = site.origin;
+  ScanFrameMap map;
+  map.point = [to_site, origin](const Eigen::Vector3d& p) -> Eigen::Vector3d {
+    return (to_site->identity() ? p : to_site->apply(p)) - origin;
+  };
+  RangeScanInput in;
+  in.name = s.name;
+  in.sigma_m = s.sigma_m;
+  in.read = [file, map](const RangeScanInput::ChunkSink& sink) { read_scan_points(file, map, sink); };
+  return in;
+}
+
+}  // namespace
+
+LayerScans layer_scans(Project& project, const LayerRecord& layer) {
+  LayerScans out;
+  const SiteInfo site = project.site();
+  std::string digest;
+  for (const ScanRecord& s : list_scans(project.db(), layer.id)) {
+    if (s.registration == ScanRegistration::unregistered) {
+      out.unregistered.push_back(s.name);
+      continue;
+    }
+    const fs::path file = project.dir() / s.media_path;
+    if (s.registration == ScanRegistration::transform) {
+      if (!s.transform) throw IoError(fmt::format("scans: {}: registered by a transform that is not stored", s.name));
+      out.registered.push_back(transformed_scan(file, s));
+    } else {
+      if (!s.crs) throw IoError(fmt::format("scans: {}: registered to the survey without a CRS", s.name));
+      out.registered.push_back(survey_scan(file, s, site));
+    }
+    digest += fmt::format("{}|{}|{}|{};", s.sha256, s.sigma_m, to_string(s.registration), s.crs.value_or(""));
+    if (s.transform)
+      for (int k = 0; k < 16; ++k) digest += fmt::format("{:.17g},", (*s.transform)(k / 4, k % 4));
+    if (s.bounds) {
+      if (!out.bounds) {
+        out.bounds = s.bounds;
+      } else {
+        out.bounds->min = out.bounds->min.cwiseMin(s.bounds->min);
+        out.bounds->max = out.bounds->max.cwiseMax(s.bounds->max);
+      }
+    }
+  }
+  out.key = digest.empty() ? std::string() : sha256_hex(digest);
+  return out;
+}
+
+}  // namespace strata
