@@ -21,6 +21,8 @@ struct SynthArgs {
   std::string marker_pattern = "aruco";
   std::string lens = "radial";
   bool no_exif = false;
+  bool scans = false;
+  double scan_step_mrad = 0, scan_sigma = -1;
 };
 
 // The camera of each synthetic lens (docs/cameras.md, "Synthetic lenses").
@@ -55,6 +57,9 @@ void run_synth(const SynthArgs& a) {
   } else if (a.marker_pattern != "aruco") {
     throw InputError("synth: --marker-pattern must be aruco or quadrant (got " + a.marker_pattern + ")");
   }
+  o.scans.enabled = a.scans;
+  if (a.scan_step_mrad > 0) o.scans.step_mrad = a.scan_step_mrad;
+  if (a.scan_sigma >= 0) o.scans.sigma_m = a.scan_sigma;
   if (a.stages >= 0) o.site.stages = a.stages;
   if (a.photos >= 0) o.photos.per_layer = a.photos;
   // A different width keeps the preset's aspect unless --height is given, and
@@ -79,6 +84,10 @@ void run_synth(const SynthArgs& a) {
   fmt::print("  finds.csv: {} finds planted in the removed units, {} of them recorded in the wrong unit "
              "(truth/finds.csv)\n",
              s.finds, s.planted_contradictions);
+  if (o.scans.enabled)
+    fmt::print("  scans.csv: {} simulated laser scans, {} points (step {} mrad, range sigma {} mm), poses in "
+               "scans/L<k>/S<n>_pose.txt\n",
+               s.scans, s.scan_points, o.scans.step_mrad, 1000 * o.scans.sigma_m);
 }
 
 }  // namespace
@@ -122,6 +131,14 @@ void register_synth_command(CLI::App& app) {
                   "decentring) or fisheye (an action camera, 150 degrees diagonally); EXIF to match")
       ->capture_default_str();
   cmd->add_flag("--no-exif", args->no_exif, "write the photos without any EXIF (no focal length, no camera)");
+  cmd->add_flag("--scans", args->scans,
+                "also simulate a terrestrial laser scan of every layer: 3 tripod stations at the trench\n"
+                "edge, 1.5 m up, occluded by the trench sides and stones, Gaussian range noise; binary\n"
+                "PLY (x y z intensity, scanner frame) and the true pose per station under scans/L<k>/,\n"
+                "listed in scans.csv (docs/range.md)");
+  cmd->add_option("--scan-step-mrad", args->scan_step_mrad,
+                  "angular step of the simulated scans, milliradians [2: 4-8 mm at the floor]");
+  cmd->add_option("--scan-sigma", args->scan_sigma, "range noise of the simulated scans, metres, one sigma [0.003]");
   cmd->callback([args] { run_synth(*args); });
 }
 

@@ -11,6 +11,7 @@
 #include "synthetic/noise.hpp"
 #include "synthetic/photo_set.hpp"
 #include "synthetic/render.hpp"
+#include "synthetic/scans.hpp"
 #include "synthetic/scene.hpp"
 #include "synthetic/writers.hpp"
 
@@ -123,6 +124,41 @@ UnitVolume removed_volume(const synthetic::HeightGrid& before, const synthetic::
   return r;
 }
 
+// The simulated laser scans of layer k: per station, scans/L<k>/S<n>.ply in the
+// scanner's frame, its true pose S<n>_pose.txt (scanner -> site frame, the 4x4 that
+// 'strata import scan --transform' reads) and a line of scans.csv.
+void write_layer_scans(const synthetic::Scene& scene, int k, const fs::path& dir, std::vector<std::string>& lines,
+                       SyntheticExcavationSummary& summary) {
+  using namespace synthetic;
+  const auto& o = scene.options();
+  const std::string layer = fmt::format("L{}", k + 1);
+  fs::create_directories(dir / "scans" / layer);
+  const Eigen::Vector3d origin(o.site.origin_e, o.site.origin_n, o.site.origin_z);
+  const auto stations = plan_scan_stations(scene, k, o.seed);
+  for (std::size_t s = 0; s < stations.size(); ++s) {
+    check_cancelled();
+    const SimulatedScan scan = simulate_scan(scene, k, stations[s], mix64(o.seed * 7001 + std::uint64_t(k) * 31 + s));
+    const std::string name = fmt::format("S{}", s + 1);
+    const fs::path ply = fs::path("scans") / layer / (name + ".ply");
+    const fs::path pose = fs::path("scans") / layer / (name + "_pose.txt");
+    write_scan_ply(dir / ply, scan.points, scan.intensity,
+                   fmt::format("strata synthetic laser scan, layer {}, station {}, seed {}", layer, s + 1, o.seed));
+    TextFile t(dir / pose);
+    t.out() << fmt::format("# true pose of {} station {}: scanner frame -> site frame (EPSG:{} minus origin "
+                           "{:.3f} {:.3f} {:.3f}), row-major\n",
+                           layer, s + 1, o.site.epsg, origin.x(), origin.y(), origin.z());
+    const Eigen::Matrix4d m = stations[s].scanner_to_site();
+    for (int r = 0; r < 4; ++r)
+      t.out() << fmt::format("{:.12f} {:.12f} {:.12f} {:.12f}\n", m(r, 0), m(r, 1), m(r, 2), m(r, 3));
+    t.close();
+    const Eigen::Vector3d c = stations[s].origin + origin;
+    lines.push_back(fmt::format("{},{},{},{},{:.4f},{:.4f},{:.4f},{:.6f},{}", layer, ply.string(), pose.string(),
+                                o.scans.sigma_m, c.x(), c.y(), c.z(), stations[s].yaw, scan.points.size()));
+    summary.scans++;
+    summary.scan_points += std::int64_t(scan.points.size());
+  }
+}
+
 void write_dataset(const SyntheticExcavationOptions& o, const fs::path& dir, SyntheticExcavationSummary& summary) {
   using namespace synthetic;
   log::info("synth: building the site (seed {}, {} stages)", o.seed, o.site.stages);
@@ -156,6 +192,7 @@ void write_dataset(const SyntheticExcavationOptions& o, const fs::path& dir, Syn
 
   // Each recorded layer: bake its lit texture, photograph it, write its truth.
   std::vector<std::string> gcp_lines;
+  std::vector<std::string> scan_lines;  // of scans.csv
   std::unique_ptr<LayerTexture> ground;
   const double sensor = o.photos.sensor_width_mm;
   const double focal_mm = intrinsics.fx / intrinsics.width * sensor;
@@ -266,6 +303,13 @@ void write_dataset(const SyntheticExcavationOptions& o, const fs::path& dir, Syn
     write_geotiff(dir / "truth" / layer / "surface.tif", raster);
 
     if (k == 0) ground = std::move(texture);
+    if (o.scans.enabled) write_layer_scans(scene, k, dir, scan_lines, summary);
+  }
+  if (o.scans.enabled) {
+    TextFile csv(dir / "scans.csv");
+    csv.out() << "layer,file,transform,sigma_m,station_E,station_N,station_Z,yaw_rad,points\n";
+    for (const auto& l : scan_lines) csv.out() << l << "\n";
+    csv.close();
   }
 
   {
@@ -385,6 +429,9 @@ void write_dataset(const SyntheticExcavationOptions& o, const fs::path& dir, Syn
                   {"count", site.markers},
                   {"check", site.check_markers},
                   {"survey_sigma_m", site.survey_sigma}};
+  if (o.scans.enabled)
+    j["scans"] = {{"csv", "scans.csv"},          {"stations", o.scans.stations}, {"step_mrad", o.scans.step_mrad},
+                  {"sigma_m", o.scans.sigma_m}, {"height_m", o.scans.height_m}, {"crop_margin_m", o.scans.crop_margin_m}};
   j["generator"] = {{"name", "strata synth"}, {"version", "0.1.0"}};
   TextFile json(dir / "site.json");
   json.out() << j.dump(2) << "\n";
@@ -442,6 +489,12 @@ void SyntheticExcavationOptions::validate() const {
           "0..1.1 m (the scene's fine grid reaches 1.2 m around the trench)");
   require(render.truth_cell >= 0.001 && render.truth_cell <= 0.05, "render.truth_cell", render.truth_cell, "0.001..0.05 m");
   require(render.threads >= 0 && render.threads <= 1024, "render.threads", render.threads, "0 (all cores)..1024");
+  require(scans.stations >= 2 && scans.stations <= 3, "scans.stations", scans.stations, "2..3");
+  require(scans.step_mrad >= 0.5 && scans.step_mrad <= 20, "scans.step_mrad", scans.step_mrad, "0.5..20 mrad");
+  require(scans.sigma_m >= 0 && scans.sigma_m <= 0.05, "scans.sigma_m", scans.sigma_m, "0..0.05 m");
+  require(scans.height_m >= 0.5 && scans.height_m <= 3, "scans.height_m", scans.height_m, "0.5..3 m");
+  require(scans.crop_margin_m >= 0 && scans.crop_margin_m <= 1, "scans.crop_margin_m", scans.crop_margin_m,
+          "0..1 m (inside the scene's fine grid)");
   constexpr double kGridMarginBoth = 2 * 1.2;  // metres: fine grid margin, both sides (scene.cpp)
   const double nodes = (site.trench_size_e + kGridMarginBoth) * (site.trench_size_n + kGridMarginBoth) /
                        (render.height_cell * render.height_cell);

@@ -74,6 +74,18 @@ struct SyntheticExcavationOptions {
     int threads = 0;               // 0 = all cores
   } render;
 
+  // Simulated terrestrial laser scans of every layer (docs/range.md, "Synthetic
+  // scans"); off by default, so the photo dataset is the same with or without them.
+  struct Scans {
+    bool enabled = false;
+    int stations = 3;              // tripod stations per layer at the trench edge (2..3)
+    double step_mrad = 2.0;        // angular step in azimuth and elevation: 4-8 mm across the ray at
+                                   // the floor 2-4 m away (more along it, at grazing incidence)
+    double sigma_m = 0.003;        // metres, range noise, one sigma, Gaussian along the ray
+    double height_m = 1.5;         // metres, scanner centre above the ground at the station
+    double crop_margin_m = 0.3;    // metres: points kept over the trench and this far around it
+  } scans;
+
   // Throws InputError naming the first invalid field and its value.
   void validate() const;
 };
@@ -93,6 +105,8 @@ struct SyntheticExcavationSummary {
   int marker_observations = 0;   // lines of gcp_list.txt
   int finds = 0;                 // lines of finds.csv (planted in the removed units)
   int planted_contradictions = 0;  // of which recorded in another unit than the true one
+  int scans = 0;                 // simulated scan stations written (options.scans)
+  std::int64_t scan_points = 0;
   std::vector<UnitVolume> units; // one per removed unit, in excavation order
   double seconds = 0;            // wall-clock time of the whole generation
 };

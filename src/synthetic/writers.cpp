@@ -7,6 +7,7 @@
 #include <ogr_spatialref.h>
 #include <opencv2/imgcodecs.hpp>
 
+#include <bit>
 #include <cmath>
 #include <mutex>
 
@@ -102,6 +103,26 @@ void write_geotiff(const std::filesystem::path& path, const Raster& r) {
                                     r.cols, r.rows, GDT_Float32, 0, 0);
   GDALClose(ds);
   if (err != CE_None) throw IoError("synth.writer.geotiff: cannot write " + path.string());
+}
+
+void write_scan_ply(const std::filesystem::path& path, const std::vector<Eigen::Vector3f>& points,
+                    const std::vector<float>& intensity, const std::string& comment) {
+  static_assert(std::endian::native == std::endian::little, "the PLY is written little-endian as in memory");
+  if (points.size() != intensity.size()) throw IoError("synth.writer.ply: " + path.string() + ": ragged point data");
+  std::ofstream out(path, std::ios::binary);
+  if (!out) throw IoError("synth.writer.ply: cannot create " + path.string());
+  out << "ply\nformat binary_little_endian 1.0\ncomment " << comment << "\nelement vertex " << points.size()
+      << "\nproperty float x\nproperty float y\nproperty float z\nproperty float intensity\nend_header\n";
+  std::vector<float> record(4 * points.size());
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    record[4 * i] = points[i].x();
+    record[4 * i + 1] = points[i].y();
+    record[4 * i + 2] = points[i].z();
+    record[4 * i + 3] = intensity[i];
+  }
+  out.write(reinterpret_cast<const char*>(record.data()), std::streamsize(record.size() * sizeof(float)));
+  out.close();
+  if (!out) throw IoError("synth.writer.ply: cannot write " + path.string());
 }
 
 TextFile::TextFile(const std::filesystem::path& path) : path_(path), out_(path, std::ios::binary) {

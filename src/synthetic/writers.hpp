@@ -1,6 +1,8 @@
 #pragma once
 // File writers of the synthetic dataset (internal): JPEG with EXIF (OpenCV +
 // exiv2), Float32 GeoTIFF (GDAL), text files. Errors are IoError naming the file.
+#include <Eigen/Core>
+
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
@@ -32,6 +34,10 @@ struct Raster {
   std::vector<float> values;      // row-major from the north edge
 };
 void write_geotiff(const std::filesystem::path& path, const Raster& raster);
+
+// A point cloud as binary little-endian PLY: float x y z (metres) and float intensity.
+void write_scan_ply(const std::filesystem::path& path, const std::vector<Eigen::Vector3f>& points,
+                    const std::vector<float>& intensity, const std::string& comment);
 
 // An output text file; throws IoError when it cannot be created. close() checks
 // that everything reached the disk.

@@ -5,6 +5,7 @@
 #include "support/test_support.hpp"
 #include "synthetic/finds.hpp"
 #include "synthetic/render.hpp"
+#include "synthetic/scans.hpp"
 #include "synthetic/scene.hpp"
 #include "synthetic/synthetic.hpp"
 
@@ -472,6 +473,105 @@ TEST(SyntheticRender, TrenchSidesHideTheFloorBehindThem) {
   EXPECT_LT(hidden.t, (point - low).norm() - kOcclusionMargin);
   const auto seen = synthetic::cast_ray(scene, layer, high, (point - high).normalized());
   EXPECT_NEAR(seen.t, (point - high).norm(), 1e-4);
+}
+
+// ---- simulated laser scans -----------------------------------------------------------
+// The scan's range noise, and the bounds its residuals must meet over a few thousand
+// points: the mean within 4 standard errors, the sample sigma within 15 %.
+constexpr double kScanSigma = 0.003;  // metres
+constexpr double kScanSigmaRelTol = 0.15;
+// The noise-free point lies on the bilinear height field (float32 heights ~1 m:
+// 0.1 um; the ray marcher's root refinement is finer than this).
+constexpr double kOnSurfaceTol = 2e-4;  // metres
+// A line of sight grazing the trench edge may touch the surface by rounding.
+constexpr double kSightlineSlack = 1e-3;  // metres
+// The ray caster (render.cpp, shared with the photos) tests each 4-5 mm cell at its
+// entry and exit: a ray that grazes a crest inside one cell (a stone's edge) and
+// leaves it above may pass it. A few such rays in ten thousand.
+constexpr double kMaxGrazingShare = 0.001;
+// A floor point counts as hidden from the station when its line of sight passes this
+// far below the surface somewhere (not just grazing an edge).
+constexpr double kDeepShadow = 0.02;  // metres
+// Next to a near occluder (a stone's foot) a point 2 cm deep in shadow may have a
+// visible neighbour within 5 mm: so few hidden points have a scanned one that close.
+constexpr double kMaxHiddenNearScanned = 0.01;
+
+// How far below the surface the straight line from `from` to `to` passes at worst
+// (metres, > 0 when it does; the last `skip` metres before `to` are not looked at).
+double sightline_depth(const synthetic::HeightGrid& g, const Eigen::Vector3d& from, const Eigen::Vector3d& to,
+                       double skip) {
+  const double len = (to - from).norm();
+  double worst = -1;
+  for (double t = 0.02; t < len - skip; t += 0.0025) {
+    const Eigen::Vector3d p = from + (to - from) * (t / len);
+    if (g.contains(p.x(), p.y())) worst = std::max(worst, g.sample(p.x(), p.y()) - p.z());
+  }
+  return worst;
+}
+
+TEST(SyntheticScan, RangesMatchTheTruthWithinTheirNoiseAndHiddenGroundIsNotScanned) {
+  auto o = tiny_options();
+  o.scans.enabled = true;
+  o.scans.step_mrad = 6;  // coarse: geometry, not density, is checked here
+  o.scans.sigma_m = kScanSigma;
+  const synthetic::Scene scene(o);
+  const int layer = scene.layers() - 1;  // the deepest floor: the trench sides shade their foot
+  const auto& grid = scene.surface(layer);
+  const auto stations = synthetic::plan_scan_stations(scene, layer, o.seed);
+  ASSERT_EQ(stations.size(), 3u);
+  const synthetic::ScanStation& st = stations[0];  // south of the trench
+  EXPECT_LT(st.origin.y(), scene.trench_y0());
+  EXPECT_NEAR(st.origin.z() - grid.sample(st.origin.x(), st.origin.y()), o.scans.height_m, 1e-9);
+  const Eigen::Matrix4d pose = st.scanner_to_site();
+  EXPECT_NEAR(pose(2, 2), 1.0, 1e-12);  // a rotation about the vertical only
+  const Eigen::Matrix3d rotation = pose.topLeftCorner<3, 3>();
+  EXPECT_NEAR(rotation.determinant(), 1.0, 1e-12);
+
+  const synthetic::SimulatedScan scan = synthetic::simulate_scan(scene, layer, st, 11);
+  ASSERT_GT(scan.points.size(), 5000u);
+  ASSERT_EQ(scan.intensity.size(), scan.points.size());
+  const Eigen::Matrix3d& R = rotation;
+  double sum = 0, sum2 = 0;
+  std::size_t off_surface = 0, blocked = 0;
+  std::map<std::pair<int, int>, std::vector<Eigen::Vector3d>> scanned;  // 1 cm XY cell -> true points there
+  for (std::size_t i = 0; i < scan.points.size(); ++i) {
+    const Eigen::Vector3d p = R * scan.points[i].cast<double>() + st.origin;  // into the site frame
+    const Eigen::Vector3d dir = (p - st.origin).normalized();
+    const double range = (p - st.origin).norm();
+    const double e = range - scan.true_range[i];
+    sum += e;
+    sum2 += e * e;
+    const Eigen::Vector3d truth = st.origin + double(scan.true_range[i]) * dir;
+    if (std::abs(truth.z() - grid.sample(truth.x(), truth.y())) > kOnSurfaceTol) ++off_surface;
+    if (sightline_depth(grid, st.origin, truth, 0.01) > kSightlineSlack) ++blocked;
+    scanned[{int(std::floor(truth.x() / 0.01)), int(std::floor(truth.y() / 0.01))}].push_back(truth);
+    EXPECT_GE(scan.intensity[i], 0.f);
+    EXPECT_LE(scan.intensity[i], 1.f);
+  }
+  const double n = double(scan.points.size());
+  const double mean = sum / n, sigma = std::sqrt(sum2 / n - mean * mean);
+  EXPECT_LT(std::abs(mean), 4 * kScanSigma / std::sqrt(n)) << "range bias " << mean;
+  EXPECT_NEAR(sigma, kScanSigma, kScanSigmaRelTol * kScanSigma);
+  EXPECT_EQ(off_surface, 0u) << "noise-free points off the truth surface";
+  EXPECT_LT(double(blocked), kMaxGrazingShare * n) << "points whose line of sight passes through the ground";
+
+  // Floor points deep in the shadow of the trench side: none of them was scanned.
+  std::size_t hidden = 0, hidden_scanned = 0;
+  for (double x = scene.trench_x0() + 0.05; x < scene.trench_x1() - 0.05; x += 0.02)
+    for (double y = scene.trench_y0() + 0.01; y < scene.trench_y1() - 0.05; y += 0.02) {
+      const Eigen::Vector3d q(x, y, grid.sample(x, y));
+      if (grid.normal(x, y).z() < 0.9 || sightline_depth(grid, st.origin, q, 0.05) < kDeepShadow) continue;
+      ++hidden;
+      for (int di = -1; di <= 1; ++di)
+        for (int dj = -1; dj <= 1; ++dj) {
+          const auto it = scanned.find({int(std::floor(x / 0.01)) + di, int(std::floor(y / 0.01)) + dj});
+          if (it == scanned.end()) continue;
+          for (const Eigen::Vector3d& p : it->second)
+            if ((p - q).norm() < 0.005) ++hidden_scanned;
+        }
+    }
+  EXPECT_GT(hidden, 50u) << "the trench side should shade part of the floor";
+  EXPECT_LT(double(hidden_scanned), kMaxHiddenNearScanned * double(hidden)) << hidden_scanned << " of " << hidden;
 }
 
 TEST(SyntheticOptions, InvalidOptionsNameTheField) {
