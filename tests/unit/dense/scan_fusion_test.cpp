@@ -4,12 +4,12 @@
 // the surface to itself, a 20 mm scan hardly moves the depth map's.
 #include "dense/dense.hpp"
 #include "dense/internal.hpp"
+#include "support/box_scan.hpp"
 
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
-#include <random>
 
 namespace strata {
 namespace {
@@ -29,40 +29,10 @@ constexpr double kMinCoverage = 0.95;        // of the cells both stations see
 bool in_block(double x, double y) { return std::abs(x) <= kBlockHalf && std::abs(y) <= kBlockHalf; }
 double truth(double x, double y) { return in_block(x, y) ? kBlockTop : 0.0; }
 
-// First hit of the ray o + t d (d unit, going down) with the block or the plane.
-std::optional<double> hit(const Eigen::Vector3d& o, const Eigen::Vector3d& d) {
-  double t0 = 0, t1 = 1e9;  // slab test of the block [-h, h]^2 x [0, top]
-  const Eigen::Vector3d lo(-kBlockHalf, -kBlockHalf, 0), hi(kBlockHalf, kBlockHalf, kBlockTop);
-  for (int k = 0; k < 3; ++k) {
-    if (std::abs(d[k]) < 1e-12) {
-      if (o[k] < lo[k] || o[k] > hi[k]) t1 = -1;
-      continue;
-    }
-    double a = (lo[k] - o[k]) / d[k], b = (hi[k] - o[k]) / d[k];
-    if (a > b) std::swap(a, b);
-    t0 = std::max(t0, a);
-    t1 = std::min(t1, b);
-  }
-  if (t0 <= t1 && t1 > 0) return t0;
-  if (d.z() < 0) return -o.z() / d.z();
-  return std::nullopt;
-}
-
 // A scan from `station` over the square |x|, |y| < 0.4 m, each range with Gaussian noise.
 std::vector<Eigen::Vector3d> scan_points(const Eigen::Vector3d& station, double sigma, unsigned seed) {
-  std::mt19937 rng(seed);
-  std::normal_distribution<double> noise(0, sigma);
-  std::vector<Eigen::Vector3d> out;
-  for (double el = -1.45; el < -0.3; el += kAngularStep)
-    for (double az = -3.1416; az < 3.1416; az += kAngularStep) {
-      const Eigen::Vector3d d(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el));
-      const auto t = hit(station, d);
-      if (!t) continue;
-      const Eigen::Vector3d p = station + *t * d;
-      if (std::abs(p.x()) > 0.4 || std::abs(p.y()) > 0.4) continue;
-      out.push_back(station + (*t + noise(rng)) * d);
-    }
-  return out;
+  const test::BoxOnPlane scene{{-kBlockHalf, -kBlockHalf, 0}, {kBlockHalf, kBlockHalf, kBlockTop}, {-0.4, -0.4}, {0.4, 0.4}};
+  return test::box_scene_scan(scene, station, -1.45, -0.3, -3.1416, 3.1416, kAngularStep, sigma, seed);
 }
 
 RangeScanInput in_memory(const std::vector<Eigen::Vector3d>& points, const Eigen::Vector3d& station, double sigma) {
