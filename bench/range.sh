@@ -1,0 +1,104 @@
+#!/usr/bin/env bash
+# Range scans against the synthetic truth (docs/range.md, "Measured"): one layer of the
+# small synthetic site with its simulated laser scans, as three projects:
+#   photos  the layer's photos alone (as scripts/example.sh builds a project)
+#   both    a copy of it with the layer's scans imported (--transform, the true poses):
+#           the depth maps are reused from the copied cache, the fusion is redone
+#   scans   the scans alone (no photos): a scans-only layer
+# Each layer's DTM against the truth (bench/eval_surface.py: median, p95 of |error|,
+# completeness over the trench) and the completeness on the steep trench sides and the
+# sheltered ground between the wall stones (bench/eval_regions.py).
+#
+# Usage: bench/range.sh [--layer L4] [--keep DIR]
+# Writes bench/results/range-<UTC date>.json. Needs python3-gdal and python3-numpy.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+layer=L4
+keep=
+while [[ $# -gt 0 ]]; do
+  case "$1" in
+    --layer) layer="$2"; shift 2 ;;
+    --keep) keep="$2"; shift 2 ;;
+    *) echo "unknown option $1" >&2; exit 2 ;;
+  esac
+done
+strata=$PWD/${STRATA_BUILD_DIR:-build}/src/cli/strata
+[[ -x "$strata" ]] || { echo "bench/range.sh: build strata first ($strata)" >&2; exit 1; }
+if [[ -n "$keep" ]]; then work=$keep; rm -rf "$work"; mkdir -p "$work"
+else work=$(mktemp -d /tmp/strata-range.XXXXXX); trap 'rm -rf "$work"' EXIT; fi
+
+data=$work/data
+"$strata" -q synth "$data" --size small --scans
+crs=$(python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['crs'])" "$data/site.json")
+origin=$(python3 -c "import json,sys; print(','.join(repr(v) for v in json.load(open(sys.argv[1]))['origin']))" "$data/site.json")
+unit=$(awk -F, -v l="$layer" '$1 == l { print $2 }' "$data/layers.csv")
+photos=$(awk -F, -v l="$layer" '$1 == l { print $4 }' "$data/layers.csv")
+
+# new_project DIR: a project with the site's origin (the scans' poses are in its site
+# frame), the layer's unit and the layer.
+new_project() {
+  "$strata" -q init "$1" --crs "$crs" --origin "$origin"
+  "$strata" -q unit add "$1" "$unit"
+  "$strata" -q layer add "$1" "$layer" --unit "$unit"
+}
+# import_scans DIR: every scan of the layer with its true pose and noise (scans.csv).
+import_scans() {
+  tail -n +2 "$data/scans.csv" | while IFS=, read -r l file pose sigma _; do
+    [[ "$l" == "$layer" ]] || continue
+    "$strata" -q import scan "$1" --layer "$layer" --transform "$data/$pose" --sigma "$sigma" "$data/$file"
+  done
+}
+timed() {  # timed NAME CMD...: wall seconds into $work/NAME.seconds
+  local name=$1; shift
+  local t0; t0=$(date +%s.%N)
+  "$@"
+  python3 -c "import sys; print(float(sys.argv[2]) - float(sys.argv[1]))" "$t0" "$(date +%s.%N)" > "$work/$name.seconds"
+}
+
+new_project "$work/photos"
+"$strata" -q import photos "$work/photos" --layer "$layer" "$data/$photos"/*.jpg
+"$strata" -q import markers "$work/photos" "$data/markers.csv"
+ls "$data/$photos" > "$work/names.txt"
+awk 'NR == FNR { keep[$1] = 1; next } FNR == 1 || ($6 in keep)' "$work/names.txt" "$data/gcp_list.txt" > "$work/gcp_list.txt"
+"$strata" -q import markers "$work/photos" "$work/gcp_list.txt"
+timed photos "$strata" -q process "$work/photos" --layer "$layer" --json > "$work/photos.json"
+
+cp -a "$work/photos" "$work/both"
+import_scans "$work/both"
+timed both "$strata" -q process "$work/both" --layer "$layer" --json > "$work/both.json"
+
+new_project "$work/scans"
+import_scans "$work/scans"
+timed scans "$strata" -q process "$work/scans" --layer "$layer" --json > "$work/scans.json"
+
+truth=$data/truth/$layer/surface.tif
+for p in photos both scans; do
+  /usr/bin/python3 bench/eval_surface.py "$work/$p/products/$layer/dtm.tif" "$truth" "$data/site.json" > "$work/$p.surface.json"
+done
+/usr/bin/python3 bench/eval_regions.py "$truth" "$data/site.json" photos="$work/photos/products/$layer/dtm.tif" \
+  both="$work/both/products/$layer/dtm.tif" scans="$work/scans/products/$layer/dtm.tif" > "$work/regions.json"
+
+mkdir -p bench/results
+out=bench/results/range-$(date -u +%Y%m%d).json
+python3 - "$work" "$layer" "$out" <<'PY'
+import json, sys
+work, layer, out = sys.argv[1:]
+site = json.load(open(f"{work}/data/site.json"))
+res = {"layer": layer, "size": "small", "scans": site["scans"],
+       "command": f"bench/range.sh --layer {layer}", "projects": {}}
+for p in ("photos", "both", "scans"):
+    q = json.load(open(f"{work}/{p}.json"))
+    d = q.get("dense", {})
+    res["projects"][p] = {
+        "process_seconds": float(open(f"{work}/{p}.seconds").read()),
+        "dense": {k: d.get(k) for k in ("voxel_size_m", "completeness", "scans_fused", "scan_points",
+                                         "scan_weight_share", "unit_sigma_m", "gsd_m")},
+        "dtm_sigma": q.get("products", {}).get("dtm", {}).get("sigma"),
+        "ortho": q.get("products", {}).get("ortho") is not None,
+        "surface": json.load(open(f"{work}/{p}.surface.json")),
+    }
+res["regions"] = json.load(open(f"{work}/regions.json"))
+json.dump(res, open(out, "w"), indent=2)
+print(json.dumps(res, indent=2))
+PY
+echo "wrote $out"
