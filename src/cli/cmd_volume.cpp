@@ -30,6 +30,7 @@ struct ModelArgs {
   double noise = SiteVolumeOptions{}.default_noise_m;
   std::string outline;                  // FILE: trench outline, the gap-fill domain
   bool no_fill = false;
+  bool material_put_back = false;
   double fill_closing = GapFillOptions{}.closing_m;
   double confidence = VolumeOptions{}.confidence;
 };
@@ -55,6 +56,9 @@ void add_model_options(CLI::App* cmd, ModelArgs& a) {
                   "confidence of the significance test that finds where a unit was dug, and of its volume's "
                   "interval (default 0.95)");
   cmd->add_flag("--no-fill", a.no_fill, "do not fill gaps in the layer surfaces (volumes lose the gaps' area)");
+  cmd->add_flag("--material-put-back", a.material_put_back,
+                "material was put back between recordings (backfill, spoil in the area): a surface above an earlier "
+                "one is then real, not an error (by default it may not decide a unit's extent)");
 }
 
 std::map<std::string, fs::path> parse_pairs(const std::vector<std::string>& items, const std::string& option) {
@@ -78,6 +82,7 @@ SiteVolumeOptions site_options(const ModelArgs& a) {
   o.footprint_files = parse_pairs(a.footprints, "--footprint");
   o.outline_file = a.outline;
   o.volume.fill.enabled = !a.no_fill;
+  o.volume.surfaces_only_go_down = !a.material_put_back;
   o.volume.fill.closing_m = a.fill_closing;
   o.volume.confidence = a.confidence;
   o.validate();

@@ -148,6 +148,56 @@ void add_unmeasured_holes(std::vector<std::uint8_t>& dug, const std::vector<doub
   }
 }
 
+// Per layer, the cells (measured or reliably filled) that lie above the last
+// earlier layer known there by more than the level of detection of the two (stated sigmas, at least
+// noise_threshold_m), in regions significant_regions keeps (as large as a dug
+// region must be, with a core: chance cells of noise are not flagged): an
+// excavation's surfaces only go down. Empty for the first layer, and for all
+// when options.surfaces_only_go_down is off.
+template <typename CellSigma>
+std::vector<std::vector<std::uint8_t>> risen_cells(const std::vector<LayerSurface>& layers, const SiteGrid& grid,
+                                                   const CellSigma& cell_sigma, const VolumeOptions& options) {
+  std::vector<std::vector<std::uint8_t>> risen(layers.size());
+  if (!options.surfaces_only_go_down) return risen;
+  const double zq = two_sided_normal_quantile(options.confidence);
+  const std::size_t n = grid.size();
+  for (std::size_t k = 1; k < layers.size(); ++k) {
+    const LayerSurface& l = layers[k];
+    std::vector<double> rise(n, kNaN), lod(n, kNaN);
+    std::vector<int> below(n, -1);
+    // Measured, or filled no further than reliable_fill_m from measured cells (as
+    // for deciding an extent: a ragged surface is mostly that).
+    auto reliable = [&](const LayerSurface& s, std::size_t c) {
+      return std::isfinite(s.z.z[c]) && (!s.filled(c) || s.filled_distance_m[c] <= options.reliable_fill_m);
+    };
+    for (std::size_t c = 0; c < n; ++c) {
+      if (!reliable(l, c)) continue;
+      for (std::size_t j = k; j-- > 0;) {
+        const LayerSurface& e = layers[j];
+        if (!reliable(e, c)) continue;
+        rise[c] = l.z.z[c] - e.z.z[c];
+        lod[c] = std::max(options.noise_threshold_m, zq * std::hypot(cell_sigma(k, c), cell_sigma(j, c)));
+        below[c] = int(j);
+        break;
+      }
+    }
+    risen[k] = significant_regions(rise, lod, grid, options, +1);
+    std::size_t count = 0;
+    std::string names;
+    for (std::size_t c = 0; c < n; ++c)
+      if (risen[k][c]) {
+        ++count;
+        const std::string& e = layers[std::size_t(below[c])].layer;
+        if (names.find(e) == std::string::npos) names += (names.empty() ? "" : ", ") + e;
+      }
+    if (count > 0)
+      log::info("volume: layer {}: {:.3f} m2 measured above an earlier surface ({}) by more than their level of "
+                "detection: an excavation only goes down, so these cells do not decide an extent",
+                l.layer, double(count) * grid.cell * grid.cell, names);
+  }
+  return risen;
+}
+
 // One line: how sure a unit's volume is, and what would make it surer (the
 // largest part of its uncertainty decides).
 std::string volume_advice(const UnitMeasures& m) {
@@ -330,6 +380,12 @@ std::vector<UnitSolid> build_unit_solids(const std::vector<LayerSurface>& layers
   std::vector<std::vector<double>> smoothing(layers.size());
   for (std::size_t k = 0; k < layers.size(); ++k)
     if (layers[k].smoothing_m > 0) smoothing[k] = volume_detail::smoothing_residual(layers[k].z, layers[k].smoothing_m);
+  // An excavation only takes away: where a layer was measured above the last
+  // earlier layer measured there by more than their level of detection (stated
+  // sigmas), it is wrong there (a reconstruction's error at the ragged edge of its
+  // photos) or shows something put down since (spoil, a bucket, a board). Such a
+  // cell may not decide the extent of the unit whose top it is, nor fill a hole of it.
+  const std::vector<std::vector<std::uint8_t>> risen = risen_cells(layers, grid, cell_sigma, options);
   for (const auto& unit : units) {
     std::vector<std::size_t> own, later;  // indices into layers
     std::size_t first = layers.size();
@@ -397,6 +453,13 @@ std::vector<UnitSolid> build_unit_solids(const std::vector<LayerSurface>& layers
                                 bottom.filled(c) ? double(bottom.filled_distance_m[c]) : 0.0);
       if (d > options.reliable_fill_m) eligible_t[c] = kNaN;
     }
+    // Measured, and the top did not rise above an earlier surface there.
+    std::vector<std::uint8_t> trusted = measured;
+    for (std::size_t c = 0; c < n; ++c)
+      if (const auto& r = risen[std::size_t(std::max(top_of[c], 0))]; top_of[c] >= 0 && !r.empty() && r[c]) {
+        trusted[c] = 0;
+        eligible_t[c] = kNaN;
+      }
     const double z = two_sided_normal_quantile(options.confidence);
     // Per cell, the factor on the stated sigma (from the stable ground once judged)
     // and the squared relative offset of the surfaces.
@@ -442,7 +505,7 @@ std::vector<UnitSolid> build_unit_solids(const std::vector<LayerSurface>& layers
       closed = dilate(closed, grid.nx, grid.ny, r);
       for (std::size_t c = 0; c < n; ++c)
         if (!closed[c] && !d[c] && !measured[c] && t[c] > lod[c]) d[c] = 1;
-      add_unmeasured_holes(d, t, measured, grid);
+      add_unmeasured_holes(d, t, trusted, grid);
       return d;
     };
     // Georeference figures first (check-marker RMSE z: a shift of each surface).
@@ -474,6 +537,8 @@ std::vector<UnitSolid> build_unit_solids(const std::vector<LayerSurface>& layers
       for (int pass = 0; pass < 2; ++pass) {
         const std::vector<std::uint8_t> near = dilate(dug, grid.nx, grid.ny, buffer);
         std::vector<std::uint8_t> stable(n, 0);
+        // (Risen cells stay: leaving out cells chosen by their difference would
+        // bias the judge of that very difference.)
         for (std::size_t c = 0; c < n; ++c) stable[c] = measured[c] && !near[c];
         const std::size_t min_cells = std::size_t(std::ceil(options.min_stable_area_m2 / cell_area));
         ground = volume_detail::judge_stable_ground(t, sigma_d, stable, coverage, grid, min_cells,

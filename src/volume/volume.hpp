@@ -159,6 +159,10 @@ struct VolumeOptions {
   // edge of a layer's photos is seen by few, grazing views). 0 = by stated sigma
   // only. 10 cm: a few matching windows at a layer's GSD, small beside a unit.
   double coverage_radius_m = 0.10;
+  // An excavation only takes away: a layer measured significantly above an earlier
+  // one is taken as wrong there (see build_unit_solids). Off for a site where
+  // material is put back between recordings (backfill, a spoil heap in the area).
+  bool surfaces_only_go_down = true;
   // Where height fields fold (check_folds): dug cells whose top or bottom is
   // steeper than fold_slope_deg, and every cell within fold_reach_m of them (the
   // ground under an overhang is flat in a height field), are integrated again

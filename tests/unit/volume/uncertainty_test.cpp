@@ -360,6 +360,39 @@ TEST(VolumeSignificance, TheRaggedEdgeOfThePhotosIsNotDug) {
   expect_defensible(m, truth, area);
 }
 
+// An excavation only goes down. South of the trench, over 0.1 m2 the top of unit A
+// (layer L1) was reconstructed 2 cm high, where the layer before it (L0) and the
+// one after (L2) agree: without the rule that patch is a significant difference
+// and joins A; with it, L1 rising above L0 there marks those cells as wrong.
+TEST(VolumeSignificance, ASurfaceThatRoseAboveAnEarlierOneDoesNotDecideAnExtent) {
+  const Noise noise;
+  auto dug = [](double x, double y) { return in_box(x, y, kT0, kT1, kT0, kT1) ? 0.10 : 0.0; };
+  auto patch = [](double x, double y) { return in_box(x, y, 1.0, 1.5, 0.1, 0.3) ? -0.02 : 0.0; };
+  auto scene = [&] {
+    std::vector<LayerSurface> layers = dug_scene(dug, 51, 52, noise);
+    layers.insert(layers.begin(), layer("L0", "Z", [](double, double) { return 0.0; }, 50, noise));
+    const SiteGrid g = scene_grid();
+    for (int j = 0; j < kN; ++j)
+      for (int i = 0; i < kN; ++i) layers[1].z.z[std::size_t(j) * kN + i] -= patch(g.x(i), g.y(j));
+    return layers;
+  };
+  double area = 0;
+  const double truth = truth_volume(dug, &area);
+  auto unit_a = [&](bool only_down) {
+    VolumeOptions o;
+    o.surfaces_only_go_down = only_down;
+    const auto solids = build_unit_solids(scene(), o);
+    for (const auto& s : solids)
+      if (s.unit == "A") return s.measures;
+    ADD_FAILURE() << "no solid for unit A";
+    return UnitMeasures{};
+  };
+  const UnitMeasures without_rule = unit_a(false);
+  std::printf("without the rule: area %.4f m2 (truth %.4f)\n", without_rule.area_m2, area);
+  EXPECT_NEAR(without_rule.area_m2, area + 0.1, 0.01) << "the patch should join A without the rule";
+  expect_defensible(unit_a(true), truth, area);
+}
+
 // Thickness along the normal of a tilted slab: a 10 cm layer on a 30 degree
 // slope is 10 / cos 30 = 11.5 cm thick vertically.
 TEST(VolumeSignificance, ThicknessAlongTheNormalOfATiltedSlab) {
