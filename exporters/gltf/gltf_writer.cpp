@@ -32,6 +32,7 @@ constexpr const char* kStage = "exporter.gltf";
 constexpr int kFloat = 5126, kUnsignedInt = 5125;
 constexpr int kArrayBuffer = 34962, kElementArrayBuffer = 34963;
 constexpr int kTriangles = 4;
+constexpr int kLinear = 9729, kLinearMipmapLinear = 9987, kClampToEdge = 33071;  // sampler filters, wrap
 constexpr std::uint32_t kGlbMagic = 0x46546C67;  // "glTF"
 constexpr std::uint32_t kGlbVersion = 2;
 constexpr std::uint32_t kChunkJson = 0x4E4F534A;  // "JSON"
@@ -69,6 +70,16 @@ void check_meshes(const fs::path& path, std::span<const GltfMesh> meshes) {
     }
     for (const auto& v : m->vertices) {
       if (!v.allFinite()) throw fail(fmt::format("mesh '{}': a vertex is not finite", name));
+    }
+    if (const GltfTexture* t = meshes[i].texture) {
+      if (t->uv.size() != m->vertices.size())
+        throw fail(fmt::format("mesh '{}': {} UVs for {} vertices", name, t->uv.size(), m->vertices.size()));
+      if (t->face_image.size() != m->faces.size())
+        throw fail(fmt::format("mesh '{}': {} face images for {} faces", name, t->face_image.size(), m->faces.size()));
+      for (int k : t->face_image)
+        if (k < 0 || k >= int(t->images.size())) throw fail(fmt::format("mesh '{}': face image {} out of range", name, k));
+      if (t->mime_type != "image/jpeg" && t->mime_type != "image/png")
+        throw fail(fmt::format("mesh '{}': image type '{}' is neither image/jpeg nor image/png", name, t->mime_type));
     }
     if (const auto& c = meshes[i].colour) {
       for (double v : *c)
@@ -136,7 +147,7 @@ class BinaryBuffer {
     while (bytes_.size() % 4 != 0) bytes_.push_back('\0');
     Json v = {{"buffer", 0}, {"byteOffset", bytes_.size()}, {"byteLength", bytes}};
     if (stride > 0) v["byteStride"] = stride;
-    v["target"] = target;
+    if (target > 0) v["target"] = target;  // 0: image data, no vertex or index target
     bytes_.append(static_cast<const char*>(data), bytes);
     views_.push_back(std::move(v));
     return static_cast<int>(views_.size()) - 1;
@@ -223,11 +234,22 @@ int add_colours(BinaryBuffer& bin, Json& accessors, const DenseMesh& m) {
   return add_accessor(accessors, view, kFloat, m.colours.size(), "VEC3");
 }
 
-int add_indices(BinaryBuffer& bin, Json& accessors, const DenseMesh& m) {
+int add_uvs(BinaryBuffer& bin, Json& accessors, const GltfTexture& t) {
+  std::vector<float> uv;
+  uv.reserve(2 * t.uv.size());
+  for (const auto& p : t.uv) uv.insert(uv.end(), {p.x(), p.y()});
+  const int view = bin.add_view(uv.data(), uv.size() * sizeof(float), kArrayBuffer, 8);
+  return add_accessor(accessors, view, kFloat, t.uv.size(), "VEC2");
+}
+
+// The faces whose image is `image` (all with image -1).
+int add_indices(BinaryBuffer& bin, Json& accessors, const DenseMesh& m, const GltfTexture* t = nullptr,
+                int image = -1) {
   std::vector<std::uint32_t> idx;
   idx.reserve(3 * m.faces.size());
-  for (const auto& f : m.faces) {
-    for (int k : f) idx.push_back(static_cast<std::uint32_t>(k));
+  for (std::size_t f = 0; f < m.faces.size(); ++f) {
+    if (image >= 0 && t->face_image[f] != image) continue;
+    for (int k : m.faces[f]) idx.push_back(static_cast<std::uint32_t>(k));
   }
   const int view = bin.add_view(idx.data(), idx.size() * sizeof(std::uint32_t), kElementArrayBuffer, 0);
   return add_accessor(accessors, view, kUnsignedInt, idx.size(), "SCALAR");
@@ -267,15 +289,49 @@ Json materials_json(const GltfScene& scene, std::vector<int>& material_of_mesh) 
   return materials;
 }
 
-Json mesh_json(const GltfMesh& gm, std::size_t i, int material, const Eigen::Vector3d& shift, BinaryBuffer& bin,
-               Json& accessors) {
+// The embedded images, textures and their materials (one per image) of a textured
+// mesh; returns the materials' indices.
+std::vector<int> add_texture(const GltfMesh& gm, std::size_t i, BinaryBuffer& bin, Json& images, Json& textures,
+                             Json& materials) {
+  std::vector<int> out;
+  for (std::size_t k = 0; k < gm.texture->images.size(); ++k) {
+    const std::string& bytes = gm.texture->images[k];
+    const int view = bin.add_view(bytes.data(), bytes.size(), 0, 0);
+    images.push_back({{"bufferView", view}, {"mimeType", gm.texture->mime_type}});
+    textures.push_back({{"sampler", 0}, {"source", images.size() - 1}});
+    materials.push_back({{"name", fmt::format("{} atlas {}", mesh_name(gm, i), k + 1)},
+                         {"pbrMetallicRoughness",
+                          {{"baseColorTexture", {{"index", textures.size() - 1}}},
+                           {"metallicFactor", 0.0},
+                           {"roughnessFactor", 1.0}}},
+                         {"doubleSided", true}});
+    out.push_back(int(materials.size()) - 1);
+  }
+  return out;
+}
+
+// One primitive, or one per atlas image of a textured mesh (materials[k] for image k).
+Json mesh_json(const GltfMesh& gm, std::size_t i, const std::vector<int>& materials, const Eigen::Vector3d& shift,
+               BinaryBuffer& bin, Json& accessors) {
   const DenseMesh& m = *gm.mesh;
   Json attributes = {{"POSITION", add_positions(bin, accessors, m, shift)}};
   if (!m.normals.empty()) attributes["NORMAL"] = add_normals(bin, accessors, m);
-  if (!m.colours.empty()) attributes["COLOR_0"] = add_colours(bin, accessors, m);
-  const int indices = add_indices(bin, accessors, m);
-  const Json primitive = {{"attributes", attributes}, {"indices", indices}, {"material", material}, {"mode", kTriangles}};
-  return {{"name", mesh_name(gm, i)}, {"primitives", Json::array({primitive})}};
+  Json primitives = Json::array();
+  if (gm.texture) {
+    attributes["TEXCOORD_0"] = add_uvs(bin, accessors, *gm.texture);
+    for (std::size_t k = 0; k < materials.size(); ++k) {
+      const int indices = add_indices(bin, accessors, m, gm.texture, int(k));
+      if (accessors[indices]["count"] == 0) continue;
+      primitives.push_back(
+          {{"attributes", attributes}, {"indices", indices}, {"material", materials[k]}, {"mode", kTriangles}});
+    }
+  } else {
+    if (!m.colours.empty()) attributes["COLOR_0"] = add_colours(bin, accessors, m);
+    const int indices = add_indices(bin, accessors, m);
+    primitives.push_back(
+        {{"attributes", attributes}, {"indices", indices}, {"material", materials[0]}, {"mode", kTriangles}});
+  }
+  return {{"name", mesh_name(gm, i)}, {"primitives", primitives}};
 }
 
 // (E, N, Z) -> glTF axes as a matrix, for rotations: A R maps the node's axes to glTF's.
@@ -310,11 +366,15 @@ Json gltf_json(const GltfScene& scene, const ExportFrame& frame, BinaryBuffer& b
   const Eigen::Vector3d origin = local_origin(scene, frame.site_origin);
   const Eigen::Vector3d shift = frame.site_origin - origin;  // site frame -> local, metres
   std::vector<int> material_of_mesh;
-  const Json materials = materials_json(scene, material_of_mesh);
+  Json materials = materials_json(scene, material_of_mesh);
   Json accessors = Json::array(), gl_meshes = Json::array(), nodes = Json::array(), scene_nodes = Json::array();
-  Json cameras = Json::array();
-  for (std::size_t i = 0; i < scene.meshes.size(); ++i)
-    gl_meshes.push_back(mesh_json(scene.meshes[i], i, material_of_mesh[i], shift, bin, accessors));
+  Json cameras = Json::array(), images = Json::array(), textures = Json::array();
+  for (std::size_t i = 0; i < scene.meshes.size(); ++i) {
+    const GltfMesh& gm = scene.meshes[i];
+    const std::vector<int> mesh_materials =
+        gm.texture ? add_texture(gm, i, bin, images, textures, materials) : std::vector<int>{material_of_mesh[i]};
+    gl_meshes.push_back(mesh_json(gm, i, mesh_materials, shift, bin, accessors));
+  }
   for (const auto& n : scene.nodes) {
     nodes.push_back(node_json(n, origin, frame.site_origin, cameras));
     scene_nodes.push_back(nodes.size() - 1);
@@ -326,6 +386,14 @@ Json gltf_json(const GltfScene& scene, const ExportFrame& frame, BinaryBuffer& b
   if (!gl_meshes.empty()) j["meshes"] = gl_meshes;
   if (!cameras.empty()) j["cameras"] = cameras;
   j["materials"] = materials;
+  if (!textures.empty()) {
+    j["samplers"] = Json::array({Json{{"magFilter", kLinear},
+                                      {"minFilter", kLinearMipmapLinear},
+                                      {"wrapS", kClampToEdge},
+                                      {"wrapT", kClampToEdge}}});
+    j["images"] = images;
+    j["textures"] = textures;
+  }
   if (!accessors.empty()) {
     j["accessors"] = accessors;
     j["bufferViews"] = bin.views();

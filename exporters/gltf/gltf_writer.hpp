@@ -1,6 +1,6 @@
 #pragma once
-// exporter.gltf: triangle meshes as one glTF 2.0 binary (.glb), vertex colours only
-// (no textures yet).
+// exporter.gltf: triangle meshes as one glTF 2.0 binary (.glb), vertex-coloured or
+// textured (an atlas of embedded JPEG/PNG images).
 //
 // Frame. glTF stores float32 positions and is Y-up, metres. Site CRS coordinates at
 // UTM magnitudes (E 734000, N 4174000) would lose about 0.5 m in float32, so the
@@ -36,12 +36,24 @@
 
 namespace strata {
 
+// A texture atlas for one mesh: the images are embedded (bufferView + mimeType), one
+// material per image (baseColorTexture; the images are sRGB as glTF expects), one
+// primitive per image holding the faces that use it; UVs go to TEXCOORD_0.
+struct GltfTexture {
+  std::vector<Eigen::Vector2f> uv;  // per vertex, (0, 0) = the image's top-left corner
+  std::vector<int> face_image;      // per face, index into images
+  std::vector<std::string> images;  // encoded image files
+  std::string mime_type = "image/jpeg";  // "image/jpeg" or "image/png"
+};
+
 struct GltfMesh {
   std::string name;                // node and mesh name (e.g. the layer); "" -> "mesh N"
   const DenseMesh* mesh = nullptr; // not owned; vertices in the site frame, at least one face
   // Linear RGBA in [0, 1], one colour for the whole mesh (vertex colours, if any, still
   // multiply it); none: the shared white material.
   std::optional<std::array<double, 4>> colour = std::nullopt;
+  // Not owned; set: the mesh is textured (vertex colours and `colour` are then not written).
+  const GltfTexture* texture = nullptr;
 };
 
 // glTF perspective camera: looks along its node's -z, +y up the image.

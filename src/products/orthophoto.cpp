@@ -4,6 +4,7 @@
 #include "core/log.hpp"
 #include "core/progress.hpp"
 #include "core/resources.hpp"
+#include "products/photo_sampling.hpp"
 
 #include <Eigen/Cholesky>
 #include <Eigen/Dense>
@@ -44,116 +45,7 @@ void OrthoOptions::validate() const {
 
 namespace {
 
-constexpr float kNoDepth = std::numeric_limits<float>::infinity();
-
-// A photo's pixels, interleaved RGB, as a pyramid of 2 x 2 box averages
-// (level 0 = the photo). An orthophoto cell usually covers several photo pixels
-// (5 mm cells from 1 mm pixels): sampling the photo itself at the cell centre
-// would alias (stair-stepped, speckled target edges); sampling the level whose
-// pixel matches the cell's footprint averages the pixels the cell covers.
-struct PhotoPixels {
-  std::vector<cv::Mat> levels;  // CV_8UC3, level l pixel j averages level l-1 pixels 2j, 2j+1
-
-  // Adds coarser levels until a pixel covers `max_footprint_px` photo pixels or the
-  // image is a few pixels wide.
-  void build_pyramid(double max_footprint_px) {
-    while (double(1 << (levels.size() - 1)) < max_footprint_px && levels.back().cols >= 8 &&
-           levels.back().rows >= 8) {
-      const cv::Mat& src = levels.back();
-      // Even size first (the odd last row/column dropped), so that INTER_AREA is an
-      // exact 2 x 2 mean and level pixel j is centred on level-0 pixel 2^l j + (2^l - 1) / 2.
-      const cv::Mat even = src(cv::Rect(0, 0, src.cols & ~1, src.rows & ~1));
-      cv::Mat half;
-      cv::resize(even, half, cv::Size(even.cols / 2, even.rows / 2), 0, 0, cv::INTER_AREA);
-      levels.push_back(half);
-    }
-  }
-
-  // Colour at photo pixel (x, y) ((0, 0) = centre of the top-left pixel) averaged
-  // over about `footprint_px` photo pixels: bilinear in the two levels around
-  // log2(footprint / 2), blended between them (trilinear, as in mipmapping). The
-  // level whose pixels are half the footprint, because its 2 x 2 box and the
-  // bilinear tent over two of its pixels together already span about one
-  // footprint; the level of the whole footprint blurs over two cells (measured on
-  // the example: blurred code cells, fewer targets found in the orthophotos).
-  void sample(double x, double y, double footprint_px, std::uint8_t out[3]) const {
-    const double lod = std::clamp(std::log2(std::max(footprint_px, 1.0)) - 1.0, 0.0, double(levels.size() - 1));
-    const int l0 = int(std::floor(lod));
-    const int l1 = std::min(l0 + 1, int(levels.size()) - 1);
-    const double t = lod - l0;
-    double a[3], b[3] = {0, 0, 0};
-    bilinear(l0, x, y, a);
-    if (t > 0 && l1 != l0) bilinear(l1, x, y, b);
-    for (int k = 0; k < 3; ++k) out[k] = std::uint8_t(std::clamp(std::lround((1 - t) * a[k] + t * b[k]), 0L, 255L));
-  }
-
- private:
-  void bilinear(int level, double x0, double y0, double out[3]) const {
-    const cv::Mat& m = levels[std::size_t(level)];
-    const double scale = 1.0 / double(1 << level);
-    const double x = (x0 + 0.5) * scale - 0.5, y = (y0 + 0.5) * scale - 0.5;
-    const int w = m.cols, h = m.rows;
-    const int xi = std::clamp(int(std::floor(x)), 0, w - 2), yi = std::clamp(int(std::floor(y)), 0, h - 2);
-    const double ax = std::clamp(x - xi, 0.0, 1.0), ay = std::clamp(y - yi, 0.0, 1.0);
-    const std::uint8_t* p00 = m.ptr<std::uint8_t>(yi) + std::size_t(xi) * 3;
-    const std::uint8_t* p10 = p00 + 3;
-    const std::uint8_t* p01 = m.ptr<std::uint8_t>(yi + 1) + std::size_t(xi) * 3;
-    const std::uint8_t* p11 = p01 + 3;
-    for (int k = 0; k < 3; ++k) {
-      out[k] = (1 - ay) * ((1 - ax) * p00[k] + ax * p10[k]) + ay * ((1 - ax) * p01[k] + ax * p11[k]);
-    }
-  }
-};
-
-PhotoPixels load_photo(const OrthoView& v) {
-  PhotoPixels p;
-  const Intrinsics& K = v.camera.intrinsics;
-  if (!v.rgb.empty()) {
-    STRATA_CHECK(v.rgb.size() == std::size_t(K.width) * K.height * 3, "in-memory photo size mismatch");
-    // A header over the caller's pixels; the pyramid levels are owned.
-    p.levels.push_back(cv::Mat(K.height, K.width, CV_8UC3, const_cast<std::uint8_t*>(v.rgb.data())));
-    return p;
-  }
-  // The camera model describes the sensor as stored: EXIF orientation is ignored,
-  // as in feature extraction.
-  cv::Mat bgr = cv::imread(v.photo.string(), cv::IMREAD_COLOR | cv::IMREAD_IGNORE_ORIENTATION);
-  if (bgr.empty()) throw IoError(fmt::format("products.ortho: {}: cannot read the photo", v.photo.string()));
-  if (bgr.cols != K.width || bgr.rows != K.height) {
-    throw InputError(fmt::format("products.ortho: {}: photo is {} x {} px but its camera is {} x {}",
-                                 v.photo.string(), bgr.cols, bgr.rows, K.width, K.height));
-  }
-  cv::Mat rgb;
-  cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
-  p.levels.push_back(rgb);
-  return p;
-}
-
-// Projection with a guard against the radial polynomial folding far-away points
-// back into the frame: points beyond the normalised radius of the photo corners
-// (plus a margin) are rejected.
-struct Projector {
-  const Camera& cam;
-  double max_r2 = 0;
-
-  explicit Projector(const Camera& c) : cam(c) {
-    const Intrinsics& K = c.intrinsics;
-    for (const auto& px : {Eigen::Vector2d(0, 0), Eigen::Vector2d(K.width - 1, 0), Eigen::Vector2d(0, K.height - 1),
-                           Eigen::Vector2d(K.width - 1, K.height - 1)}) {
-      max_r2 = std::max(max_r2, K.to_normalised(px).squaredNorm());
-    }
-    max_r2 *= 1.44;  // 20 % radial margin
-  }
-  // Returns false when behind the camera or outside the usable cone.
-  bool project(const Eigen::Vector3d& X, Eigen::Vector2d& px, double& depth) const {
-    const Eigen::Vector3d Xc = cam.pose.to_camera(X);
-    if (Xc.z() <= 1e-6) return false;
-    const Eigen::Vector2d xn = Xc.head<2>() / Xc.z();
-    if (xn.squaredNorm() > max_r2) return false;
-    px = cam.intrinsics.to_pixel(xn);
-    depth = Xc.z();
-    return true;
-  }
-};
+constexpr float kNoDepth = DepthBuffer::kNoDepth;
 
 struct ViewSample {
   std::uint32_t cell;
@@ -195,36 +87,10 @@ std::vector<ViewSample> sample_view(const Dtm& dtm, const std::vector<Eigen::Vec
   // depth (finer buys nothing, the DTM has no more detail).
   double s = o.depth_buffer_scale;
   if (s == 0) s = std::clamp(g.cell * K.fx / median_depth, 0.05, 1.0);
-  const int bw = std::max(1, int(std::ceil(K.width * s))), bh = std::max(1, int(std::ceil(K.height * s)));
-  std::vector<float> zbuf(std::size_t(bw) * bh, kNoDepth);
-  auto to_buf = [s](float p) { return (double(p) + 0.5) * s - 0.5; };
-
-  // Draw the DTM as two triangles per quad of cell centres, depth interpolated as
-  // 1/z (perspective-correct).
+  DepthBuffer zbuf(K, s);
   auto raster_triangle = [&](std::size_t a, std::size_t b, std::size_t c) {
-    const double ax = to_buf(px[2 * a]), ay = to_buf(px[2 * a + 1]);
-    const double bx = to_buf(px[2 * b]), by = to_buf(px[2 * b + 1]);
-    const double cx = to_buf(px[2 * c]), cy = to_buf(px[2 * c + 1]);
-    const double area = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax);
-    if (std::abs(area) < 1e-12) return;
-    const int x0 = std::max(0, int(std::ceil(std::min({ax, bx, cx}))));
-    const int x1 = std::min(bw - 1, int(std::floor(std::max({ax, bx, cx}))));
-    const int y0 = std::max(0, int(std::ceil(std::min({ay, by, cy}))));
-    const int y1 = std::min(bh - 1, int(std::floor(std::max({ay, by, cy}))));
-    if (x0 > x1 || y0 > y1) return;
-    const double ia = 1.0 / depth[a], ib = 1.0 / depth[b], ic = 1.0 / depth[c];
-    constexpr double eps = -1e-9;
-    for (int y = y0; y <= y1; ++y) {
-      for (int x = x0; x <= x1; ++x) {
-        const double wa = ((bx - x) * (cy - y) - (by - y) * (cx - x)) / area;
-        const double wb = ((cx - x) * (ay - y) - (cy - y) * (ax - x)) / area;
-        const double wc = 1.0 - wa - wb;
-        if (wa < eps || wb < eps || wc < eps) continue;
-        const float z = float(1.0 / (wa * ia + wb * ib + wc * ic));
-        float& dst = zbuf[std::size_t(y) * bw + x];
-        dst = std::min(dst, z);
-      }
-    }
+    zbuf.draw_triangle({px[2 * a], px[2 * a + 1]}, {px[2 * b], px[2 * b + 1]}, {px[2 * c], px[2 * c + 1]}, depth[a],
+                       depth[b], depth[c]);
   };
   for (int r = 0; r + 1 < g.height; ++r) {
     for (int c = 0; c + 1 < g.width; ++c) {
@@ -242,7 +108,7 @@ std::vector<ViewSample> sample_view(const Dtm& dtm, const std::vector<Eigen::Vec
 
   const double cos_max = std::cos(o.max_view_angle_deg * M_PI / 180.0);
   const double border_scale = 0.1 * std::min(K.width, K.height);  // pixels over which the score ramps
-  PhotoPixels photo = load_photo(view);
+  PhotoPixels photo = load_photo(view, "products.ortho");
   // Photo pixels one cell covers: its side seen square-on at depth d is
   // cell f / d pixels; tilted by the incidence angle its area grows by 1 / cos.
   auto footprint_px = [&](double d, double cos_t) { return g.cell * K.fx / d / std::sqrt(std::max(cos_t, 0.05)); };
@@ -263,12 +129,10 @@ std::vector<ViewSample> sample_view(const Dtm& dtm, const std::vector<Eigen::Vec
       if (cos_t < cos_max) continue;
       // Depth test. The buffer's own uncertainty grows with its pixel footprint
       // (d / (f s), metres) and with the slope seen along the ray (tan of the angle).
-      const int bx = std::clamp(int(std::lround(to_buf(float(x)))), 0, bw - 1);
-      const int by = std::clamp(int(std::lround(to_buf(float(y)))), 0, bh - 1);
-      const double footprint = d / (K.fx * s);
+      const double footprint = zbuf.footprint_m(d);
       const double tan_t = std::sqrt(std::max(0.0, 1.0 - cos_t * cos_t)) / std::max(cos_t, 1e-3);
       const double tol = o.depth_tolerance_m + footprint * (1.0 + std::min(tan_t, 4.0));
-      if (d > double(zbuf[std::size_t(by) * bw + bx]) + tol) continue;
+      if (d > double(zbuf.at(x, y)) + tol) continue;
       // Photo pixels per metre of surface, lowered to half towards the border
       // (vignetting, residual distortion).
       const double border_w = 0.5 + 0.5 * std::min(1.0, edge / border_scale);

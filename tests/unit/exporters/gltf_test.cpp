@@ -102,9 +102,23 @@ std::string layout_problems(const Glb& g) {
   for (const auto& v : views) {
     const std::size_t off = v.value("byteOffset", 0), len = v.at("byteLength");
     if (v.at("buffer") != 0 || off % 4 != 0 || off + len > buffer_len) p += "view outside buffer/unaligned; ";
+    if (!v.contains("target")) {  // image data: no stride, and an image must use it
+      if (v.contains("byteStride")) p += "image view stride; ";
+      continue;
+    }
     const int target = v.at("target");
     if (target != 34962 && target != 34963) p += "view target; ";
     if (v.contains("byteStride") && (target == 34963 || int(v["byteStride"]) % 4 != 0)) p += "view stride; ";
+  }
+  for (const auto& im : g.gltf.value("images", json::array())) {
+    const std::size_t view = im.at("bufferView");
+    if (view >= views.size() || views[view].contains("target")) p += "image view; ";
+  }
+  for (std::size_t i = 0; i < views.size(); ++i) {
+    bool used = false;
+    for (const auto& a : g.gltf.at("accessors")) used |= std::size_t(a.at("bufferView")) == i;
+    for (const auto& im : g.gltf.value("images", json::array())) used |= std::size_t(im.at("bufferView")) == i;
+    if (!used) p += "unused view; ";
   }
   for (const auto& a : g.gltf.at("accessors")) {
     const std::size_t view = a.at("bufferView");
@@ -282,6 +296,54 @@ TEST(GltfExport, NormalsAreUnitInGltfAxesAndColoursLinear) {
   EXPECT_NEAR(c[1], 0.0, kColourTolerance);
   EXPECT_NEAR(c[2], std::pow((128 / 255.0 + 0.055) / 1.055, 2.4), kColourTolerance);  // 0.2158605
   EXPECT_NEAR(c[9], 10 / 255.0 / 12.92, kColourTolerance);
+}
+
+TEST(GltfExport, TexturedMeshEmbedsItsAtlasesWithUvsAndOnePrimitivePerAtlas) {
+  test::ScratchDir dir("gltf_texture");
+  const DenseMesh m = utm_grid();
+  GltfTexture tex;
+  for (std::size_t i = 0; i < m.vertices.size(); ++i) tex.uv.emplace_back(0.1f * float(i % 4), 0.2f * float(i / 4));
+  for (std::size_t f = 0; f < m.faces.size(); ++f) tex.face_image.push_back(f < 4 ? 0 : 1);
+  const std::string png1 = "\x89PNG\r\n\x1a\nfirst", png2 = "\x89PNG\r\n\x1a\nsecond image";
+  tex.images = {png1, png2};
+  tex.mime_type = "image/png";
+  GltfMesh gm{"L101", &m};
+  gm.texture = &tex;
+  write_glb(dir / "t.glb", std::span<const GltfMesh>(&gm, 1), utm_frame());
+  const Glb g = read_glb(dir / "t.glb");
+  EXPECT_EQ(layout_problems(g), "");
+  const json& j = g.gltf;
+  ASSERT_EQ(j.at("images").size(), 2u);
+  ASSERT_EQ(j.at("textures").size(), 2u);
+  ASSERT_EQ(j.at("samplers").size(), 1u);
+  for (int k = 0; k < 2; ++k) {
+    const json& im = j["images"][k];
+    EXPECT_EQ(im.at("mimeType"), "image/png");
+    const json& v = j["bufferViews"][int(im.at("bufferView"))];
+    EXPECT_FALSE(v.contains("target"));  // image data is neither vertices nor indices
+    const std::string bytes = g.bin.substr(v.at("byteOffset"), v.at("byteLength"));
+    EXPECT_EQ(bytes, k == 0 ? png1 : png2);
+  }
+  const json& prims = j["meshes"][0]["primitives"];
+  ASSERT_EQ(prims.size(), 2u);
+  std::size_t indices = 0;
+  for (int k = 0; k < 2; ++k) {
+    const json& mat = j["materials"][int(prims[k].at("material"))];
+    EXPECT_EQ(int(j["textures"][int(mat["pbrMetallicRoughness"]["baseColorTexture"]["index"])]["source"]), k);
+    EXPECT_FALSE(prims[k]["attributes"].contains("COLOR_0"));
+    const int uv = prims[k]["attributes"].at("TEXCOORD_0");
+    EXPECT_EQ(j["accessors"][uv]["type"], "VEC2");
+    const auto data = accessor_data<float>(g, uv);
+    ASSERT_EQ(data.size(), 2 * m.vertices.size());
+    EXPECT_FLOAT_EQ(data[2 * 5], 0.1f);
+    EXPECT_FLOAT_EQ(data[2 * 5 + 1], 0.2f);
+    indices += std::size_t(j["accessors"][int(prims[k]["indices"])]["count"]);
+  }
+  EXPECT_EQ(indices, 3 * m.faces.size());
+  gm.texture = nullptr;
+  tex.uv.pop_back();
+  gm.texture = &tex;
+  EXPECT_THROW(write_glb(dir / "bad.glb", std::span<const GltfMesh>(&gm, 1), utm_frame()), InputError);
 }
 
 TEST(GltfExport, MeshWithoutFacesIsRefusedNamingFileAndMesh) {
