@@ -8,6 +8,8 @@
 #include "exporters/cameras/camera_export.hpp"
 #include "exporters/gltf/gltf_writer.hpp"
 #include "pipeline/alignment_store.hpp"
+#include "pipeline/products_layer.hpp"
+#include "products/texture_atlas.hpp"
 #include "project/project.hpp"
 #include "project/records.hpp"
 
@@ -54,6 +56,35 @@ void export_site_model(const std::string& dir, const std::string& out) {
             site.cameras);
 }
 
+struct TextureArgs {
+  bool texture = false;
+  int jpeg_quality = 90;  // 0: PNG
+  int atlas_size_px = 4096;
+};
+
+// The layer mesh textured from its aligned photos (products.texture), as glTF data.
+struct TexturedGltf {
+  TexturedMesh textured;
+  GltfTexture texture;
+};
+
+TexturedGltf texture_layer_mesh(Project& p, const std::string& layer, const DenseMesh& mesh, const TextureArgs& t) {
+  TextureOptions o;
+  o.atlas_size_px = t.atlas_size_px;
+  TextureSummary s;
+  TexturedGltf out;
+  out.textured = build_texture_atlas(mesh, layer_ortho_views(p, layer), o, &s);
+  out.texture.uv = out.textured.uv;
+  out.texture.face_image = out.textured.face_atlas;
+  out.texture.mime_type = t.jpeg_quality > 0 ? "image/jpeg" : "image/png";
+  for (const TextureImage& im : out.textured.atlases) out.texture.images.push_back(encode_texture_image(im, t.jpeg_quality));
+  log::info("texture: {} of {} faces from {} of {} photos, {} charts in {} atlas(es) of {} px, {:.2f} texels per photo "
+            "pixel, median texel {:.2f} mm, seams on {:.1f} % of edges, {:.1f} s",
+            s.textured_faces, s.faces, s.views_used, s.views, s.charts, s.atlases, o.atlas_size_px, s.texel_scale,
+            1000 * s.median_texel_m, 100 * s.seam_fraction, s.seconds);
+  return out;
+}
+
 void register_model_command(CLI::App& exp) {
   auto* cmd = exp.add_subcommand(
       "model",
@@ -69,15 +100,27 @@ void register_model_command(CLI::App& exp) {
       "in extras), the surveyed markers (nodes 'marker M') and every layer's aligned cameras\n"
       "(nodes 'camera L/IMAGE' with a glTF perspective camera). Reads the project only.\n"
       "With --layer L: that layer's dense mesh alone, its vertex colours and normals.\n"
-      "Not yet: photo textures, levels of detail.\n"
+      "--texture (with --layer): the mesh textured from the layer's aligned photos instead of\n"
+      "vertex colours: each face from its best unoccluded photo, packed into square atlases\n"
+      "embedded as JPEG (docs/model.md, Textures).\n"
+      "Not yet: textures in the site model, levels of detail.\n"
       "Needs the layers' dense meshes ('strata process DIR --layer L --until dense').");
   const auto a = add_layer_export_options(cmd, "output file, .glb", "the layer (default: the whole site)");
+  const auto t = std::make_shared<TextureArgs>();
+  cmd->add_flag("--texture", t->texture, "texture the layer mesh from its photos (needs --layer and the aligned photos)");
+  cmd->add_option("--jpeg-quality", t->jpeg_quality, "atlas JPEG quality, 1-100; 0 writes PNG (lossless, larger)")
+      ->check(CLI::Range(0, 100))
+      ->capture_default_str();
+  cmd->add_option("--atlas-size", t->atlas_size_px, "side of a square texture atlas, texels (64-16384)")
+      ->check(CLI::Range(64, 16384))
+      ->capture_default_str();
   cmd->callback([=] {
     if (lower_extension(a->out) != ".glb") {
       throw InputError(fmt::format("--out {}: export model writes glTF binary (.glb) only so far; OBJ comes later "
                                    "(the plain mesh as PLY: 'strata export mesh')", a->out));
     }
     if (a->layer.empty()) {
+      if (t->texture) throw InputError("--texture needs --layer: the site model is not textured yet");
       export_site_model(a->dir, a->out);
       return;
     }
@@ -93,6 +136,15 @@ void register_model_command(CLI::App& exp) {
     ExportFrame frame;
     frame.site_origin = site.origin;
     frame.crs = site.crs;
+    if (t->texture) {
+      const TexturedGltf tex = texture_layer_mesh(p, l.name, mesh, *t);
+      GltfMesh gm{l.name, &tex.textured.mesh};
+      gm.texture = &tex.texture;
+      write_glb(a->out, std::span<const GltfMesh>(&gm, 1), frame);
+      log::info("wrote {} ({} vertices, {} faces, textured)", a->out, tex.textured.mesh.vertices.size(),
+                tex.textured.mesh.faces.size());
+      return;
+    }
     const GltfMesh meshes[] = {{l.name, &mesh}};
     write_glb(a->out, meshes, frame);
     log::info("wrote {} ({} vertices, {} faces)", a->out, mesh.vertices.size(), mesh.faces.size());

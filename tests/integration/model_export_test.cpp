@@ -120,6 +120,20 @@ TEST(CliExportModel, GlbCarriesTheSiteFrame) {
 // here: the unit test covers the scene writer, the full example the whole path):
 // processed layers in layer order, markers at their surveyed place, and the refusal
 // of a project with no processed layer naming the command to run.
+TEST(CliExportModel, TextureNeedsALayerAndItsAlignedPhotos) {
+  test::ScratchDir dir("model_texture");
+  const fs::path site = project_with_layer(dir);
+  record_dense_mesh(site, quad());
+  auto r = run_strata({"export", "model", site.string(), "--texture", "--out", (dir / "site.glb").string()});
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.err.find("--texture needs --layer"), std::string::npos) << r.err;
+  r = run_strata({"export", "model", site.string(), "--layer", "L1", "--texture", "--out", (dir / "l1.glb").string()});
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_EQ(lines(r.err), 1) << r.err;
+  EXPECT_NE(r.err.find("strata process"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir / "l1.glb"));
+}
+
 TEST(CliExportModel, SiteModelHasLayersAndMarkersAndRefusesAnUnprocessedProject) {
   test::ScratchDir dir("model_site");
   const fs::path site = project_with_layer(dir);
