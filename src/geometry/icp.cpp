@@ -1,0 +1,289 @@
+#include "geometry/icp.hpp"
+
+#include "core/error.hpp"
+
+#include <Eigen/Eigenvalues>
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <map>
+#include <numeric>
+#include <unordered_map>
+
+namespace strata {
+namespace {
+
+using Vec6 = Eigen::Matrix<double, 6, 1>;
+using Mat6 = Eigen::Matrix<double, 6, 6>;
+
+std::int64_t cell_key(const Eigen::Vector3i& c) {
+  // 21 bits an axis: +-1e6 cells, 10 km at 1 cm.
+  constexpr std::int64_t kBias = 1 << 20, kMask = (1 << 21) - 1;
+  return ((c.x() + kBias) & kMask) | (((c.y() + kBias) & kMask) << 21) | (((c.z() + kBias) & kMask) << 42);
+}
+
+// Points binned in cubes of `cell` metres: the neighbours within one cell of a query.
+class VoxelHash {
+ public:
+  VoxelHash(const std::vector<Eigen::Vector3d>& points, double cell) : points_(points), cell_(cell) {
+    for (std::size_t i = 0; i < points.size(); ++i) cells_[cell_key(cell_of(points[i]))].push_back(int(i));
+  }
+  // Index of the nearest point within `radius`, or -1: shells of cells outwards from
+  // the query's, stopping once the next shell cannot hold a nearer point.
+  int nearest(const Eigen::Vector3d& q, double radius) const {
+    int best = -1;
+    double best_d2 = radius * radius;
+    const Eigen::Vector3i c = cell_of(q);
+    const int shells = int(std::ceil(radius / cell_));
+    for (int k = 0; k <= shells; ++k) {
+      for (int dz = -k; dz <= k; ++dz)
+        for (int dy = -k; dy <= k; ++dy)
+          for (int dx = -k; dx <= k; ++dx) {
+            if (std::max({std::abs(dx), std::abs(dy), std::abs(dz)}) != k) continue;  // the shell only
+            auto it = cells_.find(cell_key(c + Eigen::Vector3i(dx, dy, dz)));
+            if (it == cells_.end()) continue;
+            for (int i : it->second) {
+              const double d2 = (points_[i] - q).squaredNorm();
+              if (d2 < best_d2) best_d2 = d2, best = i;
+            }
+          }
+      if (best >= 0 && std::sqrt(best_d2) <= k * cell_) break;
+    }
+    return best;
+  }
+  // Every point in the 27 cells around the query's (all within one cell of it).
+  template <class F>
+  void visit(const Eigen::Vector3d& q, F&& f) const {
+    const Eigen::Vector3i c = cell_of(q);
+    for (int dz = -1; dz <= 1; ++dz)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          auto it = cells_.find(cell_key(c + Eigen::Vector3i(dx, dy, dz)));
+          if (it == cells_.end()) continue;
+          for (int i : it->second) f(i);
+        }
+  }
+
+ private:
+  Eigen::Vector3i cell_of(const Eigen::Vector3d& p) const { return (p / cell_).array().floor().cast<int>(); }
+  const std::vector<Eigen::Vector3d>& points_;
+  double cell_;
+  std::unordered_map<std::int64_t, std::vector<int>> cells_;
+};
+
+Eigen::Vector3d centroid(const std::vector<Eigen::Vector3d>& p) {
+  Eigen::Vector3d s = Eigen::Vector3d::Zero();
+  for (const auto& x : p) s += x;
+  return p.empty() ? s : Eigen::Vector3d(s / double(p.size()));
+}
+
+// exp of a rotation vector (Rodrigues).
+Eigen::Matrix3d rotation_of(const Eigen::Vector3d& w) {
+  const double a = w.norm();
+  if (a < 1e-15) return Eigen::Matrix3d::Identity();
+  return Eigen::AngleAxisd(a, w / a).toRotationMatrix();
+}
+
+struct Pair {
+  int source, target;
+  double residual;  // metres, signed, along the target normal
+};
+
+// The source points' nearest target points within the gate, minus the trimmed share.
+std::vector<Pair> correspondences(const std::vector<Eigen::Vector3d>& moved, const OrientedPoints& target,
+                                  const VoxelHash& grid, double gate, double trim_share) {
+  std::vector<Pair> pairs;
+  pairs.reserve(moved.size());
+  for (std::size_t i = 0; i < moved.size(); ++i) {
+    const int j = grid.nearest(moved[i], gate);
+    if (j < 0) continue;
+    pairs.push_back({int(i), j, target.normals[j].dot(moved[i] - target.points[j])});
+  }
+  const auto keep = std::size_t(std::ceil(double(pairs.size()) * (1.0 - trim_share)));
+  if (keep < pairs.size()) {
+    std::nth_element(pairs.begin(), pairs.begin() + long(keep), pairs.end(),
+                     [](const Pair& a, const Pair& b) { return std::abs(a.residual) < std::abs(b.residual); });
+    pairs.resize(keep);
+  }
+  return pairs;
+}
+
+}  // namespace
+
+void IcpOptions::validate() const {
+  auto need = [](bool ok, const char* field, const char* what) {
+    if (!ok) throw InputError(fmt::format("icp: {} must be {}", field, what));
+  };
+  need(max_iterations > 0, "max_iterations", "> 0");
+  need(max_correspondence_m > 0, "max_correspondence_m", "> 0 (metres)");
+  need(min_correspondence_m > 0 && min_correspondence_m <= max_correspondence_m, "min_correspondence_m",
+       "> 0 and <= max_correspondence_m (metres)");
+  need(gate_rms_factor > 0, "gate_rms_factor", "> 0");
+  need(huber_m > 0, "huber_m", "> 0 (metres)");
+  need(trim_share >= 0 && trim_share < 1, "trim_share", "in [0, 1)");
+  need(converged_step_m > 0, "converged_step_m", "> 0 (metres)");
+  need(min_eigen_ratio > 0 && min_eigen_ratio < 1, "min_eigen_ratio", "in (0, 1)");
+}
+
+std::vector<Eigen::Vector3d> voxel_subsample(const std::vector<Eigen::Vector3d>& points, double voxel_m) {
+  STRATA_CHECK(voxel_m > 0, "voxel size must be > 0");
+  std::map<std::int64_t, std::pair<Eigen::Vector3d, int>> cells;  // ordered: a deterministic result
+  for (const auto& p : points) {
+    auto [it, fresh] = cells.try_emplace(cell_key((p / voxel_m).array().floor().cast<int>()), Eigen::Vector3d::Zero(), 0);
+    auto& c = it->second;
+    c.first += p;
+    ++c.second;
+  }
+  std::vector<Eigen::Vector3d> out;
+  out.reserve(cells.size());
+  for (const auto& [key, c] : cells) out.push_back(c.first / double(c.second));
+  return out;
+}
+
+OrientedPoints estimate_normals(const std::vector<Eigen::Vector3d>& points, double radius_m) {
+  constexpr int kMinNeighbours = 5;  // a plane through fewer is noise
+  const VoxelHash grid(points, radius_m);
+  OrientedPoints out;
+  for (const auto& p : points) {
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+    int n = 0;
+    grid.visit(p, [&](int i) {
+      const Eigen::Vector3d d = points[i] - p;
+      if (d.squaredNorm() > radius_m * radius_m) return;
+      mean += d;
+      scatter += d * d.transpose();
+      ++n;
+    });
+    if (n < kMinNeighbours) continue;
+    mean /= n;
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(scatter / n - mean * mean.transpose());
+    Eigen::Vector3d normal = eig.eigenvectors().col(0);  // smallest eigenvalue first
+    if (normal.z() < 0) normal = -normal;
+    out.points.push_back(p);
+    out.normals.push_back(normal);
+  }
+  return out;
+}
+
+IcpSummary register_point_to_plane(const std::vector<Eigen::Vector3d>& source, const OrientedPoints& target,
+                                   const Eigen::Isometry3d& initial, const IcpOptions& options) {
+  options.validate();
+  STRATA_CHECK(target.points.size() == target.normals.size(), "target needs one normal per point");
+  IcpSummary out;
+  out.pose = initial;
+  if (source.empty() || target.points.empty()) return out;
+  const VoxelHash grid(target.points, options.min_correspondence_m);
+  double gate = options.max_correspondence_m;
+  std::vector<Eigen::Vector3d> moved(source.size());
+  std::vector<Pair> pairs;
+  Mat6 H = Mat6::Zero();
+  double rms = 0, radius = 1;
+  for (out.iterations = 1; out.iterations <= options.max_iterations; ++out.iterations) {
+    for (std::size_t i = 0; i < source.size(); ++i) moved[i] = out.pose * source[i];
+    pairs = correspondences(moved, target, grid, gate, options.trim_share);
+    if (pairs.size() < 6) break;
+    // Linearised about the pairs' centroid c: r + (p - c) x n . w + n . d, so the
+    // rotation's covariance does not leak into the translation's.
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+    for (const Pair& pr : pairs) c += moved[pr.source];
+    c /= double(pairs.size());
+    H.setZero();
+    Vec6 g = Vec6::Zero();
+    double sum_r2 = 0, sum_d2 = 0;
+    for (const Pair& pr : pairs) {
+      const Eigen::Vector3d& n = target.normals[pr.target];
+      const Eigen::Vector3d q = moved[pr.source] - c;
+      Vec6 J;
+      J << q.cross(n), n;
+      const double r = pr.residual, a = std::abs(r);
+      const double w = a <= options.huber_m ? 1.0 : options.huber_m / a;  // Huber (IRLS)
+      H += w * J * J.transpose();
+      g += w * r * J;
+      sum_r2 += r * r;
+      sum_d2 += q.squaredNorm();
+    }
+    rms = std::sqrt(sum_r2 / double(pairs.size()));
+    radius = std::max(1e-3, std::sqrt(sum_d2 / double(pairs.size())));
+    const Vec6 x = H.ldlt().solve(-g);
+    if (!x.allFinite()) break;
+    const Eigen::Matrix3d dR = rotation_of(x.head<3>());
+    Eigen::Isometry3d step = Eigen::Isometry3d::Identity();
+    step.linear() = dR;
+    step.translation() = c + x.tail<3>() - dR * c;
+    out.pose = step * out.pose;
+    gate = std::clamp(options.gate_rms_factor * rms, options.min_correspondence_m, gate);
+    if (x.head<3>().norm() * radius + x.tail<3>().norm() < options.converged_step_m) {
+      out.converged = true;
+      break;
+    }
+  }
+  out.iterations = std::min(out.iterations, options.max_iterations);
+  out.inliers = int(pairs.size());
+  out.inlier_share = double(pairs.size()) / double(source.size());
+  out.rms_m = rms;
+  if (pairs.size() < 6) return out;
+  // Observability: eigenvalues of H with the rotation in metres at the cloud's radius.
+  Mat6 S = Mat6::Identity();
+  S.topLeftCorner<3, 3>() *= 1.0 / radius;
+  const Eigen::SelfAdjointEigenSolver<Mat6> eig(S * H * S);
+  const double top = eig.eigenvalues().maxCoeff();
+  out.eigen_ratio = top > 0 ? std::max(0.0, eig.eigenvalues().minCoeff()) / top : 0.0;
+  out.degenerate = out.eigen_ratio < options.min_eigen_ratio;
+  if (!out.degenerate) {
+    const double dof = std::max(1.0, double(pairs.size()) - 6.0);
+    out.covariance = (rms * rms * double(pairs.size()) / dof) * H.inverse();
+    out.sigma_rotation_rad =
+        std::sqrt(Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(out.covariance.topLeftCorner<3, 3>()).eigenvalues().maxCoeff());
+    out.sigma_translation_m = std::sqrt(
+        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(out.covariance.bottomRightCorner<3, 3>()).eigenvalues().maxCoeff());
+  }
+  return out;
+}
+
+CoarseResult coarse_yaw_search(const std::vector<Eigen::Vector3d>& source, const std::vector<Eigen::Vector3d>& target,
+                               const CoarseOptions& options) {
+  STRATA_CHECK(options.yaw_step_rad > 0 && options.voxel_m > 0 && options.iterations > 0, "coarse options");
+  std::vector<Eigen::Vector3d> src = voxel_subsample(source, options.voxel_m);
+  const std::vector<Eigen::Vector3d> dst = voxel_subsample(target, options.voxel_m);
+  CoarseResult best;
+  if (src.empty() || dst.empty()) return best;
+  const Eigen::Vector3d cs = centroid(src), cd = centroid(dst);  // of the thinned clouds: even density
+  if (int(src.size()) > options.max_source_points) {
+    std::vector<Eigen::Vector3d> thin;
+    const double every = double(src.size()) / options.max_source_points;
+    for (double k = 0; k < double(src.size()); k += every) thin.push_back(src[std::size_t(k)]);
+    src.swap(thin);
+  }
+  const OrientedPoints surface = estimate_normals(dst, 2.5 * options.voxel_m);
+  IcpOptions icp;
+  icp.max_iterations = options.iterations;
+  icp.max_correspondence_m = options.gate_m;
+  icp.min_correspondence_m = std::min(options.gate_m, 2 * options.score_gate_m);
+  icp.huber_m = options.score_gate_m;
+  icp.trim_share = 0.2;
+  const VoxelHash grid(surface.points, options.voxel_m);
+  best.score = -1;
+  const int steps = int(std::ceil(2 * M_PI / options.yaw_step_rad - 1e-9));
+  for (int k = 0; k < steps; ++k) {
+    const double yaw = k * options.yaw_step_rad;
+    Eigen::Isometry3d start = Eigen::Isometry3d::Identity();
+    start.linear() = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    start.translation() = cd - start.linear() * cs;
+    const IcpSummary fit = register_point_to_plane(src, surface, start, icp);
+    int close = 0;
+    for (const auto& p : src) {
+      const Eigen::Vector3d q = fit.pose * p;
+      const int j = grid.nearest(q, options.voxel_m);  // the thinned target's spacing
+      if (j >= 0 && std::abs(surface.normals[j].dot(q - surface.points[j])) < options.score_gate_m) ++close;
+    }
+    const double score = double(close) / double(src.size());
+    if (score > best.score) best = {fit.pose, yaw, score};
+  }
+  return best;
+}
+
+}  // namespace strata

@@ -1,0 +1,89 @@
+#pragma once
+// Rigid registration of a point cloud onto a surface (docs/range.md, "Registration"):
+// robust point-to-plane ICP (Chen & Medioni 1992; linearised as Low 2004) with a
+// Huber loss on the point-to-plane residual, trimmed correspondences and a
+// correspondence gate that shrinks with the fit, preceded by a coarse search over
+// the rotation about the vertical for frames whose z axis is already up (a levelled
+// tripod scanner). Eigen only; nearest neighbours from a voxel-hash grid.
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include <vector>
+
+namespace strata {
+
+// A surface sampled as points with unit normals (metres, one frame).
+struct OrientedPoints {
+  std::vector<Eigen::Vector3d> points;
+  std::vector<Eigen::Vector3d> normals;
+};
+
+// One point per occupied cube of `voxel_m` (the mean of the points in it), in a
+// deterministic order: the cloud thinned to an even density.
+std::vector<Eigen::Vector3d> voxel_subsample(const std::vector<Eigen::Vector3d>& points, double voxel_m);
+
+// Normals by principal components of the neighbours within `radius_m` (at least 5
+// of them; points with fewer are dropped), turned to face +z (surfaces seen from
+// above: floors, trench sides).
+OrientedPoints estimate_normals(const std::vector<Eigen::Vector3d>& points, double radius_m);
+
+struct IcpOptions {
+  int max_iterations = 60;
+  double max_correspondence_m = 0.10;  // metres: initial gate on the point-to-point distance
+  double min_correspondence_m = 0.01;  // metres: the gate never shrinks below this
+  double gate_rms_factor = 3.0;        // the gate follows this many inlier RMS residuals
+  double huber_m = 0.005;              // metres: Huber threshold on the point-to-plane residual
+  double trim_share = 0.10;            // share of the gated pairs with the largest residuals dropped
+  double converged_step_m = 1e-6;      // metres: stop when an update moves the points less than this
+  // Degeneracy: the normal equations' smallest eigenvalue over the largest, with the
+  // rotation scaled by the cloud's radius, below which a direction of the pose is
+  // unobservable (a plane: its in-plane translation and rotation).
+  double min_eigen_ratio = 1e-3;
+  void validate() const;  // throws InputError naming the field
+};
+
+struct IcpSummary {
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  // source frame -> target frame
+  int iterations = 0;
+  bool converged = false;
+  double rms_m = 0;          // RMS point-to-plane residual of the inliers, metres
+  double inlier_share = 0;   // inliers over the source points
+  int inliers = 0;
+  // Pose covariance from the normal equations, sigma^2 (J^T W J)^-1, rotation
+  // (radians) then translation (metres), the rotation about the inliers' centroid.
+  // Residuals of neighbouring points are correlated, so this is a lower bound.
+  Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Zero();
+  double sigma_translation_m = 0;  // sqrt of the largest eigenvalue of the translation block
+  double sigma_rotation_rad = 0;   // same for the rotation block
+  double eigen_ratio = 0;          // see IcpOptions::min_eigen_ratio
+  bool degenerate = false;
+};
+
+// Refines `initial` (source -> target) so the source points lie on the target
+// surface. `target` must have normals.
+IcpSummary register_point_to_plane(const std::vector<Eigen::Vector3d>& source, const OrientedPoints& target,
+                                   const Eigen::Isometry3d& initial, const IcpOptions& options);
+
+struct CoarseOptions {
+  double yaw_step_rad = 0.1745329;   // 10 degrees between the tried rotations about z
+  double voxel_m = 0.05;             // metres: both clouds thinned to this for the search
+  int iterations = 12;               // short ICP from each yaw
+  double gate_m = 0.30;              // metres: its initial correspondence gate
+  double score_gate_m = 0.02;        // metres: a yaw is scored by the share of points this near the
+                                     // surface (point-to-plane, nearest target point within voxel_m)
+  int max_source_points = 1500;      // the source is thinned further, evenly, to this many
+};
+
+struct CoarseResult {
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  // best start, source -> target
+  double yaw_rad = 0;   // the tried yaw that led to it
+  double score = 0;     // share of source points within score_gate_m after the short ICP
+};
+
+// Global start for a source whose z axis is (nearly) the target's: for each yaw,
+// the source turned about its centroid, its centroid put on the target's (plan and
+// median height), a short ICP; the best by score.
+CoarseResult coarse_yaw_search(const std::vector<Eigen::Vector3d>& source, const std::vector<Eigen::Vector3d>& target,
+                               const CoarseOptions& options = {});
+
+}  // namespace strata
