@@ -104,7 +104,7 @@ void register_scan_import(CLI::App& import) {
       "read and checked; a wrong header, a truncated file, a NaN coordinate or an empty cloud imports\n"
       "nothing. Registration states: 'survey' (--crs: the scanner software already registered the\n"
       "scan to the survey), 'transform' (--transform: its pose into the site frame is known),\n"
-      "'unregistered' (its own frame; target or ICP registration is not built yet). See docs/range.md.");
+      "'unregistered' (its own frame; 'strata register scan' places it by ICP). See docs/range.md.");
   auto dir = std::make_shared<std::string>();
   auto options = std::make_shared<ScanImportOptions>();
   auto files = std::make_shared<std::vector<std::string>>();

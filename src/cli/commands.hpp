@@ -14,6 +14,7 @@ void register_import_commands(CLI::App& app);    // import photos|markers, marke
 void register_camera_commands(CLI::App& app);
 CLI::App* register_markers_guide_command(CLI::App& markers);  // markers guide
 void register_synth_command(CLI::App& app);      // synth
+void register_registration_commands(CLI::App& app);  // register scan
 void register_process_commands(CLI::App& app);   // process, (later) volume, check
 void register_export_commands(CLI::App& app);    // export ...
 void register_products_commands(CLI::App& app);  // export dtm|ortho|qgis|grass

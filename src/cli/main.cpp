@@ -54,6 +54,7 @@ int main(int argc, char** argv) {
   strata::cli::register_import_commands(app);
   strata::cli::register_camera_commands(app);
   strata::cli::register_synth_command(app);
+  strata::cli::register_registration_commands(app);
   strata::cli::register_process_commands(app);
   strata::cli::register_export_commands(app);
 #ifdef STRATA_HAS_PRODUCTS_COMMANDS

@@ -125,7 +125,7 @@ void IcpOptions::validate() const {
   need(huber_m > 0, "huber_m", "> 0 (metres)");
   need(trim_share >= 0 && trim_share < 1, "trim_share", "in [0, 1)");
   need(converged_step_m > 0, "converged_step_m", "> 0 (metres)");
-  need(min_eigen_ratio > 0 && min_eigen_ratio < 1, "min_eigen_ratio", "in (0, 1)");
+  need(min_support_share > 0 && min_support_share < 1, "min_support_share", "in (0, 1)");
 }
 
 std::vector<Eigen::Vector3d> voxel_subsample(const std::vector<Eigen::Vector3d>& points, double voxel_m) {
@@ -181,6 +181,7 @@ IcpSummary register_point_to_plane(const std::vector<Eigen::Vector3d>& source, c
   std::vector<Eigen::Vector3d> moved(source.size());
   std::vector<Pair> pairs;
   Mat6 H = Mat6::Zero();
+  std::vector<Vec6> jacobians;  // of the last iteration's pairs, rotation at a unit lever arm
   double rms = 0, radius = 1;
   for (out.iterations = 1; out.iterations <= options.max_iterations; ++out.iterations) {
     for (std::size_t i = 0; i < source.size(); ++i) moved[i] = out.pose * source[i];
@@ -192,6 +193,7 @@ IcpSummary register_point_to_plane(const std::vector<Eigen::Vector3d>& source, c
     for (const Pair& pr : pairs) c += moved[pr.source];
     c /= double(pairs.size());
     H.setZero();
+    jacobians.clear();
     Vec6 g = Vec6::Zero();
     double sum_r2 = 0, sum_d2 = 0;
     for (const Pair& pr : pairs) {
@@ -199,6 +201,9 @@ IcpSummary register_point_to_plane(const std::vector<Eigen::Vector3d>& source, c
       const Eigen::Vector3d q = moved[pr.source] - c;
       Vec6 J;
       J << q.cross(n), n;
+      Vec6 unit_arm;  // the rotation's response per radian at this point's own lever arm
+      unit_arm << q.cross(n) / std::max(q.norm(), 1e-3), n;
+      jacobians.push_back(unit_arm);
       const double r = pr.residual, a = std::abs(r);
       const double w = a <= options.huber_m ? 1.0 : options.huber_m / a;  // Huber (IRLS)
       H += w * J * J.transpose();
@@ -226,13 +231,24 @@ IcpSummary register_point_to_plane(const std::vector<Eigen::Vector3d>& source, c
   out.inlier_share = double(pairs.size()) / double(source.size());
   out.rms_m = rms;
   if (pairs.size() < 6) return out;
-  // Observability: eigenvalues of H with the rotation in metres at the cloud's radius.
+  // Observability: eigenvectors of H with the rotation in metres at the cloud's
+  // radius, and how many pairs each one moves, a rotation measured at each point's
+  // own lever arm (so a small block near the middle still fixes the yaw).
+  constexpr double kSupportResponse = 0.3;  // |J . v| per unit of v: a surface turned >= 17 degrees to it
   Mat6 S = Mat6::Identity();
   S.topLeftCorner<3, 3>() *= 1.0 / radius;
   const Eigen::SelfAdjointEigenSolver<Mat6> eig(S * H * S);
   const double top = eig.eigenvalues().maxCoeff();
   out.eigen_ratio = top > 0 ? std::max(0.0, eig.eigenvalues().minCoeff()) / top : 0.0;
-  out.degenerate = out.eigen_ratio < options.min_eigen_ratio;
+  out.support_share = 1.0;
+  for (int k = 0; k < 6; ++k) {
+    const Vec6 v = eig.eigenvectors().col(k);
+    int support = 0;
+    for (const Vec6& J : jacobians)
+      if (std::abs(J.dot(v)) >= kSupportResponse) ++support;
+    out.support_share = std::min(out.support_share, double(support) / double(jacobians.size()));
+  }
+  out.degenerate = out.support_share < options.min_support_share || !(out.eigen_ratio > 1e-12);
   if (!out.degenerate) {
     const double dof = std::max(1.0, double(pairs.size()) - 6.0);
     out.covariance = (rms * rms * double(pairs.size()) / dof) * H.inverse();
@@ -264,7 +280,7 @@ CoarseResult coarse_yaw_search(const std::vector<Eigen::Vector3d>& source, const
   icp.max_correspondence_m = options.gate_m;
   icp.min_correspondence_m = std::min(options.gate_m, 2 * options.score_gate_m);
   icp.huber_m = options.score_gate_m;
-  icp.trim_share = 0.2;
+  icp.trim_share = 0;  // far from the pose, the few points on relief have the largest residuals: keep them
   const VoxelHash grid(surface.points, options.voxel_m);
   best.score = -1;
   const int steps = int(std::ceil(2 * M_PI / options.yaw_step_rad - 1e-9));

@@ -28,17 +28,21 @@ std::vector<Eigen::Vector3d> voxel_subsample(const std::vector<Eigen::Vector3d>&
 OrientedPoints estimate_normals(const std::vector<Eigen::Vector3d>& points, double radius_m);
 
 struct IcpOptions {
-  int max_iterations = 60;
+  int max_iterations = 100;
   double max_correspondence_m = 0.10;  // metres: initial gate on the point-to-point distance
   double min_correspondence_m = 0.01;  // metres: the gate never shrinks below this
   double gate_rms_factor = 3.0;        // the gate follows this many inlier RMS residuals
   double huber_m = 0.005;              // metres: Huber threshold on the point-to-plane residual
   double trim_share = 0.10;            // share of the gated pairs with the largest residuals dropped
-  double converged_step_m = 1e-6;      // metres: stop when an update moves the points less than this
-  // Degeneracy: the normal equations' smallest eigenvalue over the largest, with the
-  // rotation scaled by the cloud's radius, below which a direction of the pose is
-  // unobservable (a plane: its in-plane translation and rotation).
-  double min_eigen_ratio = 1e-3;
+  double converged_step_m = 1e-5;      // metres: stop when an update moves the points less than this (10 um)
+  // Degeneracy (after Gelfand et al. 2003, "Geometrically stable sampling for ICP"):
+  // for each eigenvector v of the normal equations (rotation scaled by the cloud's
+  // radius), the share of inliers whose residual responds to it, |J_i . v| >= 0.3
+  // with a rotation taken at the point's own lever arm (a surface turned 17 degrees
+  // or more towards that motion). Below this share a
+  // direction rests on the noise of the normals, not on the shape: a plane's in-plane
+  // shift and its rotation about its normal.
+  double min_support_share = 0.01;
   void validate() const;  // throws InputError naming the field
 };
 
@@ -55,8 +59,9 @@ struct IcpSummary {
   Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Zero();
   double sigma_translation_m = 0;  // sqrt of the largest eigenvalue of the translation block
   double sigma_rotation_rad = 0;   // same for the rotation block
-  double eigen_ratio = 0;          // see IcpOptions::min_eigen_ratio
-  bool degenerate = false;
+  double eigen_ratio = 0;          // smallest over largest eigenvalue of the scaled normal equations
+  double support_share = 0;        // the least supported direction, see IcpOptions::min_support_share
+  bool degenerate = false;         // support_share < min_support_share: no covariance
 };
 
 // Refines `initial` (source -> target) so the source points lie on the target

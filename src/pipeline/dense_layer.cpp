@@ -50,8 +50,8 @@ DenseLayerResult dense_layer(Project& project, const std::string& layer_name, co
   if (!scans.unregistered.empty()) {
     std::string names;
     for (const auto& n : scans.unregistered) names += (names.empty() ? "" : ", ") + n;
-    log::warn("layer {}: {} unregistered scan(s) not fused: {} (registration by targets/ICP is not built yet; "
-              "import them again with --crs or --transform)",
+    log::warn("layer {}: {} unregistered scan(s) not fused: {} (register them with 'strata register scan' "
+              "against the layer's photo surface, or import them again with --crs or --transform)",
               layer.name, scans.unregistered.size(), names);
   }
   if (!alignment && scans.registered.empty()) {

@@ -9,7 +9,9 @@ namespace {
 
 constexpr const char* kScanSelect =
     "SELECT id, layer_id, name, sha256, media_path, bytes, format, points, has_colour, has_intensity, has_normals, "
-    "sigma_m, registration, crs, transform, min_x, min_y, min_z, max_x, max_y, max_z, imported_at FROM scans ";
+    "sigma_m, registration, crs, transform, min_x, min_y, min_z, max_x, max_y, max_z, imported_at, "
+    "registered_by, registered_against, registration_rms_m, registration_inliers, registration_sigma_t_m, "
+    "registration_sigma_r_rad FROM scans ";
 
 // Row-major, 17 significant digits: the text reads back to the same doubles.
 std::string matrix_text(const Eigen::Matrix4d& m) {
@@ -50,6 +52,10 @@ ScanRecord read_scan(const Statement& st) {
                           {st.get_double(18), st.get_double(19), st.get_double(20)}};
   }
   s.imported_at = st.get_text(21);
+  if (!st.is_null(22)) {
+    s.fit = ScanFit{st.get_text(22), st.is_null(23) ? "" : st.get_text(23), st.get_double(24), st.get_double(25),
+                    st.get_double(26), st.get_double(27)};
+  }
   return s;
 }
 
@@ -85,6 +91,19 @@ std::int64_t insert_scan(Database& db, const ScanRecord& s) {
   }
   st.run();
   return db.last_insert_id();
+}
+
+void set_scan_registered(Database& db, std::int64_t scan_id, const Eigen::Matrix4d& transform,
+                         const ScanBounds& bounds, const ScanFit& fit) {
+  auto st = db.prepare(
+      "UPDATE scans SET registration = 'transform', crs = NULL, transform = ?, min_x = ?, min_y = ?, min_z = ?, "
+      "max_x = ?, max_y = ?, max_z = ?, registered_by = ?, registered_against = ?, registration_rms_m = ?, "
+      "registration_inliers = ?, registration_sigma_t_m = ?, registration_sigma_r_rad = ? WHERE id = ?");
+  st.bind_all(matrix_text(transform), bounds.min.x(), bounds.min.y(), bounds.min.z(), bounds.max.x(), bounds.max.y(),
+              bounds.max.z(), fit.method, fit.against, fit.rms_m, fit.inlier_share, fit.sigma_translation_m,
+              fit.sigma_rotation_rad, scan_id);
+  st.run();
+  STRATA_CHECK(db.changes() == 1, "scan to register not found");
 }
 
 std::optional<ScanRecord> find_scan_by_sha(Database& db, const std::string& sha256) {

@@ -27,6 +27,16 @@ struct ScanBounds {
   Eigen::Vector3d max = Eigen::Vector3d::Zero();
 };
 
+// How strata itself registered a scan (schema 11; docs/range.md, "Registration").
+struct ScanFit {
+  std::string method;            // 'icp-layer' (its layer's photo surface) or 'icp-previous'
+  std::string against;           // name of the layer whose surface was the reference
+  double rms_m = 0;              // RMS point-to-plane residual of the inliers, metres
+  double inlier_share = 0;       // 0..1
+  double sigma_translation_m = 0;  // pose sigma, largest axis, metres
+  double sigma_rotation_rad = 0;   // pose sigma, largest axis, radians
+};
+
 struct ScanRecord {
   std::int64_t id = 0;
   std::int64_t layer_id = 0;
@@ -42,10 +52,14 @@ struct ScanRecord {
   std::optional<std::string> crs;              // registration survey
   std::optional<Eigen::Matrix4d> transform;    // registration transform: scanner -> site frame
   std::optional<ScanBounds> bounds;            // registered scans
+  std::optional<ScanFit> fit;                  // registered by `strata register scan`
   std::string imported_at;                     // ISO 8601 UTC; set by insert_scan
 };
 
 std::int64_t insert_scan(Database& db, const ScanRecord& s);
+// An unregistered scan becomes 'transform' with the pose and box strata found, and how.
+void set_scan_registered(Database& db, std::int64_t scan_id, const Eigen::Matrix4d& transform,
+                         const ScanBounds& bounds, const ScanFit& fit);
 std::optional<ScanRecord> find_scan_by_sha(Database& db, const std::string& sha256);
 std::vector<ScanRecord> list_scans(Database& db, std::optional<std::int64_t> layer_id = std::nullopt);  // by id
 

@@ -12,7 +12,6 @@
 
 #include <Eigen/Geometry>
 
-#include <sstream>
 
 namespace strata::test {
 namespace {
@@ -34,16 +33,9 @@ void write_scan(const fs::path& xyz, const fs::path& pose) {
   const Eigen::Vector3d station(10.0, 10.0, 1.7);
   const Eigen::Matrix3d R = Eigen::AngleAxisd(0.5, Eigen::Vector3d::UnitZ()).toRotationMatrix();
   const BoxOnPlane scene{{kBlockX0, kBlockY0, kPlaneZ}, {kBlockX1, kBlockY1, kBlockTop}, {kX0, kY0}, {kX1, kY1}};
-  std::ostringstream out;
-  for (const Eigen::Vector3d& p : box_scene_scan(scene, station, -1.3, -0.6, -0.9, 0.9, kStep, kScanSigma, 7)) {
-    const Eigen::Vector3d s = R.transpose() * (p - station);  // into the scanner's frame
-    out << fmt::format("{:.5f} {:.5f} {:.5f}\n", s.x(), s.y(), s.z());
-  }
-  write_text(xyz, out.str());
-  std::string m;
-  for (int r = 0; r < 3; ++r)
-    m += fmt::format("{:.15f} {:.15f} {:.15f} {:.15f}\n", R(r, 0), R(r, 1), R(r, 2), station[r]);
-  write_text(pose, "# scanner -> site frame\n" + m + "0 0 0 1\n");
+  write_text(xyz, scanner_frame_xyz(box_scene_scan(scene, station, -1.3, -0.6, -0.9, 0.9, kStep, kScanSigma, 7), R,
+                                    station));
+  write_text(pose, pose_file_text(R, station));
 }
 
 TEST(ScanFusionCli, AScansOnlyLayerGetsASurfaceAndADtmAndAnUnregisteredScanIsSkipped) {
@@ -62,8 +54,8 @@ TEST(ScanFusionCli, AScansOnlyLayerGetsASurfaceAndADtmAndAnUnregisteredScanIsSki
 
   const CommandResult r = run_strata({"process", site, "--layer", "L1", "--json"});
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  const std::string warning = "layer L1: 1 unregistered scan(s) not fused: raw.xyz (registration by targets/ICP is "
-                              "not built yet";
+  const std::string warning = "layer L1: 1 unregistered scan(s) not fused: raw.xyz (register them with 'strata "
+                              "register scan'";
   EXPECT_NE(r.err.find(warning), std::string::npos) << r.err;
   EXPECT_EQ(r.err.find(warning), r.err.rfind(warning)) << "one warning, once";
   const auto q = nlohmann::json::parse(r.out.substr(r.out.find('{')));

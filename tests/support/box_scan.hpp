@@ -4,10 +4,13 @@
 // azimuth and elevation, each range with Gaussian noise. Site frame, metres.
 #include <Eigen/Core>
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
 #include <optional>
 #include <random>
+#include <string>
 #include <vector>
 
 namespace strata::test {
@@ -54,6 +57,25 @@ inline std::vector<Eigen::Vector3d> box_scene_scan(const BoxOnPlane& s, const Ei
       out.push_back(station + (*t + noise(rng)) * d);
     }
   return out;
+}
+
+// The points of a scan at `station` turned by `R` (scanner -> site: x = R s + station)
+// in its scanner's frame, as XYZ text (10 um), and that pose as the 4x4 file that
+// `strata import scan --transform` reads.
+inline std::string scanner_frame_xyz(const std::vector<Eigen::Vector3d>& site, const Eigen::Matrix3d& R,
+                                     const Eigen::Vector3d& station) {
+  std::string out;
+  for (const Eigen::Vector3d& p : site) {
+    const Eigen::Vector3d s = R.transpose() * (p - station);
+    out += fmt::format("{:.5f} {:.5f} {:.5f}\n", s.x(), s.y(), s.z());
+  }
+  return out;
+}
+inline std::string pose_file_text(const Eigen::Matrix3d& R, const Eigen::Vector3d& station) {
+  std::string m = "# scanner -> site frame\n";
+  for (int r = 0; r < 3; ++r)
+    m += fmt::format("{:.15f} {:.15f} {:.15f} {:.15f}\n", R(r, 0), R(r, 1), R(r, 2), station[r]);
+  return m + "0 0 0 1\n";
 }
 
 }  // namespace strata::test

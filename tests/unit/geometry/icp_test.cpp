@@ -101,7 +101,7 @@ TEST(Icp, FeaturelessPlaneIsDegenerate) {
   const auto source = voxel_subsample(into_frame(boxes_on_plane(0.013, 0.004, 0.001, 6, false), truth), 0.015);
   const IcpSummary fit = register_point_to_plane(source, target, truth, IcpOptions{});
   EXPECT_TRUE(fit.degenerate);
-  EXPECT_LT(fit.eigen_ratio, IcpOptions{}.min_eigen_ratio);
+  EXPECT_LT(fit.support_share, IcpOptions{}.min_support_share);
 }
 
 TEST(Icp, OptionsAreValidated) {

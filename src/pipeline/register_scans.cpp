@@ -1,0 +1,176 @@
+#include "pipeline/register_scans.hpp"
+
+#include "core/error.hpp"
+#include "core/log.hpp"
+#include "core/resources.hpp"
+#include "pipeline/dense_layer.hpp"
+#include "pipeline/scan_points.hpp"
+#include "project/database.hpp"
+#include "project/records.hpp"
+
+#include <fmt/format.h>
+
+#include <cmath>
+#include <fstream>
+
+namespace fs = std::filesystem;
+
+namespace strata {
+namespace {
+
+constexpr const char* kStage = "register.scan";
+
+// The layer that was recorded before `layer` (layers in the order they were added).
+LayerRecord previous_layer(Database& db, const LayerRecord& layer) {
+  std::optional<LayerRecord> before;
+  for (const LayerRecord& l : list_layers(db)) {
+    if (l.id == layer.id) break;
+    before = l;
+  }
+  if (!before)
+    throw InputError(fmt::format("{}: layer {} is the first layer: there is no previous surface to register "
+                                 "against (use --against layer after processing its photos, or --transform)",
+                                 kStage, layer.name));
+  return *before;
+}
+
+// Every point of a file, mapped by `map` (points only; normals are not needed here).
+std::vector<Eigen::Vector3d> read_points(const fs::path& file, const ScanFrameMap& map) {
+  std::vector<Eigen::Vector3d> out;
+  read_scan_points(file, map, [&](const std::vector<Eigen::Vector3d>& points, const std::vector<Eigen::Vector3f>&) {
+    out.insert(out.end(), points.begin(), points.end());
+  });
+  return out;
+}
+
+ScanFrameMap shifted_by(const Eigen::Vector3d& offset) {
+  ScanFrameMap map;
+  map.point = [offset](const Eigen::Vector3d& p) -> Eigen::Vector3d { return p + offset; };
+  return map;
+}
+
+// The dense points of a processed layer in the site frame. The dense stage writes
+// site-frame floats unless it was asked for CRS coordinates; its header says which.
+std::vector<Eigen::Vector3d> surface_points(Project& project, const LayerRecord& ref, const std::string& layer) {
+  const fs::path file = project.dir() / layer_product_dir(ref.name) / "dense" / "points.ply";
+  if (!fs::exists(file))
+    throw InputError(fmt::format("{}: layer {} has no photogrammetric surface yet ({}): run 'strata process "
+                                 "DIR --layer {}' first{}, or import the scans with --transform",
+                                 kStage, ref.name, file.string(), ref.name,
+                                 ref.name == layer ? " (or register --against previous)" : ""));
+  std::string header(4096, '\0');
+  std::ifstream(file, std::ios::binary).read(header.data(), std::streamsize(header.size()));
+  const bool crs = header.find("coordinates: site CRS") != std::string::npos;
+  return read_points(file, shifted_by(crs ? Eigen::Vector3d(-project.site().origin) : Eigen::Vector3d::Zero()));
+}
+
+// Why a fit cannot be trusted, or empty.
+std::string refusal(const ScanRecord& s, const IcpSummary& fit, const ScanRegistrationOptions& o) {
+  const double expected = std::hypot(s.sigma_m, o.surface_sigma_m);
+  if (fit.inlier_share < o.min_inlier_share)
+    return fmt::format("too little overlap with the surface ({:.0f} % of the scan within {:.0f} mm of it, at least "
+                       "{:.0f} % needed)",
+                       100 * fit.inlier_share, 1000 * o.icp.min_correspondence_m, 100 * o.min_inlier_share);
+  if (fit.degenerate)
+    return fmt::format("the surface does not fix the pose (degenerate geometry, e.g. a flat floor: its least "
+                       "constrained direction is supported by {:.2f} % of the points, at least {:.0f} % needed)",
+                       100 * fit.support_share, 100 * o.icp.min_support_share);
+  if (!fit.converged)
+    return fmt::format("ICP did not converge in {} iterations", o.icp.max_iterations);
+  if (fit.rms_m > o.max_rms_ratio * expected)
+    return fmt::format("residual RMS {:.1f} mm is far above the {:.1f} mm expected of its noise (sigma {:.1f} mm "
+                       "and the surface's {:.1f} mm; at most {:.1f} x)",
+                       1000 * fit.rms_m, 1000 * expected, 1000 * s.sigma_m, 1000 * o.surface_sigma_m,
+                       o.max_rms_ratio);
+  return {};
+}
+
+ScanRegistrationResult register_one(Project& project, const ScanRecord& s, const OrientedPoints& surface,
+                                    const std::vector<Eigen::Vector3d>& surface_raw,
+                                    const ScanRegistrationOptions& options) {
+  const Stopwatch sw;
+  ScanRegistrationResult r;
+  r.scan = s;
+  const std::vector<Eigen::Vector3d> raw = read_points(project.dir() / s.media_path, shifted_by(Eigen::Vector3d::Zero()));
+  const std::vector<Eigen::Vector3d> thin = voxel_subsample(raw, options.scan_voxel_m);
+  r.points_used = thin.size();
+  r.surface_points = surface.points.size();
+  r.coarse = coarse_yaw_search(thin, surface_raw, options.coarse);
+  r.icp = register_point_to_plane(thin, surface, r.coarse.pose, options.icp);
+  r.pose = r.icp.pose.matrix();
+  ScanBounds box{Eigen::Vector3d::Constant(INFINITY), Eigen::Vector3d::Constant(-INFINITY)};
+  for (const auto& p : raw) {
+    const Eigen::Vector3d q = r.icp.pose * p;
+    box.min = box.min.cwiseMin(q);
+    box.max = box.max.cwiseMax(q);
+  }
+  r.scan.registration = ScanRegistration::transform;
+  r.scan.transform = r.pose;
+  r.scan.bounds = box;
+  r.seconds = sw.seconds();
+  return r;
+}
+
+}  // namespace
+
+void ScanRegistrationOptions::validate() const {
+  auto need = [](bool ok, const char* field, const char* what) {
+    if (!ok) throw InputError(fmt::format("{}: {} must be {}", kStage, field, what));
+  };
+  need(scan_voxel_m > 0, "scan_voxel_m", "> 0 (metres)");
+  need(surface_voxel_m > 0, "surface_voxel_m", "> 0 (metres)");
+  need(normal_radius_m > surface_voxel_m, "normal_radius_m", "> surface_voxel_m (metres)");
+  need(min_inlier_share > 0 && min_inlier_share < 1, "min_inlier_share", "in (0, 1)");
+  need(max_rms_ratio > 0, "max_rms_ratio", "> 0");
+  need(surface_sigma_m >= 0, "surface_sigma_m", ">= 0 (metres)");
+  icp.validate();
+}
+
+LayerRegistrationSummary register_layer_scans(Project& project, const std::string& layer_name,
+                                              const ScanRegistrationOptions& options) {
+  options.validate();
+  Database& db = project.db();
+  const auto layer = find_layer(db, layer_name);
+  if (!layer) throw InputError(fmt::format("{}: no layer '{}' in the project", kStage, layer_name));
+  std::vector<ScanRecord> todo;
+  for (const ScanRecord& s : list_scans(db, layer->id)) {
+    if (options.scan ? s.name == *options.scan : s.registration == ScanRegistration::unregistered) todo.push_back(s);
+  }
+  if (options.scan && todo.empty())
+    throw InputError(fmt::format("{}: layer {} has no scan named '{}'", kStage, layer_name, *options.scan));
+  if (options.scan && todo[0].registration != ScanRegistration::unregistered && !todo[0].fit)
+    throw InputError(fmt::format("{}: {} is already registered ({}), by the file's own CRS or transform; "
+                                 "strata registers only unregistered scans or re-registers its own",
+                                 kStage, todo[0].name, to_string(todo[0].registration)));
+  if (todo.empty()) throw InputError(fmt::format("{}: layer {} has no unregistered scan", kStage, layer_name));
+
+  LayerRegistrationSummary out;
+  out.layer = layer_name;
+  const LayerRecord ref = options.against == RegistrationReference::layer ? *layer : previous_layer(db, *layer);
+  out.reference_layer = ref.name;
+  const std::vector<Eigen::Vector3d> raw = surface_points(project, ref, layer_name);
+  const std::vector<Eigen::Vector3d> thin = voxel_subsample(raw, options.surface_voxel_m);
+  const OrientedPoints surface = estimate_normals(thin, options.normal_radius_m);
+  log::info("{}: layer {}: {} scan(s) against the surface of layer {} ({} points, {} after thinning to {:.0f} mm)",
+            kStage, layer_name, todo.size(), ref.name, raw.size(), surface.points.size(),
+            1000 * options.surface_voxel_m);
+
+  for (const ScanRecord& s : todo) {
+    ScanRegistrationResult r = register_one(project, s, surface, thin, options);
+    if (const std::string why = refusal(s, r.icp, options); !why.empty())
+      throw InputError(fmt::format("{}: {}: cannot register it against the surface of layer {}: {}. Nothing was "
+                                   "changed. Give its pose instead (strata import scan --transform FILE, from "
+                                   "the scanner's registration software or surveyed targets)",
+                                   kStage, s.name, ref.name, why));
+    r.scan.fit = ScanFit{options.against == RegistrationReference::layer ? "icp-layer" : "icp-previous", ref.name,
+                         r.icp.rms_m, r.icp.inlier_share, r.icp.sigma_translation_m, r.icp.sigma_rotation_rad};
+    out.scans.push_back(std::move(r));
+  }
+  Transaction tx(db);
+  for (const ScanRegistrationResult& r : out.scans)
+    set_scan_registered(db, r.scan.id, r.pose, *r.scan.bounds, *r.scan.fit);
+  tx.commit();
+  return out;
+}
+
+}  // namespace strata
