@@ -28,22 +28,11 @@ using dense::DepthMap;
 using dense::PinholeCamera;
 using dense::ViewImage;
 
-template <typename T>
-std::uint64_t mix(std::uint64_t h, const T& v) {
-  return dense::hash_bytes(&v, sizeof(T), h);
-}
 // A media-store file name: 64 lower-case hex digits (the SHA-256), then an extension.
 bool is_content_address(const std::string& name) {
   if (name.size() < 65 || name[64] != '.') return false;
   return std::all_of(name.begin(), name.begin() + 64,
                      [](char c) { return (c >= '0' && c <= '9') || (c >= 'a' && c <= 'f'); });
-}
-std::uint64_t mix_string(std::uint64_t h, const std::string& s) {
-  return dense::hash_bytes(s.data(), s.size(), h);
-}
-std::uint64_t mix_pose(std::uint64_t h, const Pose& p) {
-  h = dense::hash_bytes(p.R.data(), 9 * sizeof(double), h);
-  return dense::hash_bytes(p.t.data(), 3 * sizeof(double), h);
 }
 
 StepFigures figures(const Stopwatch& sw) { return {sw.seconds(), peak_memory_bytes()}; }
@@ -195,24 +184,16 @@ DenseSummary run_dense(const DenseOptions& options, const Reconstruction& rec,
       const auto& intr = rec.groups[im.group].intrinsics;
       const auto size = std::filesystem::file_size(image_paths[i], ec);
       if (ec) throw IoError(fmt::format("dense.undistort: {}: cannot read the photo", image_paths[i].string()));
-      std::uint64_t key = 0;
+      CacheKey image("undistorted view v2");
       if (const std::string name = image_paths[i].filename().string(); is_content_address(name)) {
         // A photo of the media store: its name is its SHA-256 (checked before the
         // stage runs), so the key holds whatever folder the project was moved to.
-        key = mix(mix_string(0x5354524154410001ull, name), size);
+        image.add(name).add(size);
       } else {
         const auto mtime = std::filesystem::last_write_time(image_paths[i], ec).time_since_epoch().count();
-        key = mix(mix(mix_string(0x5354524154410001ull, image_paths[i].string()), size), mtime);
+        image.add(image_paths[i]).add(size).add(mtime);
       }
-      key = mix(key, pm.scale);
-      for (double v : {intr.fx, intr.fy, intr.cx, intr.cy, intr.k1, intr.k2}) key = mix(key, v);
-      // The other lens models' terms; a radial camera keeps the key of earlier versions.
-      if (intr.model != CameraModel::radial) {
-        key = mix(key, std::uint64_t(intr.model));
-        for (double v : {intr.k3, intr.k4, intr.p1, intr.p2}) key = mix(key, v);
-      }
-      key = mix(mix(key, intr.width), intr.height);
-      key = mix_pose(key, im.pose);
+      const std::uint64_t key = image.add(pm.scale).add(intr).add(im.pose).u64();
       image_key[i] = key;
       ViewImage cached;
       if (!options.reuse_cache || !dense::read_view_image(image_file(i), key, cached)) {
@@ -244,10 +225,10 @@ DenseSummary run_dense(const DenseOptions& options, const Reconstruction& rec,
     for (int i : refs) {
       check_cancelled();
       const auto& nb = neighbours[i];
-      std::uint64_t key = mix(image_key[i], 0x444550544831ull);
-      for (int s : nb.sources) key = mix(key, image_key[s]);
-      key = mix(mix(key, nb.depth_min), nb.depth_max);
-      key = mix_string(key, pm.fingerprint());
+      CacheKey raw("raw depth map v2");
+      raw.add(image_key[i]);
+      for (int s : nb.sources) raw.add(image_key[s]);
+      const std::uint64_t key = raw.add(nb.depth_min).add(nb.depth_max).add(pm).u64();
       raw_key[i] = key;
       DepthMap map;
       if (options.reuse_cache && dense::read_depth_map(raw_file(i), key, map)) {
@@ -288,9 +269,10 @@ DenseSummary run_dense(const DenseOptions& options, const Reconstruction& rec,
     Progress progress("dense: consistency", refs.size());
     for (int i : refs) {
       check_cancelled();
-      std::uint64_t key = mix(raw_key[i], 0x46494c54ull);
-      for (int s : neighbours[i].sources) key = mix(key, raw_key[s]);
-      key = mix_string(key, cons.fingerprint());
+      CacheKey filtered_depth("filtered depth map v2");
+      filtered_depth.add(raw_key[i]);
+      for (int s : neighbours[i].sources) filtered_depth.add(raw_key[s]);
+      const std::uint64_t key = filtered_depth.add(cons).u64();
       filtered_key[i] = key;
       DepthMap filtered;
       if (!options.reuse_cache || !dense::read_depth_map(filtered_file(i), key, filtered)) {

@@ -10,6 +10,7 @@
 // metres, double) unless a name says "crs". The site origin is written into
 // the .vdb metadata ("site_origin_e", "site_origin_n", "site_origin_z", "crs")
 // and added back in exported PLY/OBJ vertices.
+#include "core/cache_key.hpp"
 #include "dense/dense_mesh.hpp"
 #include "sfm/reconstruction.hpp"
 
@@ -60,10 +61,6 @@ struct PatchMatchOptions {
   double max_normal_angle_deg = 75.0;  // plane normals kept within this angle of the view ray
   std::uint64_t seed = 1;         // random initialisation; results are deterministic
 
-  // Every field, as text: part of the depth-map cache keys and of the dense stage's
-  // inputs key, so that a change of any option recomputes what it affects.
-  std::string fingerprint() const;
-
   // The horizontal scale over which a depth averages the ground, metres: one sigma
   // of the Gaussian equivalent to the NCC window of (2 r + 1) pixels of `gsd_m`
   // (a box of width w has sigma w / sqrt 12). A slanted plane fitted over the window
@@ -88,8 +85,6 @@ struct ConsistencyOptions {
   // over the markers). 0 = no free-space test.
   int max_free_space_violations = 2;
   double free_space_margin = 0.03;
-
-  std::string fingerprint() const;  // every field, as text (cache keys)
 };
 
 // Truncated signed distance fusion (Curless & Levoy 1996) in a sparse OpenVDB grid.
@@ -155,8 +150,8 @@ struct DenseOptions {
   MeshOptions mesh;
   ExportFrame exports;            // precision of PLY/OBJ vertices; site origin filled by run_dense
   QualityOptions quality;
-  int threads = 2;                // TBB worker threads
-  bool reuse_cache = true;        // reuse depth maps in the cache whose key matches
+  Unkeyed<int> threads = 2;       // TBB worker threads
+  Unkeyed<bool> reuse_cache = true;  // reuse depth maps in the cache whose key matches
 
   // Throws InputError naming the first invalid field.
   void validate() const;

@@ -119,7 +119,7 @@ void warn_damaged(const std::filesystem::path& path) {
 }  // namespace
 
 std::uint64_t hash_bytes(const void* data, std::size_t size, std::uint64_t seed) {
-  // FNV-1a, 64 bit: a cache key, not a checksum of record (products use SHA-256).
+  // FNV-1a, 64 bit: finds damage; not a checksum of record (products use SHA-256).
   std::uint64_t h = 0xcbf29ce484222325ull ^ seed;
   const auto* p = static_cast<const unsigned char*>(data);
   for (std::size_t i = 0; i < size; ++i) {

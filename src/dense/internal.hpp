@@ -94,7 +94,9 @@ DepthMap filter_consistent(const DepthMap& ref, const PinholeCamera& ref_camera,
                            const ConsistencyOptions& opt);
 
 // ---- cache files (binary, little-endian, versioned, keyed) ----------------------
-// A key mixes every input that changes the content; a stale file is recomputed.
+// Each file holds the 64-bit CacheKey of its inputs (core/cache_key.hpp): a stale
+// file is recomputed. hash_bytes (FNV-1a) is the checksum of a file's body, which
+// finds a torn or corrupt file; it is not a key.
 std::uint64_t hash_bytes(const void* data, std::size_t size, std::uint64_t seed = 0);
 void write_depth_map(const std::filesystem::path& path, const DepthMap& map, std::uint64_t key);
 bool read_depth_map(const std::filesystem::path& path, std::uint64_t key, DepthMap& out);

@@ -16,19 +16,8 @@ void require(bool ok, std::string_view field, std::string_view why) {
 
 }  // namespace
 
-std::string PatchMatchOptions::fingerprint() const {
-  return fmt::format("pm {} {} {} {} {} {} {} {} {} {} {} {} {}", scale, target_gsd_m, window_radius, window_step,
-                     bilateral_sigma_colour, iterations, coarse_to_fine, fine_iterations, best_k, max_cost,
-                     depth_margin, max_normal_angle_deg, seed);
-}
-
 double PatchMatchOptions::smoothing_m(double gsd_m) const {
   return (2 * window_radius + 1) * gsd_m / std::sqrt(12.0);
-}
-
-std::string ConsistencyOptions::fingerprint() const {
-  return fmt::format("cons {} {} {} {} {}", min_consistent_views, max_reprojection_px, max_relative_depth,
-                     max_free_space_violations, free_space_margin);
 }
 
 void DenseOptions::validate() const {

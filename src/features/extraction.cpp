@@ -147,15 +147,6 @@ void FeatureExtractionOptions::validate() const {
     fail("num_threads", fmt::format("must be >= 0 (got {})", num_threads));
 }
 
-std::string FeatureExtractionOptions::fingerprint() const {
-  const std::string canonical = fmt::format(
-      "sift v{} max_image_size={} max_features={} contrast={:.9g} edge={:.9g} layers={} "
-      "root_sift={}",
-      kExtractionVersion, max_image_size, max_features, contrast_threshold, edge_threshold,
-      octave_layers, root_sift ? 1 : 0);
-  return sha256_hex(canonical).substr(0, 16);
-}
-
 std::vector<ImageKeypoints> extract_features(const FeatureExtractionOptions& options,
                                              const std::vector<FeatureImage>& images,
                                              const std::filesystem::path& cache_dir,
@@ -164,7 +155,8 @@ std::vector<ImageKeypoints> extract_features(const FeatureExtractionOptions& opt
   STRATA_CHECK(!cache_dir.empty(), "extract_features needs a cache folder");
   Stopwatch clock;
   const std::clock_t cpu_start = std::clock();
-  const std::string fingerprint = options.fingerprint();
+  const std::string fingerprint =
+      CacheKey(fmt::format("features v{}", kExtractionVersion)).add(options).hex().substr(0, 16);
 
   std::vector<ImageKeypoints> result(images.size());
   std::atomic<std::size_t> extracted{0}, cached{0};

@@ -4,6 +4,7 @@
 //
 // Public surface: FeatureExtractionOptions, FeatureExtractionSummary and
 // extract_features(). No OpenCV types here; OpenCV stays inside the .cpp files.
+#include "core/cache_key.hpp"
 #include "features/types.hpp"
 
 #include <cstddef>
@@ -39,13 +40,10 @@ struct FeatureExtractionOptions {
   // with Euclidean distance. Stored as uint8 (x 512, as COLMAP does).
   bool root_sift = true;
   // Worker threads over images; 0 = all hardware threads.
-  int num_threads = 0;
+  Unkeyed<int> num_threads = 0;
 
   // Throws InputError naming the first invalid field.
   void validate() const;
-  // Short hex string that changes whenever an option that affects the result
-  // changes (num_threads does not); part of the cache key.
-  std::string fingerprint() const;
 };
 
 struct FeatureExtractionSummary {

@@ -209,18 +209,6 @@ features::StoredMatches verify(const VerificationOptions& o, const ImageKeypoint
   return out;
 }
 
-std::string prior_string(const std::optional<Intrinsics>& k) {
-  if (!has_focal(k)) return "none";
-  std::string s = fmt::format("{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g}", k->fx, k->fy,
-                              k->cx, k->cy, k->k1, k->k2);
-  // The other lens models' terms; a radial prior keeps the key of earlier versions.
-  if (k->model != CameraModel::radial) {
-    s += fmt::format(",{},{:.17g},{:.17g},{:.17g},{:.17g}", to_string(k->model), k->k3, k->k4,
-                     k->p1, k->p2);
-  }
-  return s;
-}
-
 }  // namespace
 
 void MatchingOptions::validate() const {
@@ -246,17 +234,6 @@ void MatchingOptions::validate() const {
     fail("verification.planar_ratio", fmt::format("must be in (0, 1] (got {})", v.planar_ratio));
 }
 
-std::string MatchingOptions::fingerprint() const {
-  const auto& v = verification;
-  const std::string canonical = fmt::format(
-      "match v{} matcher={} trees={} checks={} ratio={:.9g} mutual={} fmethod={} "
-      "err={:.9g} conf={:.9g} iters={} min_inliers={} planar={:.9g}",
-      kMatchingVersion, static_cast<int>(matcher), flann_trees, flann_checks, ratio,
-      mutual_check ? 1 : 0, static_cast<int>(v.fundamental_method), v.max_error_px,
-      v.confidence, v.max_iterations, v.min_inliers, v.planar_ratio);
-  return sha256_hex(canonical).substr(0, 16);
-}
-
 std::vector<PairMatches> match_pairs(const MatchingOptions& options,
                                      const std::vector<ImageKeypoints>& images,
                                      const std::vector<ImagePair>& pairs,
@@ -274,14 +251,18 @@ std::vector<PairMatches> match_pairs(const MatchingOptions& options,
           fmt::format("matching: pair ({}, {}) is not two distinct images of {}", a, b, n));
     }
   }
+  // A prior without a focal length is no prior.
   auto prior = [&](int i) -> std::optional<Intrinsics> {
-    return i < static_cast<int>(priors.size()) ? priors[i] : std::nullopt;
+    return i < static_cast<int>(priors.size()) && has_focal(priors[i]) ? priors[i] : std::nullopt;
   };
-  const std::string fingerprint = options.fingerprint();
   auto pair_key = [&](int a, int b) {
-    return sha256_hex(fmt::format("{}|{}|{}|{}|{}", images[a].features_key,
-                                  images[b].features_key, fingerprint, prior_string(prior(a)),
-                                  prior_string(prior(b))));
+    return CacheKey(fmt::format("matches v{}", kMatchingVersion))
+        .add(options)
+        .add(images[a].features_key)
+        .add(images[b].features_key)
+        .add(prior(a))
+        .add(prior(b))
+        .hex();
   };
 
   // Pass 1: cached results. Only the images of uncached pairs need descriptors.

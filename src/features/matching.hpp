@@ -8,6 +8,7 @@
 //                   results cached under cache_dir/matches/.
 //
 // No OpenCV types here; OpenCV stays inside the .cpp files.
+#include "core/cache_key.hpp"
 #include "features/types.hpp"
 #include "geometry/camera.hpp"
 
@@ -51,7 +52,7 @@ struct PairSelectionOptions {
   int preview_features = 300;   // per photo; 0 disables the preview
   int preview_min_matches = 4;  // >= 1
   double preview_ratio = 0.8;   // Lowe's ratio on distances, in (0, 1]
-  int num_threads = 0;  // 0 = all hardware threads
+  Unkeyed<int> num_threads = 0;  // 0 = all hardware threads
 
   void validate() const;  // throws InputError naming the field
 };
@@ -111,10 +112,9 @@ struct MatchingOptions {
   // Keep a match a->b only when b's best match in a is a (mutual nearest).
   bool mutual_check = true;
   VerificationOptions verification;
-  int num_threads = 0;  // 0 = all hardware threads
+  Unkeyed<int> num_threads = 0;  // 0 = all hardware threads
 
   void validate() const;  // throws InputError naming the field
-  std::string fingerprint() const;  // part of the matches cache key
 };
 
 struct MatchingSummary {

@@ -59,20 +59,6 @@ void AlignOptions::validate() const {
   georef.validate();
 }
 
-std::string AlignOptions::fingerprint() const {
-  // g[...]: the georeference's screening and rejection rules (2: blunder screening).
-  // s[...]: the structure-from-motion options that change its result, the final
-  // adjustments' tolerances included (a stored alignment from other ones is stale).
-  // c[...]: the lens model choice and the focal search for photos without EXIF.
-  return fmt::format("f[{}] m[{}] t[{},{},{}] c[{};{};{}] s[{},{},{},{},{},{}] g[3,{},{},{},{},{},{},{}]", features.fingerprint(),
-                     matching.fingerprint(), detect_targets, targets.dictionary, naming.rule,
-                     lens.fingerprint(), focal_search.fingerprint(), sfm.higher_order_min_images,
-                     sfm.min_triangulation_angle_deg, sfm.max_reprojection_px, sfm.final_max_reprojection_px,
-                     sfm.final_refinement_passes, sfm.bundle.function_tolerance, sfm.bundle.parameter_tolerance,
-                     georef.outlier_threshold_m, georef.outlier_sigma_factor, georef.rays.agree_factor,
-                     georef.rays.max_relative_dispersion, georef.rays.min_gate_px, georef.horizontal_only_sigma_m, georef.unknown_height_sigma_m);
-}
-
 AlignResult align_layer(Project& project, const std::string& layer_name, const AlignOptions& options) {
   options.validate();
   auto& db = project.db();
@@ -88,20 +74,16 @@ AlignResult align_layer(Project& project, const std::string& layer_name, const A
 
   // Up to date? The key covers photos, survey, clicked and guided observations and
   // options (detected ones are this stage's own output).
-  Sha256 key;
-  key.update(options.fingerprint());
-  for (const auto& r : records) key.update(r.sha256);
-  for (const auto& m : markers) {
-    key.update(fmt::format("{} {} {:.6f} {:.6f} {:.6f} {:.6f}", m.name, m.kind, m.position.x(),
-                           m.position.y(), m.position.z(), m.sigma.x()));
-  }
+  // Version 4: georeference screening 3 and blunder rejection.
+  CacheKey key("alignment v4");
+  key.add(options);
+  for (const auto& r : records) key.add(r.sha256);
+  for (const auto& m : markers) key.add(m);
   for (const auto& o : list_observations(db, layer.id)) {
-    if (o.source != "detected") {
-      key.update(fmt::format("{} {} {} {:.3f} {:.3f}", o.source, o.marker_id, o.image_id, o.pixel.x(), o.pixel.y()));
-    }
+    if (o.source != "detected") key.add(o);
   }
-  key.update(known_calibrations_key(db, records));
-  const std::string inputs_key = key.hex_digest();
+  add_known_calibrations(key, db, records);
+  const std::string inputs_key = key.hex();
   if (!options.force) {
     if (auto stored = load_alignment(db, layer); stored && stored->inputs_key == inputs_key) {
       result.skipped = true;

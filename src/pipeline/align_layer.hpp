@@ -25,10 +25,9 @@ struct AlignOptions {
   FocalSearchOptions focal_search; // photos without EXIF focal length
   IncrementalOptions sfm;
   GeoreferenceOptions georef;
-  bool force = false;  // rerun even when inputs and options are unchanged
+  Unkeyed<bool> force = false;  // rerun even when inputs and options are unchanged
 
   void validate() const;
-  std::string fingerprint() const;
 };
 
 struct AlignResult {

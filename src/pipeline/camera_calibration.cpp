@@ -180,24 +180,15 @@ bool apply_known_calibration(Database& db, std::int64_t camera_id, CameraGroup& 
   return true;
 }
 
-std::string known_calibrations_key(Database& db, const std::vector<ImageRecord>& images) {
+void add_known_calibrations(CacheKey& key, Database& db, const std::vector<ImageRecord>& images) {
   std::set<std::int64_t> cameras;
   for (const auto& im : images) {
     if (im.camera_id) cameras.insert(*im.camera_id);
   }
-  // Values at full precision (a fixed calibration is used bit for bit); the source
-  // and date do not change the result and stay out.
-  // Empty without any calibration, so that alignments stored before schema 6 stay up to date.
-  std::string key;
+  // The source and date do not change the result and stay out.
   for (std::int64_t id : cameras) {
-    const auto c = find_calibration(db, id);
-    if (!c) continue;
-    const Intrinsics& k = c->intrinsics;
-    key += fmt::format("{}:{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{};",
-                       id, to_string(k.model), k.fx, k.fy, k.cx, k.cy, k.k1, k.k2, k.k3, k.k4, k.p1, k.p2,
-                       c->fixed ? "fixed" : "start");
+    if (const auto c = find_calibration(db, id)) key.add(id).add(c->intrinsics).add(c->fixed);
   }
-  return key.empty() ? key : "calibrations[" + key + "]";
 }
 
 namespace {

@@ -3,6 +3,7 @@
 // layer's solved intrinsics) and the use of a stored calibration when a layer's
 // camera groups are formed. The storage is project/calibration_records.hpp; the
 // file importers are importers/calibration/.
+#include "core/cache_key.hpp"
 #include "project/calibration_records.hpp"
 #include "project/project.hpp"
 #include "sfm/reconstruction.hpp"
@@ -55,9 +56,9 @@ Intrinsics solved_intrinsics(Database& db, const std::string& layer, std::int64_
 // "calibration: <source>"). Returns false, leaving the group as it is, otherwise.
 bool apply_known_calibration(Database& db, std::int64_t camera_id, CameraGroup& group);
 
-// The stored calibrations of the cameras of these photos, as text for the
-// alignment's inputs key: setting, changing or clearing one reruns the alignment.
-std::string known_calibrations_key(Database& db, const std::vector<ImageRecord>& images);
+// Adds the stored calibrations of the cameras of these photos to the alignment's
+// inputs key: setting, changing or clearing one reruns the alignment.
+void add_known_calibrations(CacheKey& key, Database& db, const std::vector<ImageRecord>& images);
 
 // Self-calibration that can be trusted: the solved intrinsics of each camera group
 // against what was known before (the EXIF focal with the sensor width, a calibration

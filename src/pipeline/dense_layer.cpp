@@ -60,25 +60,16 @@ DenseLayerResult dense_layer(Project& project, const std::string& layer_name, co
                                       layer.name, layer.name));
   }
   const SiteInfo site = project.site();
-  // The fused volume's content: 2 adds the observations' spread (per-cell height
-  // uncertainty), so older surfaces are fused again (their depth maps are reused).
-  constexpr int kFusionVersion = 2;
   DenseOptions o = options;
   DenseLayerResult result;
-  // Every option that changes the surface is part of the key (a changed option
-  // recomputes; the depth-map cache below still reuses what did not change). A
-  // layer without scans keeps the key it had before scans were fused.
-  const std::string scans_key =
-      scans.registered.empty() ? std::string()
-                               : fmt::format("|scans {} unit {}", scans.key, o.fusion.photo_depth_sigma_gsd);
-  const std::string inputs_key = sha256_hex(
-      (alignment ? alignment->inputs_key : std::string("no photos")) +
-      fmt::format("|fusion v{}|views {} {} {} {}|{}|{}|fusion {} {} {} {} {} {} {}", kFusionVersion, o.views.max_neighbours,
-                  o.views.min_shared_points, o.views.min_angle_deg, o.views.max_angle_deg, o.patch_match.fingerprint(),
-                  o.consistency.fingerprint(), o.fusion.voxel_size_m, o.fusion.voxel_gsd_factor,
-                  o.fusion.min_voxel_size_m, o.fusion.max_voxel_size_m, o.fusion.truncation_voxels,
-                  o.fusion.min_weight, o.fusion.min_component_fraction) +
-      scans_key);
+  // The alignment, the scans and every option (a changed option recomputes; the
+  // depth-map cache below still reuses what did not change). Version 3: the fused
+  // volume holds the observations' spread (per-cell height uncertainty).
+  const std::string inputs_key = CacheKey("dense v3")
+                                     .add(alignment ? alignment->inputs_key : std::string("no photos"))
+                                     .add(scans.key)
+                                     .add(options)
+                                     .hex();
   if (!force) {
     auto st = db.prepare("SELECT inputs_key, quality_json FROM reconstructions WHERE layer_id = ? AND stage = 'dense'");
     st.bind(1, layer.id);

@@ -54,7 +54,8 @@ RangeScanInput survey_scan(const fs::path& file, const ScanRecord& s, const Site
 LayerScans layer_scans(Project& project, const LayerRecord& layer) {
   LayerScans out;
   const SiteInfo site = project.site();
-  std::string digest;
+  CacheKey key("registered scans v1");
+  bool any = false;
   for (const ScanRecord& s : list_scans(project.db(), layer.id)) {
     if (s.registration == ScanRegistration::unregistered) {
       out.unregistered.push_back(s.name);
@@ -68,9 +69,8 @@ LayerScans layer_scans(Project& project, const LayerRecord& layer) {
       if (!s.crs) throw IoError(fmt::format("scans: {}: registered to the survey without a CRS", s.name));
       out.registered.push_back(survey_scan(file, s, site));
     }
-    digest += fmt::format("{}|{}|{}|{};", s.sha256, s.sigma_m, to_string(s.registration), s.crs.value_or(""));
-    if (s.transform)
-      for (int k = 0; k < 16; ++k) digest += fmt::format("{:.17g},", (*s.transform)(k / 4, k % 4));
+    key.add(s.sha256).add(s.sigma_m).add(s.registration).add(s.crs).add(s.transform);
+    any = true;
     if (s.bounds) {
       if (!out.bounds) {
         out.bounds = s.bounds;
@@ -80,7 +80,7 @@ LayerScans layer_scans(Project& project, const LayerRecord& layer) {
       }
     }
   }
-  out.key = digest.empty() ? std::string() : sha256_hex(digest);
+  if (any) out.key = key.hex();
   return out;
 }
 

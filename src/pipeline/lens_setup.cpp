@@ -52,10 +52,6 @@ void LensChoiceOptions::validate() const {
   }
 }
 
-std::string LensChoiceOptions::fingerprint() const {
-  return fmt::format("{},{},{}", model, fisheye_below_35mm, brown_below_35mm);
-}
-
 std::optional<double> equivalent_focal_35mm(const CameraRecord& camera) {
   if (camera.focal_35mm && *camera.focal_35mm > 0) return *camera.focal_35mm;
   if (camera.focal_px && *camera.focal_px > 0 && camera.width > 0) {
@@ -132,12 +128,6 @@ void FocalSearchOptions::validate() const {
   if (!(max_rmse_px > 0)) {
     throw InputError(fmt::format("focal search: option max_rmse_px must be > 0 (got {})", max_rmse_px));
   }
-}
-
-std::string FocalSearchOptions::fingerprint() const {
-  std::string s = fmt::format("{},{},{}", enabled, min_registered_fraction, max_rmse_px);
-  for (double f : factors) s += fmt::format(",{}", f);
-  return s;
 }
 
 Reconstruction reconstruct_with_focal_search(const FocalSearchOptions& options,

@@ -29,7 +29,6 @@ struct LensChoiceOptions {
 
   // Throws InputError naming the field.
   void validate() const;
-  std::string fingerprint() const;
 };
 
 struct LensChoice {
@@ -68,7 +67,6 @@ struct FocalSearchOptions {
   double max_rmse_px = 1.0;  // pixels
 
   void validate() const;
-  std::string fingerprint() const;
 };
 
 struct FocalAttempt {

@@ -84,16 +84,11 @@ std::pair<double, std::size_t> median_sparse_distance(const Dtm& dtm, const Reco
   return {d[d.size() / 2], d.size()};
 }
 
-// The surveyed markers in the site frame, and a digest of them for the inputs key
-// (a corrected survey re-runs the orthophoto check).
-std::pair<std::vector<SurveyedMarker>, std::string> surveyed_markers(Database& db, const Eigen::Vector3d& origin) {
+// The surveyed markers in the site frame.
+std::vector<SurveyedMarker> surveyed_markers(Database& db, const Eigen::Vector3d& origin) {
   std::vector<SurveyedMarker> out;
-  std::string digest;
-  for (const MarkerRecord& m : list_markers(db)) {
-    out.push_back({m.name, m.position - origin, m.kind});
-    digest += fmt::format("{}|{:.4f}|{:.4f}|{:.4f}|{};", m.name, m.position.x(), m.position.y(), m.position.z(), m.kind);
-  }
-  return {out, sha256_hex(digest)};
+  for (const MarkerRecord& m : list_markers(db)) out.push_back({m.name, m.position - origin, m.kind});
+  return out;
 }
 
 nlohmann::json marker_check_json(const OrthoMarkerCheck& c, const Eigen::Vector3d& origin) {
@@ -144,17 +139,14 @@ ProductsLayerResult products_layer(Project& project, const std::string& layer_na
   const auto alignment = load_alignment(db, layer);
   const SiteInfo site = project.site();
   const auto surface = find_product(db, layer.id, "surface");
-  const auto [surveyed, markers_digest] = surveyed_markers(db, site.origin);
+  const std::vector<SurveyedMarker> surveyed = surveyed_markers(db, site.origin);
 
-  const std::string inputs_key = sha256_hex(fmt::format(
-      "{}|{}|{}|{}|{}|{}|{}|{}|ortho-v3|{}|{}|{}|{}|markers-v6|{}|{}|{}|{}|{}|{}", surface->sha256,
-      alignment ? alignment->inputs_key : std::string("no photos"),
-      options.dtm.cell_m, options.ortho_cell_m, options.contours.interval_m, options.ortho.radiometric_balance,
-      options.ortho.antialias, options.ortho.rectify_median_radius_m,
-      options.ortho.smoothness, options.ortho.feather_m, options.ortho.normal_radius_m, options.geotiff.cog,
-      options.check_ortho_markers,
-      markers_digest, options.ortho_markers.targets.dictionary, options.ortho_markers.naming.rule,
-      options.ortho_markers.tolerance_px, options.ortho_markers.max_source_pixel_cells));
+  // The surface, the photos' poses, the survey (a corrected survey re-runs the
+  // orthophoto's marker check) and every option. Version: orthophoto 3, marker check 6.
+  CacheKey key("products v3.6");
+  key.add(surface->sha256).add(alignment ? alignment->inputs_key : std::string("no photos")).add(options);
+  for (const SurveyedMarker& m : surveyed) key.add(m);
+  const std::string inputs_key = key.hex();
   ProductsLayerResult result;
   if (!force) {
     auto st = db.prepare("SELECT inputs_key, quality_json FROM reconstructions WHERE layer_id = ? AND stage = 'products'");

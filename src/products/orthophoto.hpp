@@ -18,6 +18,7 @@
 //     cells (El-Hakim, Beraldin & Blais 1998 style exposure equalisation);
 //  4. blending: the region masks are feathered (box filter, twice) so seams fade
 //     over `feather_m`.
+#include "core/cache_key.hpp"
 #include "geometry/camera.hpp"
 #include "products/dtm.hpp"
 #include "products/raster_io.hpp"
@@ -68,7 +69,7 @@ struct OrthoOptions {
   // the photo) instead of one bilinear sample at the cell centre, which aliases
   // when a cell spans several photo pixels.
   bool antialias = true;
-  int threads = 2;                   // photos processed in parallel
+  Unkeyed<int> threads = 2;          // photos processed in parallel
   // Throws InputError naming the first invalid field.
   void validate() const;
 };

@@ -80,6 +80,15 @@ TEST(ScanFusionCli, AScansOnlyLayerGetsASurfaceAndADtmAndAnUnregisteredScanIsSki
   ASSERT_EQ(again.exit_code, 0) << again.err;
   EXPECT_NE(again.out.find("dense surface (up to date, not recomputed)"), std::string::npos) << again.out;
   EXPECT_NE(again.out.find("orthophoto          none: the layer has no photos"), std::string::npos) << again.out;
+
+  // A mesh option is part of the dense stage's key: the surface is fused again and
+  // the mesh simplified to the new target (an up-to-date layer once kept its old mesh).
+  const int faces = d["mesh_faces"].get<int>();
+  ASSERT_GT(faces, 4000);
+  const CommandResult coarser = run_strata({"process", site, "--layer", "L1", "--target-faces", "2000", "--json"});
+  ASSERT_EQ(coarser.exit_code, 0) << coarser.err;
+  const auto c = nlohmann::json::parse(coarser.out.substr(coarser.out.find('{')));
+  EXPECT_LE(c["dense"]["mesh_faces"].get<int>(), 2000) << "was " << faces;
 }
 
 }  // namespace
