@@ -1,5 +1,6 @@
 #include "exporters/cameras/camera_export.hpp"
 
+#include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/fault.hpp"
 
@@ -7,6 +8,7 @@
 #include <fmt/format.h>
 
 #include <cstdio>
+#include <iterator>
 #include <memory>
 
 namespace fs = std::filesystem;
@@ -14,52 +16,38 @@ namespace fs = std::filesystem;
 namespace strata {
 namespace {
 
-// Writes a file through a temporary name, renamed into place when complete.
+// A text file built in memory, then written through a temporary name and renamed
+// into place (core/atomic_file.hpp).
 class AtomicFile {
  public:
-  explicit AtomicFile(fs::path path) : path_(std::move(path)), tmp_(path_.string() + ".tmp") {
-    if (path_.has_parent_path()) fs::create_directories(path_.parent_path());
-    f_ = std::fopen(tmp_.c_str(), "wb");
-    if (!f_) throw IoError(fmt::format("exporter: {}: cannot write", path_.string()));
-  }
-  ~AtomicFile() {
-    if (f_) {
-      std::fclose(f_);
-      std::error_code ec;
-      fs::remove(tmp_, ec);
-    }
-  }
-  std::FILE* get() { return f_; }
+  explicit AtomicFile(fs::path path) : path_(std::move(path)) {}
+  auto out() { return std::back_inserter(buffer_); }
   void commit() {
-    const bool ok = std::fflush(f_) == 0;
-    std::fclose(f_);
-    f_ = nullptr;
-    if (!ok) throw IoError(fmt::format("exporter: {}: write failed", path_.string()));
-    fault::point("export.cameras.temp_written");
-    fs::rename(tmp_, path_);
+    write_bytes_atomically(path_, "exporter", std::string_view(buffer_.data(), buffer_.size()),
+                           "export.cameras.temp_written");
   }
 
  private:
-  fs::path path_, tmp_;
-  std::FILE* f_ = nullptr;
+  fs::path path_;
+  fmt::memory_buffer buffer_;
 };
 
 }  // namespace
 
 void write_cameras_csv(const Reconstruction& rec, const Eigen::Vector3d& origin, const fs::path& out) {
   AtomicFile f(out);
-  fmt::print(f.get(), "image,fx,fy,ppx,ppy,k1,k2,r11,r12,r13,r21,r22,r23,r31,r32,r33,X,Y,Z\n");
+  fmt::format_to(f.out(), "image,fx,fy,ppx,ppy,k1,k2,r11,r12,r13,r21,r22,r23,r31,r32,r33,X,Y,Z\n");
   for (const auto& im : rec.images) {
     if (!im.registered) continue;
     const Intrinsics& k = rec.groups.at(im.group).intrinsics;
     const Eigen::Matrix3d& R = im.pose.R;
     const Eigen::Vector3d C = im.pose.centre() + origin;
-    fmt::print(f.get(), "{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g}", im.name, k.fx, k.fy, k.cx, k.cy,
+    fmt::format_to(f.out(), "{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g}", im.name, k.fx, k.fy, k.cx, k.cy,
                k.k1, k.k2);
     for (int r = 0; r < 3; ++r) {
-      for (int c = 0; c < 3; ++c) fmt::print(f.get(), ",{:.17g}", R(r, c));
+      for (int c = 0; c < 3; ++c) fmt::format_to(f.out(), ",{:.17g}", R(r, c));
     }
-    fmt::print(f.get(), ",{:.17g},{:.17g},{:.17g}\n", C.x(), C.y(), C.z());
+    fmt::format_to(f.out(), ",{:.17g},{:.17g},{:.17g}\n", C.x(), C.y(), C.z());
   }
   f.commit();
 }
@@ -67,19 +55,19 @@ void write_cameras_csv(const Reconstruction& rec, const Eigen::Vector3d& origin,
 void write_cameras_lens_csv(const Reconstruction& rec, const Eigen::Vector3d& origin,
                             const fs::path& out) {
   AtomicFile f(out);
-  fmt::print(f.get(),
+  fmt::format_to(f.out(),
              "image,model,fx,fy,ppx,ppy,k1,k2,k3,k4,p1,p2,r11,r12,r13,r21,r22,r23,r31,r32,r33,X,Y,Z\n");
   for (const auto& im : rec.images) {
     if (!im.registered) continue;
     const Intrinsics& k = rec.groups.at(im.group).intrinsics;
     const Eigen::Matrix3d& R = im.pose.R;
     const Eigen::Vector3d C = im.pose.centre() + origin;
-    fmt::print(f.get(), "{},{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g}",
+    fmt::format_to(f.out(), "{},{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g}",
                im.name, to_string(k.model), k.fx, k.fy, k.cx, k.cy, k.k1, k.k2, k.k3, k.k4, k.p1, k.p2);
     for (int r = 0; r < 3; ++r) {
-      for (int c = 0; c < 3; ++c) fmt::print(f.get(), ",{:.17g}", R(r, c));
+      for (int c = 0; c < 3; ++c) fmt::format_to(f.out(), ",{:.17g}", R(r, c));
     }
-    fmt::print(f.get(), ",{:.17g},{:.17g},{:.17g}\n", C.x(), C.y(), C.z());
+    fmt::format_to(f.out(), ",{:.17g},{:.17g},{:.17g}\n", C.x(), C.y(), C.z());
   }
   f.commit();
 }
@@ -88,27 +76,27 @@ void write_colmap_model(const Reconstruction& rec, const fs::path& folder) {
   fs::create_directories(folder);
   {
     AtomicFile f(folder / "cameras.txt");
-    fmt::print(f.get(), "# Camera list: CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS[] (written by strata)\n");
+    fmt::format_to(f.out(), "# Camera list: CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS[] (written by strata)\n");
     for (std::size_t g = 0; g < rec.groups.size(); ++g) {
       const Intrinsics& k = rec.groups[g].intrinsics;
       const double cx = k.cx + 0.5, cy = k.cy + 0.5;
       switch (k.model) {
         case CameraModel::radial:
           // OPENCV: fx, fy, cx, cy, k1, k2, p1, p2
-          fmt::print(f.get(), "{} OPENCV {} {} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g} 0 0\n", g + 1,
+          fmt::format_to(f.out(), "{} OPENCV {} {} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g} 0 0\n", g + 1,
                      k.width, k.height, k.fx, k.fy, cx, cy, k.k1, k.k2);
           break;
         case CameraModel::brown:
           // FULL_OPENCV: fx, fy, cx, cy, k1, k2, p1, p2, k3, k4, k5, k6 (k4-k6: the
           // rational model's denominator, zero here)
-          fmt::print(f.get(),
+          fmt::format_to(f.out(),
                      "{} FULL_OPENCV {} {} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g} "
                      "{:.17g} 0 0 0\n",
                      g + 1, k.width, k.height, k.fx, k.fy, cx, cy, k.k1, k.k2, k.p1, k.p2, k.k3);
           break;
         case CameraModel::fisheye:
           // OPENCV_FISHEYE: fx, fy, cx, cy, k1, k2, k3, k4
-          fmt::print(f.get(),
+          fmt::format_to(f.out(),
                      "{} OPENCV_FISHEYE {} {} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g}\n",
                      g + 1, k.width, k.height, k.fx, k.fy, cx, cy, k.k1, k.k2, k.k3, k.k4);
           break;
@@ -118,22 +106,22 @@ void write_colmap_model(const Reconstruction& rec, const fs::path& folder) {
   }
   {
     AtomicFile f(folder / "images.txt");
-    fmt::print(f.get(), "# IMAGE_ID, QW, QX, QY, QZ, TX, TY, TZ, CAMERA_ID, NAME; then an empty 2D point line\n");
+    fmt::format_to(f.out(), "# IMAGE_ID, QW, QX, QY, QZ, TX, TY, TZ, CAMERA_ID, NAME; then an empty 2D point line\n");
     for (std::size_t i = 0; i < rec.images.size(); ++i) {
       const auto& im = rec.images[i];
       if (!im.registered) continue;
       const Eigen::Quaterniond q(im.pose.R);
-      fmt::print(f.get(), "{} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g} {} {}\n\n", i + 1, q.w(),
+      fmt::format_to(f.out(), "{} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g} {} {}\n\n", i + 1, q.w(),
                  q.x(), q.y(), q.z(), im.pose.t.x(), im.pose.t.y(), im.pose.t.z(), im.group + 1, im.name);
     }
     f.commit();
   }
   {
     AtomicFile f(folder / "points3D.txt");
-    fmt::print(f.get(), "# POINT3D_ID, X, Y, Z, R, G, B, ERROR, TRACK[] (image ids only; no 2D indices)\n");
+    fmt::format_to(f.out(), "# POINT3D_ID, X, Y, Z, R, G, B, ERROR, TRACK[] (image ids only; no 2D indices)\n");
     for (std::size_t p = 0; p < rec.points.size(); ++p) {
       const auto& pt = rec.points[p];
-      fmt::print(f.get(), "{} {:.17g} {:.17g} {:.17g} {} {} {} {:.4f}\n", p + 1, pt.X.x(), pt.X.y(), pt.X.z(),
+      fmt::format_to(f.out(), "{} {:.17g} {:.17g} {:.17g} {} {} {} {:.4f}\n", p + 1, pt.X.x(), pt.X.y(), pt.X.z(),
                  pt.colour(0), pt.colour(1), pt.colour(2), pt.error_px);
     }
     f.commit();

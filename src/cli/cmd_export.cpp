@@ -1,6 +1,7 @@
 // strata export ...
 #include "cli/commands.hpp"
 #include "cli/site_scene.hpp"
+#include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/fault.hpp"
 #include "core/log.hpp"
@@ -214,10 +215,7 @@ void register_export_commands(CLI::App& app) {
                                      obj ? " (OBJ meshes need the dense stage's OBJ option)" : ""));
       }
       const auto src = checked_product_file(p, l, *product, a->dir);
-      const std::string tmp = a->out + ".tmp";
-      std::filesystem::copy_file(src, tmp, std::filesystem::copy_options::overwrite_existing);
-      fault::point("export.copy.temp_written");
-      std::filesystem::rename(tmp, a->out);
+      copy_atomically(src, a->out, "export", "export.copy.temp_written");
       log::info("wrote {}", a->out);
     });
   }

@@ -1,11 +1,13 @@
 // strata unit, relation, matrix, layer
 #include "cli/commands.hpp"
 #include "cli/common.hpp"
+#include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/fault.hpp"
 #include "core/log.hpp"
 #include "project/project.hpp"
 #include "project/records.hpp"
+#include "stratigraphy/graphviz.hpp"
 #include "stratigraphy/harris_matrix.hpp"
 
 #include <fmt/format.h>
@@ -27,35 +29,6 @@ HarrisMatrix load_matrix(Database& db) {
     rels.push_back({r.unit_a, *relation_kind_from_string(r.kind), r.unit_b});
   }
   return HarrisMatrix(codes, rels);
-}
-
-// Renders DOT to SVG through Graphviz's `dot`, when installed.
-std::string dot_to_svg(const std::string& dot) {
-  const auto tmp = std::filesystem::temp_directory_path() /
-                   fmt::format("strata-matrix-{}.dot", ::getpid());
-  {
-    std::FILE* f = std::fopen(tmp.c_str(), "w");
-    if (!f) throw IoError(fmt::format("{}: cannot write", tmp.string()));
-    std::fwrite(dot.data(), 1, dot.size(), f);
-    std::fclose(f);
-  }
-  std::string cmd = fmt::format("dot -Tsvg '{}' 2>/dev/null", tmp.string());
-  std::FILE* pipe = ::popen(cmd.c_str(), "r");
-  std::string svg;
-  if (pipe) {
-    char buf[4096];
-    std::size_t n;
-    while ((n = std::fread(buf, 1, sizeof buf, pipe)) > 0) svg.append(buf, n);
-    const int status = ::pclose(pipe);
-    if (status != 0) svg.clear();
-  }
-  std::filesystem::remove(tmp);
-  if (svg.empty()) {
-    throw InputError(
-        "--format svg needs Graphviz's 'dot' (apt-get install graphviz); --format dot gives the "
-        "same matrix as text");
-  }
-  return svg;
 }
 
 }  // namespace
@@ -163,16 +136,19 @@ void register_stratigraphy_commands(CLI::App& app) {
       Project p = Project::open(*dir);
       const HarrisMatrix m = load_matrix(p.db());
       std::string text = *format == "json" ? m.to_json() : m.to_dot();
-      if (*format == "svg") text = dot_to_svg(text);
+      if (*format == "svg") {
+        const auto svg = graphviz_svg(text);
+        if (!svg) {
+          throw InputError(
+              "--format svg needs Graphviz's 'dot' (apt-get install graphviz); --format dot gives the "
+              "same matrix as text");
+        }
+        text = *svg;
+      }
       if (out->empty()) {
         fmt::print("{}", text);
       } else {
-        const std::string tmp = *out + ".tmp";
-        std::FILE* f = std::fopen(tmp.c_str(), "wb");
-        if (!f) throw IoError(fmt::format("{}: cannot write", *out));
-        std::fwrite(text.data(), 1, text.size(), f);
-        std::fclose(f);
-        std::filesystem::rename(tmp, *out);
+        write_bytes_atomically(*out, "matrix", text);
         log::info("wrote {}", *out);
       }
     });

@@ -4,6 +4,8 @@
 //   -> TSDF fusion -> mesh / points -> writers -> quality figures.
 // The maths lives in the other files of this module; this one orders the steps,
 // times them, and reports progress.
+#include "core/parallel.hpp"
+#include "core/statistics.hpp"
 #include "core/error.hpp"
 #include "core/fault.hpp"
 #include "core/hash.hpp"
@@ -14,7 +16,6 @@
 #include "dense/internal.hpp"
 
 #include <fmt/format.h>
-#include <tbb/global_control.h>
 
 #include <algorithm>
 #include <cmath>
@@ -36,13 +37,6 @@ bool is_content_address(const std::string& name) {
 }
 
 StepFigures figures(const Stopwatch& sw) { return {sw.seconds(), peak_memory_bytes()}; }
-
-double percentile(std::vector<double> v, double q) {
-  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
-  const auto k = static_cast<std::size_t>(std::lround(std::clamp(q, 0.0, 1.0) * (v.size() - 1)));
-  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
-  return v[k];
-}
 
 // Andrew's monotone chain: convex hull of the sparse points in XY, counter-clockwise.
 std::vector<Eigen::Vector2d> convex_hull(std::vector<Eigen::Vector2d> p) {
@@ -107,11 +101,12 @@ DenseSummary run_dense(const DenseOptions& options, const Reconstruction& rec,
   return run_dense(options, rec, image_paths, {}, site_origin, cache_dir, out_dir);
 }
 
-DenseSummary run_dense(const DenseOptions& options, const Reconstruction& rec,
-                       const std::vector<std::filesystem::path>& image_paths,
-                       const std::vector<RangeScanInput>& scans, const Eigen::Vector3d& site_origin,
-                       const std::filesystem::path& cache_dir, const std::filesystem::path& out_dir) {
-  options.validate();
+namespace {
+
+DenseSummary run_dense_steps(const DenseOptions& options, const Reconstruction& rec,
+                             const std::vector<std::filesystem::path>& image_paths,
+                             const std::vector<RangeScanInput>& scans, const Eigen::Vector3d& site_origin,
+                             const std::filesystem::path& cache_dir, const std::filesystem::path& out_dir) {
   for (const auto& scan : scans) {
     if (!(scan.sigma_m > 0) || !scan.read) {
       throw InputError(fmt::format("dense: scan {} needs a positive sigma_m and a reader", scan.name));
@@ -127,8 +122,6 @@ DenseSummary run_dense(const DenseOptions& options, const Reconstruction& rec,
                                    im.group, rec.groups.size()));
     }
   }
-  tbb::global_control threads(tbb::global_control::max_allowed_parallelism,
-                              static_cast<std::size_t>(options.threads));
   const Stopwatch total;
   DenseSummary summary;
   const int n = static_cast<int>(rec.images.size());
@@ -437,6 +430,20 @@ DenseSummary run_dense(const DenseOptions& options, const Reconstruction& rec,
             summary.mesh_faces, summary.points, 100 * summary.completeness,
             summary.median_distance_sparse_m * 1e3, summary.p95_distance_sparse_m * 1e3,
             summary.total.seconds);
+  return summary;
+}
+
+}  // namespace
+
+DenseSummary run_dense(const DenseOptions& options, const Reconstruction& rec,
+                       const std::vector<std::filesystem::path>& image_paths,
+                       const std::vector<RangeScanInput>& scans, const Eigen::Vector3d& site_origin,
+                       const std::filesystem::path& cache_dir, const std::filesystem::path& out_dir) {
+  options.validate();
+  DenseSummary summary;
+  with_threads(options.threads, [&] {
+    summary = run_dense_steps(options, rec, image_paths, scans, site_origin, cache_dir, out_dir);
+  });
   return summary;
 }
 

@@ -2,6 +2,7 @@
 // little-endian arrays behind a small header with a version and a content key, and
 // a checksum of everything before it. The cache is deletable (design.md): a missing
 // or stale file is recomputed; a damaged one too, with a warning.
+#include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/fault.hpp"
 #include "core/log.hpp"
@@ -129,31 +130,8 @@ std::uint64_t hash_bytes(const void* data, std::size_t size, std::uint64_t seed)
   return h;
 }
 
-void write_file_atomically(const std::filesystem::path& path, const std::string& stage,
-                           const std::function<void(const std::filesystem::path& tmp)>& write) {
-  std::error_code ec;
-  if (path.has_parent_path()) std::filesystem::create_directories(path.parent_path(), ec);
-  if (ec) {
-    throw IoError(fmt::format("{}: {}: cannot create folder: {}", stage,
-                              path.parent_path().string(), ec.message()));
-  }
-  const std::filesystem::path tmp = path.string() + ".tmp";
-  try {
-    write(tmp);
-  } catch (...) {
-    std::filesystem::remove(tmp, ec);
-    throw;
-  }
-  fault::point(stage == "dense.cache" ? "process.dense.cache_temp_written" : "process.dense.product_temp_written");
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) {
-    std::filesystem::remove(tmp, ec);
-    throw IoError(fmt::format("{}: {}: cannot rename the temporary file", stage, path.string()));
-  }
-}
-
 void write_depth_map(const std::filesystem::path& path, const DepthMap& map, std::uint64_t key) {
-  write_file_atomically(path, "dense.cache", [&](const std::filesystem::path& tmp) {
+  write_atomically(path, "dense.cache", [&](const std::filesystem::path& tmp) {
     FileBytes f;
     f.put_raw(kDepthMagic.data(), kDepthMagic.size());
     f.put(key);
@@ -163,7 +141,7 @@ void write_depth_map(const std::filesystem::path& path, const DepthMap& map, std
     f.put_array(map.normal);
     f.put_array(map.confidence);
     f.write_sealed(tmp);
-  });
+  }, "process.dense.cache_temp_written");
 }
 
 bool read_depth_map(const std::filesystem::path& path, std::uint64_t key, DepthMap& out) {
@@ -190,7 +168,7 @@ bool read_depth_map(const std::filesystem::path& path, std::uint64_t key, DepthM
 }
 
 void write_view_image(const std::filesystem::path& path, const ViewImage& image, std::uint64_t key) {
-  write_file_atomically(path, "dense.cache", [&](const std::filesystem::path& tmp) {
+  write_atomically(path, "dense.cache", [&](const std::filesystem::path& tmp) {
     FileBytes f;
     f.put_raw(kImageMagic.data(), kImageMagic.size());
     f.put(key);
@@ -203,7 +181,7 @@ void write_view_image(const std::filesystem::path& path, const ViewImage& image,
     f.put_array(image.gray);
     f.put_array(image.rgb);
     f.write_sealed(tmp);
-  });
+  }, "process.dense.cache_temp_written");
 }
 
 bool read_view_image(const std::filesystem::path& path, std::uint64_t key, ViewImage& out) {

@@ -8,6 +8,8 @@
 // sparse OpenVDB tree (Museth 2013), so a whole trench at millimetre voxels fits in
 // memory. Sign convention of OpenVDB level sets: negative inside (below/behind the
 // observed surface), positive outside (towards the cameras).
+#include "core/disjoint_sets.hpp"
+#include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/vdb_uuid.hpp"
 #include "dense/internal.hpp"
@@ -326,15 +328,8 @@ std::size_t TsdfVolume::remove_small_components(double min_fraction) {
     if (it.isVoxelValue()) it.setValue(n++);
   }
   if (n == 0) return 0;
-  std::vector<std::int32_t> parent(static_cast<std::size_t>(n));
-  for (std::int32_t k = 0; k < n; ++k) parent[static_cast<std::size_t>(k)] = k;
-  auto find = [&](std::int32_t x) {
-    while (parent[static_cast<std::size_t>(x)] != x) {
-      parent[static_cast<std::size_t>(x)] = parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(x)])];
-      x = parent[static_cast<std::size_t>(x)];
-    }
-    return x;
-  };
+  DisjointSets<std::int32_t> pieces(static_cast<std::size_t>(n));
+  auto find = [&](std::int32_t x) { return pieces.find(x); };
   {
     auto acc = ids->getConstAccessor();
     for (auto it = ids->tree().cbeginValueOn(); it; ++it) {
@@ -343,8 +338,7 @@ std::size_t TsdfVolume::remove_small_components(double min_fraction) {
       for (const openvdb::Coord& d : {openvdb::Coord(1, 0, 0), openvdb::Coord(0, 1, 0), openvdb::Coord(0, 0, 1)}) {
         std::int32_t other = -1;
         if (!acc.probeValue(c + d, other) || other < 0) continue;
-        const std::int32_t ra = find(*it), rb = find(other);
-        if (ra != rb) parent[static_cast<std::size_t>(std::max(ra, rb))] = std::min(ra, rb);
+        pieces.unite(*it, other);
       }
     }
   }
@@ -640,7 +634,7 @@ void TsdfVolume::write(const std::filesystem::path& vdb, const Eigen::Vector3d& 
     grids.push_back(I.spread);
     grids.push_back(I.weight2);
   }
-  write_file_atomically(vdb, "writer.vdb", [&](const std::filesystem::path& tmp) {
+  write_atomically(vdb, "writer.vdb", [&](const std::filesystem::path& tmp) {
     try {
       openvdb::io::File file(tmp.string());
       file.write(grids);
@@ -649,7 +643,7 @@ void TsdfVolume::write(const std::filesystem::path& vdb, const Eigen::Vector3d& 
     } catch (const openvdb::Exception& e) {
       throw IoError(fmt::format("writer.vdb: {}: {}", tmp.string(), e.what()));
     }
-  });
+  }, "process.dense.product_temp_written");
 }
 
 std::unique_ptr<TsdfVolume> TsdfVolume::read(const std::filesystem::path& vdb, LevelSetInfo* info) {

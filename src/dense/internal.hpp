@@ -195,9 +195,4 @@ struct ScanFusionFigures {
 // Fuses every scan into `volume`, each point weighing (unit_sigma_m / sigma_m)^2.
 ScanFusionFigures fuse_scans(TsdfVolume& volume, const std::vector<RangeScanInput>& scans, double unit_sigma_m);
 
-// Writes `bytes` to path via a temporary file in the same folder and a rename, so a
-// reader never sees half a file. Throws IoError naming `stage`.
-void write_file_atomically(const std::filesystem::path& path, const std::string& stage,
-                           const std::function<void(const std::filesystem::path& tmp)>& write);
-
 }  // namespace strata::dense

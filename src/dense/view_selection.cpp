@@ -1,6 +1,7 @@
 // Source-view selection for multi-view stereo from the sparse reconstruction:
 // images that share many tracks at a useful triangulation angle (the criterion of
 // Goesele et al. 2007 and COLMAP's PatchMatch view selection, simplified).
+#include "core/statistics.hpp"
 #include "core/error.hpp"
 #include "dense/internal.hpp"
 
@@ -24,13 +25,6 @@ double angle_weight(double angle_deg, const ViewSelectionOptions& opt) {
     return std::exp(-d * d);
   }
   return 1.0;
-}
-
-double percentile(std::vector<double> v, double q) {
-  if (v.empty()) return 0;
-  const auto k = static_cast<std::size_t>(std::clamp(q, 0.0, 1.0) * (v.size() - 1));
-  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
-  return v[k];
 }
 
 }  // namespace

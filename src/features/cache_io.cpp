@@ -1,5 +1,6 @@
 #include "features/cache_io.hpp"
 
+#include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/fault.hpp"
 #include "core/hash.hpp"
@@ -116,33 +117,7 @@ std::filesystem::path matches_file(const std::filesystem::path& cache_dir,
 }
 
 void write_file_atomic(const std::filesystem::path& path, const std::string& bytes) {
-  std::error_code ec;
-  std::filesystem::create_directories(path.parent_path(), ec);
-  if (ec) {
-    throw IoError(fmt::format("features cache: cannot create folder {}: {}",
-                              path.parent_path().string(), ec.message()));
-  }
-  // Unique per process and per call, so parallel writers never share a temp file.
-  static std::atomic<unsigned> counter{0};
-  const std::filesystem::path tmp =
-      path.string() + fmt::format(".tmp{}.{}", static_cast<long>(::getpid()), counter++);
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-    out.close();
-    if (!out) {
-      std::filesystem::remove(tmp, ec);
-      throw IoError(fmt::format("features cache: cannot write {}", tmp.string()));
-    }
-  }
-  fault::point("process.features.file_temp_written");
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) {
-    std::error_code ignored;
-    std::filesystem::remove(tmp, ignored);
-    throw IoError(fmt::format("features cache: cannot rename {} to {}: {}", tmp.string(),
-                              path.string(), ec.message()));
-  }
+  write_bytes_atomically(path, "features cache", bytes, "process.features.file_temp_written");
 }
 
 void write_features(const std::filesystem::path& path, const StoredFeatures& f) {

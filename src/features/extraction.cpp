@@ -7,7 +7,7 @@
 #include "core/progress.hpp"
 #include "core/resources.hpp"
 #include "features/cache_io.hpp"
-#include "features/parallel.hpp"
+#include "core/parallel.hpp"
 
 #include <opencv2/core.hpp>
 #include <opencv2/features2d.hpp>
@@ -162,7 +162,7 @@ std::vector<ImageKeypoints> extract_features(const FeatureExtractionOptions& opt
   std::atomic<std::size_t> extracted{0}, cached{0};
   Progress progress("features", images.size());
 
-  features::parallel_for_index(images.size(), options.num_threads, [&](std::size_t i) {
+  parallel_for_index(images.size(), options.num_threads, [&](std::size_t i) {
     check_cancelled();
     const FeatureImage& image = images[i];
     const std::string sha = image.sha256.empty() ? sha256_file(image.path) : image.sha256;

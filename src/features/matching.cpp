@@ -8,7 +8,7 @@
 #include "core/resources.hpp"
 #include "features/cache_io.hpp"
 #include "features/descriptor_store.hpp"
-#include "features/parallel.hpp"
+#include "core/parallel.hpp"
 
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core.hpp>
@@ -283,7 +283,7 @@ std::vector<PairMatches> match_pairs(const MatchingOptions& options,
   for (int i = 0; i < n; ++i)
     if (needed[i]) needed_list.push_back(i);
   std::vector<ImageDescriptors> descriptors(n);
-  features::parallel_for_index(needed_list.size(), options.num_threads, [&](std::size_t k) {
+  parallel_for_index(needed_list.size(), options.num_threads, [&](std::size_t k) {
     check_cancelled();
     const int i = needed_list[k];
     auto& d = descriptors[i];
@@ -304,7 +304,7 @@ std::vector<PairMatches> match_pairs(const MatchingOptions& options,
   std::mutex time_mutex;
   double matching_seconds = 0, verification_seconds = 0;
   Progress progress("matching", todo.size());
-  features::parallel_for_index(todo.size(), options.num_threads, [&](std::size_t k) {
+  parallel_for_index(todo.size(), options.num_threads, [&](std::size_t k) {
     check_cancelled();
     const std::size_t p = todo[k];
     const auto [a, b] = pairs[p];

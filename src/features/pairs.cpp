@@ -10,7 +10,7 @@
 #include "core/progress.hpp"
 #include "core/resources.hpp"
 #include "features/descriptor_store.hpp"
-#include "features/parallel.hpp"
+#include "core/parallel.hpp"
 
 #include <opencv2/core.hpp>
 #include <opencv2/flann.hpp>
@@ -31,7 +31,7 @@ std::vector<float> retrieval_scores(const PairSelectionOptions& o,
                                     const std::filesystem::path& cache_dir) {
   const int n = static_cast<int>(images.size());
   std::vector<cv::Mat> subsets(n);
-  features::parallel_for_index(n, o.num_threads, [&](std::size_t i) {
+  parallel_for_index(n, o.num_threads, [&](std::size_t i) {
     check_cancelled();
     // Keypoints are stored strongest first: the first rows are the subset.
     subsets[i] = features::load_descriptors(cache_dir, images[i], o.retrieval_features);
@@ -49,7 +49,7 @@ std::vector<float> retrieval_scores(const PairSelectionOptions& o,
   // +1: every descriptor finds itself first.
   const int k = std::min(o.retrieval_knn + 1, all.rows);
 
-  features::parallel_for_index(n, o.num_threads, [&](std::size_t i) {
+  parallel_for_index(n, o.num_threads, [&](std::size_t i) {
     check_cancelled();
     if (subsets[i].empty()) return;
     cv::Mat indices, dists;
@@ -131,7 +131,7 @@ std::set<ImagePair> preview_pairs(const PairSelectionOptions& o,
                                   const std::set<ImagePair>& candidates) {
   const int n = static_cast<int>(images.size());
   std::vector<PreviewSet> sets(n);
-  features::parallel_for_index(n, o.num_threads, [&](std::size_t i) {
+  parallel_for_index(n, o.num_threads, [&](std::size_t i) {
     check_cancelled();
     auto& s = sets[i];
     s.descriptors =
@@ -145,7 +145,7 @@ std::set<ImagePair> preview_pairs(const PairSelectionOptions& o,
   const std::vector<ImagePair> list(candidates.begin(), candidates.end());
   std::vector<int> counts(list.size(), 0);
   const float ratio2 = static_cast<float>(o.preview_ratio * o.preview_ratio);
-  features::parallel_for_index(list.size(), o.num_threads, [&](std::size_t p) {
+  parallel_for_index(list.size(), o.num_threads, [&](std::size_t p) {
     if (p % 64 == 0) check_cancelled();
     counts[p] = preview_matches(sets[list[p].first], sets[list[p].second], ratio2);
   });

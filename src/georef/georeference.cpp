@@ -1,5 +1,6 @@
 #include "georef/georeference.hpp"
 
+#include "core/statistics.hpp"
 #include "core/error.hpp"
 #include "core/log.hpp"
 #include "core/resources.hpp"
@@ -183,13 +184,6 @@ AxisRmse rmse_of(const std::vector<MarkerResidual>& rows, MarkerRole role, bool 
   r.horizontal = std::hypot(r.e, r.n);
   r.xyz = std::sqrt(r.e * r.e + r.n * r.n + r.z * r.z);
   return r;
-}
-
-double median(std::vector<double> v) {
-  if (v.empty()) return kNaN;
-  const std::size_t mid = v.size() / 2;
-  std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(mid), v.end());
-  return v[mid];
 }
 
 // The marker's rays in words, when they do not meet as one point. `metric`: the frame

@@ -1,5 +1,6 @@
 #include "pipeline/align_layer.hpp"
 
+#include "core/time.hpp"
 #include "core/error.hpp"
 #include "core/fault.hpp"
 #include "core/hash.hpp"
@@ -26,13 +27,6 @@ namespace {
 // Without any EXIF focal length, start from a moderately wide lens: 1.2 x the
 // long side, as COLMAP does; self-calibration refines it.
 constexpr double kDefaultFocalFactor = 1.2;
-
-double to_epoch_seconds(const std::optional<std::string>& iso) {
-  if (!iso || iso->size() < 19) return 0;
-  std::tm tm{};
-  if (!strptime(iso->c_str(), "%Y-%m-%dT%H:%M:%S", &tm)) return 0;
-  return double(timegm(&tm));
-}
 
 nlohmann::json rmse_json(const AxisRmse& r) {
   return {{"e_m", r.e},         {"n_m", r.n},          {"z_m", r.z},
@@ -136,7 +130,7 @@ AlignResult align_layer(Project& project, const std::string& layer_name, const A
     const CameraGroup& group = groups[it->second];
     priors.push_back(group.focal_from_exif || group.calibration_known ? std::optional<Intrinsics>(group.intrinsics)
                                                                       : std::nullopt);
-    times.push_back(to_epoch_seconds(r.captured_at));
+    times.push_back(r.captured_at ? double(iso_seconds(*r.captured_at).value_or(0)) : 0.0);
   }
 
   // ---- features and matches (cached under cache/)

@@ -1,5 +1,6 @@
 #include "products/orthophoto.hpp"
 
+#include "core/parallel.hpp"
 #include "core/error.hpp"
 #include "core/log.hpp"
 #include "core/progress.hpp"
@@ -19,7 +20,6 @@
 #include <exception>
 #include <limits>
 #include <mutex>
-#include <thread>
 #include <unordered_map>
 
 namespace strata {
@@ -355,35 +355,14 @@ RgbaRaster build_orthophoto(const Dtm& dtm, const std::vector<OrthoView>& views,
   // 1. Visibility, scores and colours, one photo per worker at a time.
   {
     Progress progress("orthophoto: views", views.size());
-    std::atomic<std::size_t> next{0};
     std::mutex merge;
-    std::exception_ptr failure;
-    auto worker = [&] {
-      for (;;) {
-        const std::size_t v = next++;
-        if (v >= views.size()) return;
-        try {
-          {
-            std::lock_guard<std::mutex> lock(merge);
-            if (failure) return;
-          }
-          check_cancelled();
-          const std::vector<ViewSample> samples = sample_view(rect, normals, views[v], o);
-          std::lock_guard<std::mutex> lock(merge);
-          for (const ViewSample& sm : samples) cand.insert(sm.cell, int(v), sm.score, sm.pixel_m, sm.rgb);
-          progress.step();
-        } catch (...) {
-          std::lock_guard<std::mutex> lock(merge);
-          if (!failure) failure = std::current_exception();
-          return;
-        }
-      }
-    };
-    std::vector<std::thread> pool;
-    const int n_threads = std::max(1, std::min<int>(o.threads, int(views.size())));
-    for (int t = 0; t < n_threads; ++t) pool.emplace_back(worker);
-    for (auto& t : pool) t.join();
-    if (failure) std::rethrow_exception(failure);
+    parallel_for_index(views.size(), std::min<int>(o.threads, int(views.size())), [&](std::size_t v) {
+      check_cancelled();
+      const std::vector<ViewSample> samples = sample_view(rect, normals, views[v], o);
+      const std::lock_guard<std::mutex> lock(merge);
+      for (const ViewSample& sm : samples) cand.insert(sm.cell, int(v), sm.score, sm.pixel_m, sm.rgb);
+      progress.step();
+    });
     progress.finish();
   }
 

@@ -1,5 +1,7 @@
 #include "products/qgis_project.hpp"
 
+#include "core/text.hpp"
+#include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/fault.hpp"
 #include "crs/crs.hpp"
@@ -17,21 +19,6 @@ namespace fs = std::filesystem;
 
 namespace strata {
 namespace {
-
-std::string xml_escape(const std::string& s) {
-  std::string o;
-  for (char c : s) {
-    switch (c) {
-      case '&': o += "&amp;"; break;
-      case '<': o += "&lt;"; break;
-      case '>': o += "&gt;"; break;
-      case '"': o += "&quot;"; break;
-      case '\'': o += "&apos;"; break;
-      default: o += c; break;
-    }
-  }
-  return o;
-}
 
 // A data source path relative to the project file (QGIS "relative paths" mode).
 std::string relative_source(const fs::path& target, const fs::path& qgs_dir) {
@@ -338,17 +325,10 @@ void write_qgis_project(const QgisProjectInput& in, const fs::path& out) {
   fs::create_directories(dir);
   const std::string xml = qgis_project_xml(in, dir);
   if (ext == ".qgz") {
-    write_zip_stored(out, {{out.stem().string() + ".qgs", std::vector<std::uint8_t>(xml.begin(), xml.end())}});
+    write_zip(out, {{out.stem().string() + ".qgs", xml}});
     return;
   }
-  const fs::path tmp = out.string() + ".tmp";
-  {
-    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
-    f << xml;
-    if (!f) throw IoError(fmt::format("exporter.qgis: {}: cannot write", out.string()));
-  }
-  fault::point("export.qgis.temp_written");
-  fs::rename(tmp, out);
+  write_bytes_atomically(out, "exporter.qgis", xml, "export.qgis.temp_written");
 }
 
 }  // namespace strata

@@ -1,5 +1,6 @@
 #include "project/calibration_records.hpp"
 
+#include "core/time.hpp"
 #include "core/error.hpp"
 
 #include <fmt/format.h>
@@ -40,15 +41,6 @@ CalibrationRecord read_calibration(const Statement& st) {
   k.width = int(st.get_int(15));
   k.height = int(st.get_int(16));
   return c;
-}
-
-std::string now_utc() {
-  const std::time_t t = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
-  std::tm tm{};
-  gmtime_r(&t, &tm);
-  char buf[32];
-  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return buf;
 }
 
 void require_finite(double v, const char* field, const std::string& what) {
@@ -107,7 +99,7 @@ void upsert_calibration(Database& db, CalibrationRecord c) {
                "calibration for {}x{} stored on a {}x{} camera", c.intrinsics.width, c.intrinsics.height,
                cam->width, cam->height);
   validate_calibration(c.intrinsics, fmt::format("camera {}", c.camera_id));
-  if (c.set_at.empty()) c.set_at = now_utc();
+  if (c.set_at.empty()) c.set_at = utc_now_iso();
   const Intrinsics& k = c.intrinsics;
   db.prepare(
         "INSERT OR REPLACE INTO camera_calibrations(camera_id, model, fx, fy, cx, cy, k1, k2, k3, k4, p1, "

@@ -1,5 +1,6 @@
 #include "project/project.hpp"
 
+#include "core/time.hpp"
 #include "core/error.hpp"
 #include "core/fault.hpp"
 #include "core/log.hpp"
@@ -98,16 +99,6 @@ void require_strata_tables(Database& db) {
   }
 }
 
-std::string now_iso() {
-  const auto now = std::chrono::system_clock::now();
-  const std::time_t t = std::chrono::system_clock::to_time_t(now);
-  std::tm tm{};
-  gmtime_r(&t, &tm);
-  char buf[32];
-  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return buf;
-}
-
 }  // namespace
 
 int latest_schema_version() {
@@ -177,7 +168,7 @@ Project Project::create(const fs::path& dir, const CreateOptions& options) {
             "INSERT INTO site(id, name, crs, srs_id, origin_e, origin_n, origin_z, origin_set, "
             "created_at) VALUES (1, ?, ?, ?, ?, ?, ?, ?, ?)")
           .bind_all(name, crs.label(), srs_id, origin.x(), origin.y(), origin.z(),
-                    options.origin ? 1 : 0, now_iso())
+                    options.origin ? 1 : 0, utc_now_iso())
           .run();
       register_feature_tables(*db, srs_id);
       fault::point("init.before_commit");

@@ -1,5 +1,6 @@
 #include "report/coverage.hpp"
 
+#include "core/statistics.hpp"
 #include "core/error.hpp"
 
 #include <algorithm>
@@ -11,13 +12,6 @@ namespace strata {
 namespace {
 
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
-
-double percentile(std::vector<double> v, double p) {
-  if (v.empty()) return 0;
-  const auto k = std::size_t(std::clamp(p, 0.0, 1.0) * double(v.size() - 1));
-  std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(k), v.end());
-  return v[k];
-}
 
 // Bounding box of the recorded cells, in columns and rows.
 struct CellBox {

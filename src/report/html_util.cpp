@@ -1,6 +1,7 @@
 #include "report/html_util.hpp"
 
 #include "core/base64.hpp"
+#include "core/text.hpp"
 #include "core/error.hpp"
 #include "core/fault.hpp"
 
@@ -16,34 +17,6 @@
 #include <regex>
 
 namespace strata::report_detail {
-
-std::string escape(std::string_view text) {
-  std::string out;
-  out.reserve(text.size());
-  for (char c : text) {
-    switch (c) {
-      case '&':
-        out += "&amp;";
-        break;
-      case '<':
-        out += "&lt;";
-        break;
-      case '>':
-        out += "&gt;";
-        break;
-      case '"':
-        out += "&quot;";
-        break;
-      case '\'':
-        out += "&#39;";
-        break;
-      default:
-        out += c;
-        break;
-    }
-  }
-  return out;
-}
 
 std::string png_data_uri(const Image& image) {
   STRATA_CHECK(image.width > 0 && image.height > 0, "empty image");
@@ -111,7 +84,7 @@ std::string PlanFrame::open(const std::string& label) const {
   return fmt::format(
       "<svg class=\"plan\" width=\"{}\" height=\"{}\" viewBox=\"0 0 {} {}\" role=\"img\" aria-label=\"{}\">"
       "<rect width=\"100%\" height=\"100%\" fill=\"#f4f1ea\"/>\n",
-      width_, height_, width_, height_, escape(label));
+      width_, height_, width_, height_, xml_escape(label));
 }
 
 std::string PlanFrame::image(const std::string& data_uri, const Extent& where, bool pixelated) const {
@@ -212,25 +185,6 @@ std::string inline_svg(std::string svg) {
   svg = std::regex_replace(svg, comments, "");
   svg = std::regex_replace(svg, xmlns, "");
   return svg;
-}
-
-void write_file_atomically(const std::filesystem::path& path, const std::string& text) {
-  if (path.has_parent_path()) std::filesystem::create_directories(path.parent_path());
-  auto tmp = path;
-  tmp += ".tmp";
-  {
-    std::ofstream f(tmp, std::ios::binary);
-    if (!f) throw IoError(fmt::format("{}: cannot write", path.string()));
-    f.write(text.data(), std::streamsize(text.size()));
-    if (!f) throw IoError(fmt::format("{}: cannot write", path.string()));
-  }
-  fault::point("export.report.temp_written");
-  std::error_code ec;
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) {
-    std::filesystem::remove(tmp);
-    throw IoError(fmt::format("{}: cannot write ({})", path.string(), ec.message()));
-  }
 }
 
 }  // namespace strata::report_detail

@@ -12,7 +12,6 @@
 
 namespace strata::report_detail {
 
-std::string escape(std::string_view text);
 
 // 8-bit image, row-major, `channels` 1, 3 (RGB) or 4 (RGBA).
 struct Image {
@@ -73,7 +72,5 @@ void ramp_terrain(double t, std::uint8_t rgb[3]);
 // where they would be the only URLs of the report).
 std::string inline_svg(std::string svg);
 
-// Writes `text` to `path` through a temporary file renamed into place.
-void write_file_atomically(const std::filesystem::path& path, const std::string& text);
 
 }  // namespace strata::report_detail

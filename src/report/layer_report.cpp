@@ -1,5 +1,9 @@
 // The layer report: reads a layer's figures from the database, applies the
 // quality rules and draws the sections an archaeologist checks before digging.
+#include "core/time.hpp"
+#include "core/text.hpp"
+#include "core/statistics.hpp"
+#include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/log.hpp"
 #include "report/html_util.hpp"
@@ -18,7 +22,6 @@
 
 namespace strata {
 namespace rd = report_detail;
-using rd::escape;
 using rd::Extent;
 using rd::PlanFrame;
 using rd::LayerData;
@@ -46,30 +49,13 @@ std::optional<double> json_number(const nlohmann::json& j, std::initializer_list
   return p->get<double>();
 }
 
-// Seconds since 1970 of "YYYY-MM-DDTHH:MM:SS" (time zone ignored: photos of one
-// layer come from one camera clock).
-std::optional<std::int64_t> parse_iso_seconds(const std::string& s) {
-  int y, mo, d, h = 0, mi = 0, se = 0;
-  if (std::sscanf(s.c_str(), "%d-%d-%dT%d:%d:%d", &y, &mo, &d, &h, &mi, &se) < 3) return std::nullopt;
-  const std::chrono::year_month_day ymd{std::chrono::year(y), std::chrono::month(unsigned(mo)),
-                                        std::chrono::day(unsigned(d))};
-  if (!ymd.ok()) return std::nullopt;
-  return std::int64_t(std::chrono::sys_days(ymd).time_since_epoch().count()) * 86400 + h * 3600 + mi * 60 + se;
-}
-
 std::string duration_words(std::int64_t s) {
   if (s < 60) return fmt::format("{} s", s);
   if (s < 3600) return fmt::format("{} min {} s", s / 60, s % 60);
   return fmt::format("{} h {} min", s / 3600, (s % 3600) / 60);
 }
 
-double median(std::vector<double> v) {
-  if (v.empty()) return std::nan("");
-  std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(v.size() / 2), v.end());
-  return v[v.size() / 2];
-}
-
-std::string missing(const std::string& text) { return "<p class=\"missing\">" + escape(text) + "</p>\n"; }
+std::string missing(const std::string& text) { return "<p class=\"missing\">" + xml_escape(text) + "</p>\n"; }
 
 // ---- drawing helpers ----------------------------------------------------------
 
@@ -119,7 +105,7 @@ std::string markers_svg(const PlanFrame& f, const LayerData& d) {
     s += fmt::format(
         "<polygon points=\"{:.1f},{:.1f} {:.1f},{:.1f} {:.1f},{:.1f}\" fill=\"{}\" stroke=\"#fff\"/>"
         "<text x=\"{:.1f}\" y=\"{:.1f}\" class=\"lbl halo\">{}</text>",
-        p.x(), p.y() - 7, p.x() - 6, p.y() + 5, p.x() + 6, p.y() + 5, colour, p.x() + 8, p.y() + 4, escape(m.name));
+        p.x(), p.y() - 7, p.x() - 6, p.y() + 5, p.x() + 6, p.y() + 5, colour, p.x() + 8, p.y() + 4, xml_escape(m.name));
   }
   return s + "</g>\n";
 }
@@ -163,7 +149,7 @@ std::string photos_section(const LayerData& d) {
   std::vector<std::int64_t> times;
   for (const auto& im : d.images) {
     if (im.captured_at) {
-      if (auto t = parse_iso_seconds(*im.captured_at)) times.push_back(*t);
+      if (auto t = iso_seconds(*im.captured_at)) times.push_back(*t);
     }
   }
   std::string span = "unknown (no capture times in the photos' EXIF)";
@@ -172,7 +158,7 @@ std::string photos_section(const LayerData& d) {
     std::string first, last;
     for (const auto& im : d.images) {
       if (!im.captured_at) continue;
-      const auto t = parse_iso_seconds(*im.captured_at);
+      const auto t = iso_seconds(*im.captured_at);
       if (t == *lo && first.empty()) first = *im.captured_at;
       if (t == *hi) last = *im.captured_at;
     }
@@ -180,7 +166,7 @@ std::string photos_section(const LayerData& d) {
   }
   s += "<table class=\"kv\">";
   s += fmt::format("<tr><th>photos</th><td>{}</td></tr>", d.images.size());
-  s += fmt::format("<tr><th>capture time span</th><td>{}</td></tr>", escape(span));
+  s += fmt::format("<tr><th>capture time span</th><td>{}</td></tr>", xml_escape(span));
   if (d.alignment) {
     s += fmt::format("<tr><th>aligned</th><td>{} of {}</td></tr>", d.figures.registered, d.images.size());
   } else {
@@ -191,12 +177,12 @@ std::string photos_section(const LayerData& d) {
   std::string sz;
   for (const auto& [w, h] : sizes) sz += (sz.empty() ? "" : ", ") + fmt::format("{} × {}", w, h);
   s += fmt::format("<tr><th>image size (px)</th><td>{}</td></tr>", sz);
-  if (d.layer.captured_at) s += fmt::format("<tr><th>layer recorded</th><td>{}</td></tr>", escape(*d.layer.captured_at));
+  if (d.layer.captured_at) s += fmt::format("<tr><th>layer recorded</th><td>{}</td></tr>", xml_escape(*d.layer.captured_at));
   s += "</table>\n";
   if (!d.figures.unaligned.empty()) {
     std::string names;
     for (const auto& n : d.figures.unaligned) names += (names.empty() ? "" : ", ") + n;
-    s += "<p>Not aligned: " + escape(names) + "</p>\n";
+    s += "<p>Not aligned: " + xml_escape(names) + "</p>\n";
   }
   return s + "</section>\n";
 }
@@ -245,7 +231,7 @@ std::string cameras_section(const LayerData& d, const ReportOptions& o) {
   s += f.decorations() + PlanFrame::close();
   s += plan_symbols_legend(d.figures.georeferenced);
   if (!d.figures.georeferenced) caption += " The layer is not georeferenced: arbitrary frame and scale.";
-  s += "<p class=\"caption\">" + escape(caption) + fmt::format(" {} cameras.", d.cameras.size()) + "</p>\n";
+  s += "<p class=\"caption\">" + xml_escape(caption) + fmt::format(" {} cameras.", d.cameras.size()) + "</p>\n";
   return s + "</section>\n";
 }
 
@@ -309,7 +295,7 @@ std::string coverage_section(const LayerData& d, const ReportOptions& o) {
   for (const auto& g : d.figures.gaps) {
     const Eigen::Vector2d p = f.px(g.centroid.x(), g.centroid.y());
     s += fmt::format("<text x=\"{:.1f}\" y=\"{:.1f}\" class=\"lbl halo gap\" text-anchor=\"middle\">gap: {}</text>", p.x(),
-                     p.y(), escape(g.sector.name));
+                     p.y(), xml_escape(g.sector.name));
   }
   s += f.decorations() + PlanFrame::close();
   // Legend and figures.
@@ -332,11 +318,11 @@ std::string coverage_section(const LayerData& d, const ReportOptions& o) {
   for (const auto& [n, label] : keys) {
     std::uint8_t c[4];
     coverage_colour(n, t.min_photos_per_area, c);
-    s += fmt::format("<span><i style=\"background:#{:02x}{:02x}{:02x}\"></i>{}</span>", c[0], c[1], c[2], escape(label));
+    s += fmt::format("<span><i style=\"background:#{:02x}{:02x}{:02x}\"></i>{}</span>", c[0], c[1], c[2], xml_escape(label));
   }
   s += fmt::format("<span><i class=\"hatch\"></i>coarser than {} per pixel</span></div>\n", format_mm(t.max_gsd_m));
   s += "<p class=\"caption\">" +
-       escape(fmt::format("Photos that see each part of the trench (plan grid of {} cells of {:.0f} mm from the {}). "
+       xml_escape(fmt::format("Photos that see each part of the trench (plan grid of {} cells of {:.0f} mm from the {}). "
                           "{:.0f} % of the area is seen by {} or more photos; median {} photos per cell; median best "
                           "ground resolution {} per pixel.",
                           area, 1000 * m.cell, d.coverage_source, 100.0 * double(enough) / double(std::max<std::size_t>(1, area)),
@@ -397,8 +383,8 @@ std::string residual_plot(const LayerData& d, const ReportOptions& o) {
     }
     s += fmt::format("<text x=\"{:.1f}\" y=\"{}\" class=\"lbl\" text-anchor=\"middle\">{}</text>"
                      "<text x=\"{:.1f}\" y=\"{}\" class=\"lbl small\" text-anchor=\"middle\">{}</text>",
-                     x0 + group / 2.0, top + plot_h + 16, escape(ms[i]->name), x0 + group / 2.0, top + plot_h + 30,
-                     escape(ms[i]->role));
+                     x0 + group / 2.0, top + plot_h + 16, xml_escape(ms[i]->name), x0 + group / 2.0, top + plot_h + 30,
+                     xml_escape(ms[i]->role));
   }
   s += "</svg>\n<div class=\"legend\">";
   const char* names[3] = {"east (dE)", "north (dN)", "height (dZ)"};
@@ -416,13 +402,13 @@ std::string marker_diagnosis(const nlohmann::json& q) {
     for (const auto& m : q["markers"]) {
       const std::string text = m.value("diagnosis", std::string());
       if (text.empty()) continue;
-      items += fmt::format("<li><b>{}</b> ({} of {} photos agree, spread {}): {}</li>", escape(m.value("marker", std::string())),
+      items += fmt::format("<li><b>{}</b> ({} of {} photos agree, spread {}): {}</li>", xml_escape(m.value("marker", std::string())),
                            m.value("images", 0), m.value("observed", 0), format_mm(m.value("dispersion_m", 0.0)),
-                           escape(text));
+                           xml_escape(text));
     }
   }
   if (q.contains("georeference_diagnosis")) {
-    for (const auto& d : q["georeference_diagnosis"]) items += fmt::format("<li>{}</li>", escape(d.get<std::string>()));
+    for (const auto& d : q["georeference_diagnosis"]) items += fmt::format("<li>{}</li>", xml_escape(d.get<std::string>()));
   }
   if (items.empty()) return "";
   return "<p>Where the marker rays do not meet as one point:</p><ul class=\"notes\">" + items + "</ul>\n";
@@ -454,8 +440,8 @@ std::string markers_section(const LayerData& d, const ReportOptions& o) {
   for (const auto& m : d.figures.markers) {
     const bool few = m.images < o.thresholds.min_marker_photos;
     const bool far = m.triangulated && m.residual_m.norm() > o.thresholds.max_marker_residual_m;
-    s += fmt::format("<tr class=\"{}\"><td>{}</td><td>{}</td><td class=\"{}\">{}</td>", m.role, escape(m.name),
-                     escape(m.role), few ? "bad" : "", m.images);
+    s += fmt::format("<tr class=\"{}\"><td>{}</td><td>{}</td><td class=\"{}\">{}</td>", m.role, xml_escape(m.name),
+                     xml_escape(m.role), few ? "bad" : "", m.images);
     if (m.triangulated) {
       s += fmt::format("<td>{}</td><td>{}</td><td>{}</td><td class=\"{}\">{}</td><td>{:.2f} px</td></tr>",
                        format_mm(m.residual_m.x()), format_mm(m.residual_m.y()), format_mm(m.residual_m.z()),
@@ -516,7 +502,7 @@ std::string histogram_section(const LayerData& d, const ReportOptions& o) {
     const double x = left + std::min(v, hi) / hi * pw;
     return fmt::format("<line x1=\"{:.1f}\" x2=\"{:.1f}\" y1=\"{}\" y2=\"{}\" stroke=\"{}\" stroke-dasharray=\"5 4\"/>"
                        "<text x=\"{:.1f}\" y=\"{}\" class=\"lbl halo\">{}</text>",
-                       x, x, top, top + ph, colour, x + 4, top + 14, escape(label));
+                       x, x, top, top + ph, colour, x + 4, top + 14, xml_escape(label));
   };
   s += marker_line(o.thresholds.max_reprojection_rmse_px, "#b30000",
                    fmt::format("tolerance {:.1f} px", o.thresholds.max_reprojection_rmse_px));
@@ -525,7 +511,7 @@ std::string histogram_section(const LayerData& d, const ReportOptions& o) {
   }
   s += "</svg>\n";
   s += "<p class=\"caption\">" +
-       escape(fmt::format("{} sparse points; median error {:.2f} px, 99th percentile {:.2f} px.", e.size(), median(e), p99)) +
+       xml_escape(fmt::format("{} sparse points; median error {:.2f} px, 99th percentile {:.2f} px.", e.size(), median(e), p99)) +
        "</p>\n";
   return s + "</section>\n";
 }
@@ -605,14 +591,14 @@ std::string hillshade_section(const LayerData& d, const ReportOptions& o) {
                              "dtm_sigma.tif): median {:.1f} mm, 95 % of cells within {:.1f} mm.",
                              *sm * 1000, *sp * 1000);
   }
-  s += "<p class=\"caption\">" + escape(caption) + "</p>\n";
+  s += "<p class=\"caption\">" + xml_escape(caption) + "</p>\n";
   return s + "</section>\n";
 }
 
 std::string figures_section(const LayerData& d) {
   std::string s = "<section><h2>Figures</h2>\n<table class=\"kv\">";
   auto row = [&](const std::string& k, const std::string& v) {
-    s += "<tr><th>" + escape(k) + "</th><td>" + escape(v) + "</td></tr>";
+    s += "<tr><th>" + xml_escape(k) + "</th><td>" + xml_escape(v) + "</td></tr>";
   };
   row("unit", d.layer.unit);
   row("site CRS", d.site.crs);
@@ -777,7 +763,7 @@ std::string findings_html(const std::vector<Finding>& findings) {
   std::string s = "<ul class=\"findings\">\n";
   for (const auto& f : findings) {
     s += fmt::format("<li class=\"{}\"><b>{}</b> {}<br><span class=\"todo\">What to do: {}</span></li>\n",
-                     to_string(f.severity), to_string(f.severity), escape(f.message), escape(f.advice));
+                     to_string(f.severity), to_string(f.severity), xml_escape(f.message), xml_escape(f.advice));
   }
   return s + "</ul>\n";
 }
@@ -864,7 +850,7 @@ footer{color:#888;font-size:12px;margin-top:30px;border-top:1px solid #ddd;paddi
       "content=\"width=device-width, initial-scale=1\">\n<title>{}</title>\n<style>{}</style>\n</head>\n<body>\n"
       "<h1>{}</h1>\n<p class=\"sub\">{}</p>\n{}<footer>strata field report, generated {:%Y-%m-%d %H:%M} UTC. "
       "Self-contained: images and drawings are inside this file.</footer>\n</body>\n</html>\n",
-      escape(title), kStyle, escape(title), escape(subtitle), linked, now);
+      xml_escape(title), kStyle, xml_escape(title), xml_escape(subtitle), linked, now);
 }
 
 }  // namespace report_detail
@@ -896,7 +882,7 @@ ReportSummary write_layer_report(Project& project, const std::string& layer, con
                                  const ReportOptions& options) {
   ReportSummary summary;
   const std::string html = layer_report_html(project, layer, options, &summary);
-  rd::write_file_atomically(out, html);
+  write_bytes_atomically(out, "report", html, "export.report.temp_written");
   log::info("wrote the report of layer {} to {}", layer, out.string());
   return summary;
 }

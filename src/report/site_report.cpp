@@ -1,9 +1,12 @@
 // The site report: the Harris matrix, unit volumes, thickness maps, a section
 // along the excavation's long axis, and every layer's verdict and findings.
+#include "core/text.hpp"
+#include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/log.hpp"
 #include "report/html_util.hpp"
 #include "report/report_internal.hpp"
+#include "stratigraphy/graphviz.hpp"
 #include "stratigraphy/harris_matrix.hpp"
 #include "volume/section.hpp"
 #include "volume/site_volumes.hpp"
@@ -21,31 +24,16 @@
 
 namespace strata {
 namespace rd = report_detail;
-using rd::escape;
 
 namespace {
 
-std::string missing(const std::string& text) { return "<p class=\"missing\">" + escape(text) + "</p>\n"; }
+std::string missing(const std::string& text) { return "<p class=\"missing\">" + xml_escape(text) + "</p>\n"; }
 
 std::string read_all(const std::filesystem::path& p) {
   std::ifstream f(p, std::ios::binary);
   std::ostringstream s;
   s << f.rdbuf();
   return s.str();
-}
-
-// Graphviz's layout when `dot` is installed; empty otherwise.
-std::string dot_svg(const std::string& dot) {
-  const auto dir = std::filesystem::temp_directory_path();
-  const auto in = dir / fmt::format("strata-report-{}.dot", ::getpid());
-  const auto out = dir / fmt::format("strata-report-{}.svg", ::getpid());
-  { std::ofstream(in) << dot; }
-  const std::string cmd = fmt::format("dot -Tsvg -o '{}' '{}' >/dev/null 2>&1", out.string(), in.string());
-  std::string svg;
-  if (std::system(cmd.c_str()) == 0) svg = read_all(out);
-  std::filesystem::remove(in);
-  std::filesystem::remove(out);
-  return svg;
 }
 
 // A plain layered drawing when Graphviz is missing: rows by longest path from the
@@ -83,7 +71,7 @@ std::string own_matrix_svg(const HarrisMatrix& m) {
     s += fmt::format("<rect x=\"{:.1f}\" y=\"{:.1f}\" width=\"{}\" height=\"{}\" fill=\"#fff\" stroke=\"#333\"/>"
                      "<text x=\"{:.1f}\" y=\"{:.1f}\" class=\"lbl\" text-anchor=\"middle\">{}</text>",
                      pos[n].x() - bw / 2, pos[n].y() - bh / 2, bw, bh, pos[n].x(), pos[n].y() + 4,
-                     escape(m.nodes()[n].label()));
+                     xml_escape(m.nodes()[n].label()));
   }
   return s + "</svg>";
 }
@@ -100,7 +88,7 @@ std::string matrix_section(Database& db) {
   }
   try {
     const HarrisMatrix m(codes, relations);
-    std::string svg = rd::inline_svg(dot_svg(m.to_dot()));
+    std::string svg = rd::inline_svg(graphviz_svg(m.to_dot()).value_or(""));
     const bool graphviz = !svg.empty();
     if (!graphviz) svg = own_matrix_svg(m);
     s += "<div class=\"svgbox\">" + svg + "</div>\n";
@@ -126,13 +114,13 @@ std::string volumes_section(Database& db) {
     rows += fmt::format(
         "<tr><td>{}</td><td>{}</td><td>{}</td><td>{:.3f}{}</td><td>{:.2f}</td><td>{:.0f}</td><td>{:.0f}–{:.0f}</td>"
         "<td>{}</td></tr>",
-        escape(st.get_text(0)), escape(st.get_text(1)), escape(st.get_text(2)), st.get_double(3),
+        xml_escape(st.get_text(0)), xml_escape(st.get_text(1)), xml_escape(st.get_text(2)), st.get_double(3),
         sigma ? fmt::format(" ± {:.3f}", *sigma) : "", st.get_double(5), 1000 * st.get_double(6),
-        1000 * st.get_double(7), 1000 * st.get_double(8), escape(st.get_text(9)));
+        1000 * st.get_double(7), 1000 * st.get_double(8), xml_escape(st.get_text(9)));
     // How sure the figure is and what would make it surer (strata volume).
     const auto details = nlohmann::json::parse(st.is_null(10) ? std::string("{}") : st.get_text(10), nullptr, false);
     if (details.is_object() && details.value("advice", std::string()) != "")
-      advice += fmt::format("<li>{}: {}</li>", escape(st.get_text(0)), escape(details.value("advice", std::string())));
+      advice += fmt::format("<li>{}: {}</li>", xml_escape(st.get_text(0)), xml_escape(details.value("advice", std::string())));
   }
   if (rows.empty()) {
     return s + missing("No volumes yet: they need at least two processed layers; run: strata volume DIR") + "</section>\n";
@@ -161,7 +149,7 @@ std::string thickness_section(Project& project, const ReportOptions& o) {
   s += "<div class=\"maps\">\n";  // side by side, wrapping
   for (const auto& p : products) {
     const std::string name = p.unit_id ? "unit " + unit_code[*p.unit_id] : p.path;
-    s += "<div class=\"map\"><h3>" + escape(name) + "</h3>\n";
+    s += "<div class=\"map\"><h3>" + xml_escape(name) + "</h3>\n";
     try {
       const rd::Thumbnail t = rd::read_thumbnail(project.dir() / p.path, px, false);
       float hi = 0;
@@ -238,7 +226,7 @@ std::string section_section(Project& project, const ReportOptions& o) {
     s += "<div class=\"svgbox\">" + svg + "</div>\n";
     const Eigen::Vector3d o3 = model.site.origin;
     s += "<p class=\"caption\">" +
-         escape(fmt::format("From A (E {:.2f}, N {:.2f}) to B (E {:.2f}, N {:.2f}), {:.2f} m, through {} layer surfaces.",
+         xml_escape(fmt::format("From A (E {:.2f}, N {:.2f}) to B (E {:.2f}, N {:.2f}), {:.2f} m, through {} layer surfaces.",
                             a.x() + o3.x(), a.y() + o3.y(), b.x() + o3.x(), b.y() + o3.y(), profile.length(),
                             profile.surfaces.size())) +
          "</p>\n";
@@ -264,12 +252,12 @@ std::string layers_section(Project& project, const ReportOptions& o, ReportSumma
     auto mm = [](const std::optional<double>& x) { return x ? format_mm(*x) : std::string("–"); };
     table += fmt::format("<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td>"
                          "<td class=\"{}\">{}</td><td>{}</td></tr>",
-                         escape(l.name), escape(l.unit), f.photos,
+                         xml_escape(l.name), xml_escape(l.unit), f.photos,
                          f.aligned ? fmt::format("{} of {}", f.registered, f.photos) : "not processed",
                          f.aligned ? (f.georeferenced ? "yes" : "no") : "–", mm(f.control_rmse_m), mm(f.check_rmse_m),
                          d.dtm ? "yes" : "no", v.count(Severity::problem) ? "bad" : "", v.count(Severity::problem),
                          v.count(Severity::warning));
-    details += "<div class=\"layer\"><h3>Layer " + escape(l.name) + " (unit " + escape(l.unit) + ")</h3>\n" +
+    details += "<div class=\"layer\"><h3>Layer " + xml_escape(l.name) + " (unit " + xml_escape(l.unit) + ")</h3>\n" +
                rd::verdict_html(d.findings) + rd::findings_html(d.findings) + "</div>\n";
   }
   s += table + "</table>\n<p class=\"caption\">The full report of a layer: strata report DIR --layer LAYER --out "
@@ -283,8 +271,8 @@ std::string site_report_html(Project& project, const ReportOptions& options, Rep
   options.validate();
   const SiteInfo site = project.site();
   std::string body = "<section><h2>Site</h2>\n<table class=\"kv\">";
-  body += "<tr><th>name</th><td>" + escape(site.name) + "</td></tr>";
-  body += "<tr><th>CRS</th><td>" + escape(site.crs) + "</td></tr>";
+  body += "<tr><th>name</th><td>" + xml_escape(site.name) + "</td></tr>";
+  body += "<tr><th>CRS</th><td>" + xml_escape(site.crs) + "</td></tr>";
   body += site.origin_set ? fmt::format("<tr><th>site origin</th><td>E {:.1f}, N {:.1f}, Z {:.1f} m</td></tr>",
                                         site.origin.x(), site.origin.y(), site.origin.z())
                           : std::string("<tr><th>site origin</th><td>not fixed yet (no markers imported)</td></tr>");
@@ -306,7 +294,7 @@ std::string site_report_html(Project& project, const ReportOptions& options, Rep
 ReportSummary write_site_report(Project& project, const std::filesystem::path& out, const ReportOptions& options) {
   ReportSummary summary;
   const std::string html = site_report_html(project, options, &summary);
-  rd::write_file_atomically(out, html);
+  write_bytes_atomically(out, "report", html, "export.report.temp_written");
   log::info("wrote the site report to {}", out.string());
   return summary;
 }

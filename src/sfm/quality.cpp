@@ -1,23 +1,12 @@
 #include "sfm/quality.hpp"
 
+#include "core/statistics.hpp"
 #include "core/error.hpp"
 
 #include <algorithm>
 #include <cmath>
 
 namespace strata {
-namespace {
-
-double median(std::vector<double>& v) {
-  if (v.empty()) return 0.0;
-  const auto mid = v.begin() + std::ptrdiff_t(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  if (v.size() % 2 == 1) return *mid;
-  return 0.5 * (*mid + *std::max_element(v.begin(), mid));
-}
-
-}  // namespace
-
 double reprojection_rmse_px(const Reconstruction& rec, const std::vector<ImageKeypoints>& keypoints) {
   STRATA_CHECK(keypoints.size() == rec.images.size());
   double sum2 = 0;
@@ -52,7 +41,7 @@ double estimate_gsd_m(const Reconstruction& rec) {
     const auto& k = rec.groups[rec.images[i].group].intrinsics;
     per_image.push_back(median(depths[i]) / (0.5 * (k.fx + k.fy)));
   }
-  return median(per_image);
+  return per_image.empty() ? 0.0 : median(per_image);
 }
 
 ReconstructionQuality measure_quality(const Reconstruction& rec,

@@ -1,5 +1,6 @@
 #include "sfm/tracks.hpp"
 
+#include "core/disjoint_sets.hpp"
 #include "core/error.hpp"
 
 #include <algorithm>
@@ -10,33 +11,6 @@
 namespace strata {
 namespace {
 
-// Union-find with path halving and union by size.
-class DisjointSets {
- public:
-  explicit DisjointSets(std::size_t n) : parent_(n), size_(n, 1) {
-    std::iota(parent_.begin(), parent_.end(), std::size_t{0});
-  }
-  std::size_t find(std::size_t x) {
-    while (parent_[x] != x) {
-      parent_[x] = parent_[parent_[x]];
-      x = parent_[x];
-    }
-    return x;
-  }
-  void unite(std::size_t a, std::size_t b) {
-    a = find(a);
-    b = find(b);
-    if (a == b) return;
-    if (size_[a] < size_[b]) std::swap(a, b);
-    parent_[b] = a;
-    size_[a] += size_[b];
-  }
-
- private:
-  std::vector<std::size_t> parent_;
-  std::vector<std::size_t> size_;
-};
-
 }  // namespace
 
 namespace {
@@ -46,7 +20,7 @@ using Edge = std::pair<std::size_t, std::size_t>;
 // Groups the matched nodes by component; a component is consistent when no image
 // appears twice in it. Nodes are visited in (image, keypoint) order, so every
 // component comes out sorted by image.
-void collect_components(DisjointSets& sets, const std::vector<char>& active,
+void collect_components(DisjointSets<>& sets, const std::vector<char>& active,
                         const std::vector<std::size_t>& offset,
                         std::vector<std::vector<TrackElement>>& consistent,
                         std::vector<std::vector<std::size_t>>& inconsistent) {
@@ -83,7 +57,7 @@ std::vector<std::vector<TrackElement>> build_tracks(const std::vector<ImageKeypo
   for (std::size_t i = 0; i < keypoints.size(); ++i) {
     offset[i + 1] = offset[i] + keypoints[i].points.size();
   }
-  DisjointSets sets(offset.back());
+  DisjointSets<> sets(offset.back());
   std::vector<char> matched(offset.back(), 0);
   std::vector<Edge> edges;
   const int n_images = int(keypoints.size());
@@ -134,7 +108,7 @@ std::vector<std::vector<TrackElement>> build_tracks(const std::vector<ImageKeypo
       std::sort(list.begin(), list.end());
       list.erase(std::unique(list.begin(), list.end()), list.end());
     }
-    DisjointSets repaired(offset.back());
+    DisjointSets<> repaired(offset.back());
     std::vector<char> active(offset.back(), 0);
     std::vector<std::size_t> common;
     for (const auto& [a, b] : candidate) {

@@ -1,5 +1,6 @@
 #include "stratigraphy/harris_matrix.hpp"
 
+#include "core/disjoint_sets.hpp"
 #include "core/error.hpp"
 
 #include <nlohmann/json.hpp>
@@ -30,14 +31,6 @@ constexpr Word kWords[] = {
     {"same_as", RelationKind::same_as, false},
     {"equals", RelationKind::same_as, false},
     {"contemporary_with", RelationKind::contemporary_with, false},
-};
-
-// Union-find over unit indices.
-struct Groups {
-  std::vector<int> parent;
-  explicit Groups(std::size_t n) : parent(n) { std::iota(parent.begin(), parent.end(), 0); }
-  int find(int x) { return parent[x] == x ? x : parent[x] = find(parent[x]); }
-  void join(int a, int b) { parent[find(a)] = find(b); }
 };
 
 }  // namespace
@@ -105,9 +98,9 @@ HarrisMatrix::HarrisMatrix(const std::vector<std::string>& units,
 void HarrisMatrix::rebuild() {
   std::map<std::string, int> index;
   for (std::size_t i = 0; i < units_.size(); ++i) index[units_[i]] = int(i);
-  Groups groups(units_.size());
+  DisjointSets<int> groups(units_.size());
   for (const auto& r : relations_) {
-    if (r.kind == RelationKind::same_as) groups.join(index.at(r.unit_a), index.at(r.unit_b));
+    if (r.kind == RelationKind::same_as) groups.unite(index.at(r.unit_a), index.at(r.unit_b));
   }
   std::map<int, int> node_of_root;
   nodes_.clear();

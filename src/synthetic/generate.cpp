@@ -3,6 +3,7 @@
 // (cameras, sessions); this file validates, sequences, and writes.
 #include "synthetic/synthetic.hpp"
 
+#include "core/parallel.hpp"
 #include "core/error.hpp"
 #include "core/log.hpp"
 #include "core/progress.hpp"
@@ -19,7 +20,6 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/imgproc.hpp>
 #include <tbb/parallel_for.h>
-#include <tbb/task_arena.h>
 
 #include <cmath>
 #include <cstring>
@@ -529,8 +529,7 @@ SyntheticExcavationSummary generate_excavation(const SyntheticExcavationOptions&
   SyntheticExcavationSummary summary;
   summary.out_dir = parent / name;
   try {
-    tbb::task_arena arena(allowed_threads(options.render.threads));
-    arena.execute([&] { write_dataset(options, partial, summary); });
+    with_threads(options.render.threads, [&] { write_dataset(options, partial, summary); });
     if (fs::exists(summary.out_dir)) fs::remove(summary.out_dir);  // checked empty above
     fs::rename(partial, summary.out_dir);
   } catch (...) {

@@ -2,6 +2,8 @@
 // GeoPackage of 3D lines (writer.section.gpkg).
 #include "volume/section.hpp"
 
+#include "core/text.hpp"
+#include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "crs/crs.hpp"
 #include "products/gdal_util.hpp"
@@ -58,20 +60,6 @@ LabelBox text_box(double x, double baseline, double font, std::size_t chars, con
   const double w = 0.6 * font * double(chars);
   const double x0 = std::string(anchor) == "middle" ? x - 0.5 * w : std::string(anchor) == "end" ? x - w : x;
   return {x0, baseline - 0.8 * font, x0 + w, baseline + 0.2 * font};
-}
-
-std::string xml_escape(const std::string& s) {
-  std::string out;
-  for (char c : s) {
-    switch (c) {
-      case '&': out += "&amp;"; break;
-      case '<': out += "&lt;"; break;
-      case '>': out += "&gt;"; break;
-      case '"': out += "&quot;"; break;
-      default: out += c; break;
-    }
-  }
-  return out;
 }
 
 }  // namespace
@@ -330,16 +318,7 @@ void write_section_svg(const fs::path& path, const SectionProfile& p, const Eige
               "limit of excavation");
   add("</svg>");
 
-  if (path.has_parent_path()) fs::create_directories(path.parent_path());
-  const fs::path tmp = path.string() + ".partial";
-  {
-    std::ofstream out(tmp);
-    out << svg;
-    if (!out) throw IoError(fmt::format("{}: {}: cannot write", kStage, path.string()));
-  }
-  std::error_code ec;
-  fs::rename(tmp, path, ec);
-  if (ec) throw IoError(fmt::format("{}: {}: {}", kStage, path.string(), ec.message()));
+  write_bytes_atomically(path, kStage, svg);
 }
 
 void write_section_gpkg(const fs::path& path, const SectionProfile& p, const Eigen::Vector3d& origin,

@@ -1,6 +1,7 @@
 // Level of detection and stable-ground statistics of surface differences.
 #include "volume/significance.hpp"
 
+#include "core/statistics.hpp"
 #include "core/error.hpp"
 
 #include <algorithm>
@@ -24,18 +25,11 @@ constexpr std::size_t kMinCellsPerBin = 500;
 // own. A bin short of kMinCellsPerBin joins the next, better covered one.
 constexpr double kCoverageEdges[] = {0.5, 0.7, 0.85, 0.95};
 
-double median_of(std::vector<double> v) {
-  if (v.empty()) return 0;
-  const auto mid = v.begin() + std::ptrdiff_t(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  return *mid;
-}
-
 double nmad_of(const std::vector<double>& v, double centre) {
   std::vector<double> dev;
   dev.reserve(v.size());
   for (double x : v) dev.push_back(std::abs(x - centre));
-  return kMadToSigma * median_of(std::move(dev));
+  return kMadToSigma * median(std::move(dev));
 }
 
 // Sum of the values within `r` cells (square neighbourhood) of every cell:
@@ -171,7 +165,7 @@ StableGround judge_stable_ground(const std::vector<double>& difference, const st
   s.area_m2 = double(s.cells) * grid.cell * grid.cell;
   if (s.cells < std::max<std::size_t>(min_cells, 2)) return s;
   s.used = true;
-  s.bias_m = median_of(d);
+  s.bias_m = median(d);
   s.nmad_m = nmad_of(d, s.bias_m);
   // How much the offset varies around the unit: the medians of the four
   // quadrants about the stable cells' centroid. A warp or tilt of one surface
@@ -194,7 +188,7 @@ StableGround judge_stable_ground(const std::vector<double>& difference, const st
       }
     std::vector<double> medians;
     for (auto& q : quadrant)
-      if (q.size() >= std::max<std::size_t>(min_cells / 4, 2)) medians.push_back(median_of(q));
+      if (q.size() >= std::max<std::size_t>(min_cells / 4, 2)) medians.push_back(median(q));
     if (medians.size() >= 2) {
       double mean = 0, var = 0;
       for (double m : medians) mean += m / double(medians.size());
@@ -233,7 +227,7 @@ StableGround judge_stable_ground(const std::vector<double>& difference, const st
         stated.push_back(by_sigma[k].first);
         dev.push_back(by_sigma[k].second);
       }
-      const double median_sigma = median_of(stated);
+      const double median_sigma = median(stated);
       s.by_sigma.at.push_back(median_sigma);
       s.by_sigma.factor.push_back(nmad_of(dev, 0.0) / median_sigma);
     }
@@ -258,7 +252,7 @@ StableGround judge_stable_ground(const std::vector<double>& difference, const st
         continue;
       }
       if (cov[b].size() < kMinCellsPerBin) continue;
-      s.by_coverage.at.push_back(median_of(cov[b]));
+      s.by_coverage.at.push_back(median(cov[b]));
       s.by_coverage.factor.push_back(nmad_of(dev[b], 0.0));
     }
     // Only one bin, or a bin without spread: the coverage says nothing the sigma

@@ -1,6 +1,7 @@
 // The volume stage on a project: surfaces in, products and unit_volumes out.
 #include "volume/site_volumes.hpp"
 
+#include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/log.hpp"
 #include "core/staged_files.hpp"
@@ -265,16 +266,10 @@ SiteModel load_site_model(Project& project, const SiteVolumeOptions& options) {
         const Eigen::Vector2d& p = ring[k % ring.size()];
         coords += fmt::format("{}[{:.4f}, {:.4f}]", k ? ", " : "", p.x() + origin.x(), p.y() + origin.y());
       }
-      const fs::path tmp = kept.string() + ".tmp";
-      {
-        std::ofstream out(tmp);
-        out << fmt::format("{{\"type\": \"FeatureCollection\", \"features\": [{{\"type\": \"Feature\", "
+      write_bytes_atomically(kept, "volume", fmt::format("{{\"type\": \"FeatureCollection\", \"features\": [{{\"type\": \"Feature\", "
                            "\"properties\": {{\"name\": \"trench outline ({})\"}}, \"geometry\": {{\"type\": "
                            "\"Polygon\", \"coordinates\": [[{}]]}}}}]}}\n",
-                           model.site.crs, coords);
-        if (!out.flush()) throw IoError(fmt::format("volume: cannot write {}", tmp.string()));
-      }
-      fs::rename(tmp, kept);
+                           model.site.crs, coords));
       log::info("volume: trench outline kept as {}", kept.string());
     }
   } else if (fs::exists(kept)) {

@@ -2,6 +2,7 @@
 // translation unit of strata_volume that includes OpenVDB.
 #include "volume/voxels.hpp"
 
+#include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/vdb_uuid.hpp"
 #include "core/log.hpp"
@@ -150,18 +151,16 @@ VoxelSummary write_unit_voxels(const fs::path& path, const std::vector<UnitSolid
   for (const auto& vu : summary.units)
     meta.insertMeta(fmt::format("label_{}", vu.label), openvdb::StringMetadata(vu.unit));
 
-  const fs::path tmp = path.string() + ".partial";
-  try {
-    openvdb::io::File file(tmp.string());
-    file.write(grids, meta);
-    file.close();
-    make_vdb_uuid_from_content(tmp);
-  } catch (const openvdb::Exception& e) {
-    throw IoError(fmt::format("writer.vdb: {}: {}", path.string(), e.what()));
-  }
-  std::error_code ec;
-  fs::rename(tmp, path, ec);
-  if (ec) throw IoError(fmt::format("writer.vdb: {}: {}", path.string(), ec.message()));
+  write_atomically(path, "writer.vdb", [&](const fs::path& tmp) {
+    try {
+      openvdb::io::File file(tmp.string());
+      file.write(grids, meta);
+      file.close();
+      make_vdb_uuid_from_content(tmp);
+    } catch (const openvdb::Exception& e) {
+      throw IoError(fmt::format("writer.vdb: {}: {}", path.string(), e.what()));
+    }
+  });
   return summary;
 }
 

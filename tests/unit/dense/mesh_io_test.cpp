@@ -28,7 +28,10 @@ TEST(DenseMeshIo, PlyRoundTripKeepsCrsCoordinatesInDouble) {
   frame.site_origin = kOrigin;
   frame.crs = "EPSG:32636";
   write_ply(dir / "mesh.ply", m, frame);
-  EXPECT_FALSE(std::filesystem::exists(dir / "mesh.ply.tmp"));
+  // Only the mesh: its temporary file took the final name.
+  std::vector<std::string> files;
+  for (const auto& e : std::filesystem::directory_iterator(dir.path())) files.push_back(e.path().filename().string());
+  EXPECT_EQ(files, std::vector<std::string>{"mesh.ply"});
   const PlyContents r = read_ply(dir / "mesh.ply");
   ASSERT_GE(r.header.size(), 3u);
   EXPECT_EQ(r.header[0], "ply");

@@ -2,7 +2,6 @@
 // .qgz a valid zip holding the .qgs.
 #include "core/error.hpp"
 #include "products/qgis_project.hpp"
-#include "products/zip_writer.hpp"
 #include "support/test_support.hpp"
 
 #include <gtest/gtest.h>
@@ -48,11 +47,6 @@ TEST(Qgis, GroupsInStratigraphicOrderWithRelativeSources) {
   // A project file in a subfolder points one level up.
   const std::string sub = qgis_project_xml(sample("/data/site"), "/data/site/gis");
   EXPECT_NE(sub.find("<datasource>../products/L2/ortho.tif</datasource>"), std::string::npos);
-}
-
-TEST(Qgis, Crc32KnownValue) {
-  const std::string s = "123456789";
-  EXPECT_EQ(crc32(reinterpret_cast<const std::uint8_t*>(s.data()), s.size()), 0xCBF43926u);  // check value
 }
 
 TEST(Qgis, QgzIsAZipHoldingTheQgs) {
