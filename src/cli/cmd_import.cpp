@@ -1,4 +1,4 @@
-// strata import photos|scan|markers|finds, strata markers, strata find add
+// strata import photos|scan|markers|finds|units|relations, strata markers, strata find add
 #include "cli/commands.hpp"
 #include "cli/common.hpp"
 #include "core/error.hpp"
@@ -7,8 +7,10 @@
 #include "importers/markers/marker_importer.hpp"
 #include "importers/photos/photo_importer.hpp"
 #include "importers/scans/scan_importer.hpp"
+#include "importers/stratigraphy/register_importer.hpp"
 #include "project/project.hpp"
 #include "project/records.hpp"
+#include "stratigraphy/harris_matrix.hpp"
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -78,6 +80,66 @@ void register_find_imports(CLI::App& app, CLI::App& import) {
   });
 }
 
+void warn_ignored_columns(const std::string& file, const std::vector<std::string>& columns) {
+  if (!columns.empty())
+    log::warn("{}: columns not recorded by strata, ignored: {}", file, fmt::join(columns, ", "));
+}
+
+// strata import units DIR FILE, strata import relations DIR FILE
+void register_stratigraphy_imports(CLI::App& import) {
+  {
+    auto* cmd = import.add_subcommand(
+        "units",
+        "import a unit register kept in a spreadsheet: a header row naming the columns code, type\n"
+        "and optionally description (any order, any case), then one unit per line. Comma, semicolon\n"
+        "or tab separated (detected); a value holding the delimiter or a quote goes in double quotes,\n"
+        "a quote inside doubled (\"\"), as spreadsheets export CSV. A value may not span lines. type is\n"
+        "deposit, cut, structure or interface. Other columns are ignored and named. A unit already in\n"
+        "the project with another type or description is refused (or replaced with --update); the\n"
+        "same unit again is left as it is. Nothing is imported when any line is bad.");
+    auto dir = std::make_shared<std::string>();
+    auto file = std::make_shared<std::string>();
+    auto options = std::make_shared<UnitImportOptions>();
+    cmd->add_option("DIR", *dir, "project folder")->required();
+    cmd->add_option("FILE", *file, "unit register (CSV)")->required();
+    cmd->add_flag("--update", options->update,
+                  "replace the type and description of units already in the project (default: refuse them)");
+    cmd->footer("Example: strata import units site units.csv\n"
+                "  code,type,description\n"
+                "  104,deposit,\"pale yellowish sandy gravel (sand, gravel)\"");
+    cmd->callback([=] {
+      const ProjectLock lock = lock_project(*dir);
+      Project p = Project::open(*dir);
+      const auto s = import_units(p, *options, *file);
+      warn_ignored_columns(*file, s.ignored_columns);
+      fmt::print("{}: {} new, {} updated, {} unchanged units\n", *file, s.units_new, s.units_updated,
+                 s.units_unchanged);
+    });
+  }
+  auto* cmd = import.add_subcommand(
+      "relations",
+      "import stratigraphic relations: a header row naming the columns a, relation and b (any order,\n"
+      "any case), then one 'A relation B' per line, e.g. 102,below,101. Relations: " +
+          fmt::format("{}", fmt::join(relation_words(), ", ")) +
+          ".\nDelimiters and quotes as for 'import units'. Every unit must already be in the project. A\n"
+          "relation that would make the Harris matrix cyclic is refused with its line and the cycle.\n"
+          "Relations already recorded are left as they are. Nothing is imported when any line is bad.");
+  auto dir = std::make_shared<std::string>();
+  auto file = std::make_shared<std::string>();
+  cmd->add_option("DIR", *dir, "project folder")->required();
+  cmd->add_option("FILE", *file, "relations (CSV)")->required();
+  cmd->footer("Example: strata import relations site relations.csv\n"
+              "  a,relation,b\n"
+              "  101,above,102");
+  cmd->callback([=] {
+    const ProjectLock lock = lock_project(*dir);
+    Project p = Project::open(*dir);
+    const auto s = import_relations(p, *file);
+    warn_ignored_columns(*file, s.ignored_columns);
+    fmt::print("{}: {} new relations, {} already recorded\n", *file, s.relations_new, s.relations_unchanged);
+  });
+}
+
 std::string scan_summary(const ImportedScan& s) {
   std::vector<std::string> has;
   if (s.info.has_colour) has.push_back("colour");
@@ -140,7 +202,7 @@ void register_scan_import(CLI::App& import) {
 }  // namespace
 
 void register_import_commands(CLI::App& app) {
-  auto* import = app.add_subcommand("import", "bring photos, range scans and surveyed markers into a project");
+  auto* import = app.add_subcommand("import", "bring photos, range scans, surveyed markers, finds and the unit register into a project");
   import->require_subcommand(1);
   {
     auto* cmd = import->add_subcommand(
@@ -215,6 +277,7 @@ void register_import_commands(CLI::App& app) {
   }
   register_scan_import(*import);
   register_find_imports(app, *import);
+  register_stratigraphy_imports(*import);
   {
     auto* cmd = app.add_subcommand(
         "markers",
