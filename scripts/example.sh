@@ -13,9 +13,7 @@ size=small
 if [[ "${1:-}" == "--size" ]]; then size="${2:?--size needs small or full}"; fi
 
 bash scripts/setup.sh
-# Every module, whatever a developer's build/ cache says (STRATA_SKIP_MODULES is for
-# partial development builds only).
-cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DSTRATA_SKIP_MODULES= >/dev/null
+cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo >/dev/null
 cmake --build build -j "$(nproc)" --target strata
 strata=build/src/cli/strata
 

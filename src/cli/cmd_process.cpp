@@ -7,9 +7,7 @@
 #include "pipeline/align_layer.hpp"
 #include "pipeline/dense_layer.hpp"
 #include "pipeline/products_layer.hpp"
-#ifdef STRATA_HAS_REPORT_COMMANDS
 #include "report/report.hpp"
-#endif
 #include "project/media.hpp"
 #include "project/project.hpp"
 #include "project/records.hpp"
@@ -145,7 +143,7 @@ void print_products(const nlohmann::json& q, bool skipped) {
                100 * o["coverage"].get<double>(), o["views_used"].get<int>());
   }
   if (q.contains("ortho_markers")) {
-    // Coded targets found in the orthophoto against their survey (issue 6).
+    // Coded targets found in the orthophoto against their survey.
     const auto& m = q["ortho_markers"];
     const double tol = m["tolerance_px"].get<double>();
     if (m["detected"].get<int>() == 0) {
@@ -299,7 +297,6 @@ void register_process_commands(CLI::App& app) {
           if (!*json) print_products(pr.quality, pr.skipped);
         }
       }
-#ifdef STRATA_HAS_REPORT_COMMANDS
       // The field report is rewritten after every run, so the trench edge always
       // has the current verdict. A report failure is said, but does not undo the
       // processing that succeeded.
@@ -309,7 +306,6 @@ void register_process_commands(CLI::App& app) {
       } catch (const Error& e) {
         log::warn("layer {}: the field report could not be written: {}", name, e.what());
       }
-#endif
       out.push_back(q);
     }
     if (*json) fmt::print("{}\n", (*all ? out : out.front()).dump(2));

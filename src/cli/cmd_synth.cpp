@@ -1,4 +1,4 @@
-// strata synth: writes a synthetic excavation with known truth (issue 3).
+// strata synth: writes a synthetic excavation with known truth.
 #include "cli/commands.hpp"
 #include "core/error.hpp"
 #include "core/log.hpp"

@@ -57,16 +57,10 @@ int main(int argc, char** argv) {
   strata::cli::register_registration_commands(app);
   strata::cli::register_process_commands(app);
   strata::cli::register_export_commands(app);
-#ifdef STRATA_HAS_PRODUCTS_COMMANDS
   strata::cli::register_products_commands(app);
-#endif
-#ifdef STRATA_HAS_VOLUME_COMMANDS
   strata::cli::register_volume_commands(app);
   strata::cli::register_finds_command(app);
-#endif
-#ifdef STRATA_HAS_REPORT_COMMANDS
   strata::cli::register_report_command(app);
-#endif
 
   strata::install_cancel_handler();
   try {

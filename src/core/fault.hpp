@@ -1,5 +1,5 @@
 #pragma once
-// Crash injection (issue 19): named kill points on the write paths.
+// Crash injection: named kill points on the write paths.
 //
 // With the environment variable STRATA_CRASH_AT=<name>[:<n>] the process kills
 // itself with SIGKILL the n-th time (default: the first) it passes the point of that

@@ -1,7 +1,7 @@
 #pragma once
 // OpenVDB writes a random UUID into every file's header (io::Archive::writeHeader),
 // so two writes of the same grids differ in 36 bytes and their checksums differ.
-// strata promises that products are reproducible bit for bit (issue 19, part 5):
+// strata promises that products are reproducible bit for bit:
 // after writing a .vdb it replaces that UUID by one derived from the file's content.
 #include <filesystem>
 

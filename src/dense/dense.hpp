@@ -1,6 +1,6 @@
 #pragma once
 // The dense stage: multi-view stereo depth maps on the CPU, TSDF fusion into an
-// OpenVDB level set, mesh and point-cloud products (issue 5).
+// OpenVDB level set, mesh and point-cloud products.
 //
 // Public surface in the Ceres style: DenseOptions (validated once), DenseSummary,
 // one entry function run_dense(), plus readers of the level set it writes.

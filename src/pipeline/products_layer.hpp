@@ -1,5 +1,5 @@
 #pragma once
-// The products controller (issue 6): from a layer's fused surface and stored
+// The products controller: from a layer's fused surface and stored
 // alignment to its DTM and true orthophoto (COG GeoTIFFs under products/<layer>/),
 // contour lines and footprint (project.gpkg feature tables), recorded as products
 // in one transaction, then the raster tables dtm_<layer> / ortho_<layer> written
@@ -21,7 +21,7 @@ struct ProductsOptions {
   DtmOptions dtm;                  // cell 5 mm by default
   double ortho_cell_m = 0;         // metres; 0 = the DTM cell
   OrthoOptions ortho;
-  // Coded targets found in the orthophoto against the surveyed markers (issue 6).
+  // Coded targets found in the orthophoto against the surveyed markers.
   // The target dictionary and naming should be those the photos were processed with.
   bool check_ortho_markers = true;
   OrthoMarkerCheckOptions ortho_markers;

@@ -1,6 +1,6 @@
 #pragma once
 // Digital terrain model of a layer: the uppermost fused surface seen from above,
-// on a north-up grid (issue 6).
+// on a north-up grid.
 //
 // Frames: grids live in the site frame (site CRS minus the site origin, metres).
 // Heights are stored as Float32 site-frame values (design.md allows Float32 in

@@ -1,5 +1,5 @@
 #pragma once
-// Orthophoto accuracy against the surveyed markers (issue 6): the coded targets
+// Orthophoto accuracy against the surveyed markers: the coded targets
 // are detected in the orthophoto itself (the same ArUco detector as in the photos,
 // src/features/targets.*), each detected centre is turned into map coordinates
 // and compared with the surveyed position of its marker. Acceptance: every
@@ -25,7 +25,7 @@ struct SurveyedMarker {
 struct OrthoMarkerCheckOptions {
   TargetOptions targets;   // dictionary and corner refinement, as for the photos
   TargetNaming naming;     // target id -> marker name, as for the photos
-  double tolerance_px = 2; // orthophoto pixels: a marker further off is flagged (issue 6)
+  double tolerance_px = 2; // orthophoto pixels: a marker further off is flagged
   // The orthophoto is enlarged by these integer factors (bicubic) and searched at
   // each: at the usual 5-10 mm cell a 15 cm target is only 15-30 pixels wide, 2.5-5
   // pixels per code cell, too few for the ArUco contour and bit tests, and whether

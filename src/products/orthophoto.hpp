@@ -1,5 +1,5 @@
 #pragma once
-// True orthophoto of a layer (issue 6).
+// True orthophoto of a layer.
 //
 // Every DTM cell is coloured from photos that actually see it, at the height of
 // the DTM's local median (`rectify_median_radius_m`), with the colour averaged

@@ -1,5 +1,5 @@
 #pragma once
-// Site-plan vectors of a layer (issue 6): contour lines and the reconstructed
+// Site-plan vectors of a layer: contour lines and the reconstructed
 // footprint from its DTM, and their rows in project.gpkg (tables `contours`,
 // `footprints`, view `marker_residuals_view`, schema 0004). GDAL stays in the .cpp.
 #include "products/dtm.hpp"

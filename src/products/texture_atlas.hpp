@@ -1,5 +1,5 @@
 #pragma once
-// Texture atlas of a layer mesh from its photos (issue 16).
+// Texture atlas of a layer mesh from its photos.
 //
 //  1. view choice per face: among the views whose photo holds the whole face (away
 //     from the border), that face it within `max_view_angle_deg` and in which it is

@@ -1,5 +1,5 @@
 #pragma once
-// The field report (issue 8): one self-contained HTML file (images inline as PNG,
+// The field report: one self-contained HTML file (images inline as PNG,
 // drawings as inline SVG, CSS inline, no links out) that tells an archaeologist
 // at the trench edge whether a layer is recorded well enough to dig it away.
 // GDAL, OpenCV and the database queries stay in the .cpp files.

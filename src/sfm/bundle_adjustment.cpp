@@ -270,7 +270,7 @@ BundleSummary solve_bundle(const BundleOptions& options, BaProblem& problem) {
   // One thread: Ceres sums the residuals and
   // assembles the reduced system per thread, and the order of those floating-point
   // sums moved camera centres by 1e-14 m between identical runs, which changed the
-  // products' checksums (issue 19, part 5). Measured on a 14-photo layer: the sparse
+  // products' checksums. Measured on a 14-photo layer: the sparse
   // stage took 6.0 s with one thread against 6.1 s with two; feature extraction and
   // matching, not the adjustment, use the cores.
   solver_options.num_threads = 1;

@@ -1,5 +1,5 @@
 #pragma once
-// Volumetric stratigraphy (issue 7): layer surfaces on a common site grid, unit
+// Volumetric stratigraphy: layer surfaces on a common site grid, unit
 // solids between them, their measures (volume, area, thickness, uncertainty), a
 // closed mesh of each solid, and the check of the Harris matrix against geometry.
 //
