@@ -21,18 +21,16 @@ constexpr double kLockTimeoutS = 120;
 class Concurrency : public ::testing::Test {
  protected:
   // Two synthetic layers; L1 aligned (sparse), L2 only imported.
+  // Made once for every process of the suite (ctest runs each test in its own process;
+  // support/shared_scene.hpp); each test works on its own copy of the project.
   static void SetUpTestSuite() {
     scratch_ = new test::ScratchDir("concurrency");
     try {
       // 14 photos a layer: with 12, L2 of this seed registers too few photos to see three markers.
-      test::synth(*scratch_ / "data", 1, 14, 5);
-      test::make_project(*scratch_ / "template", *scratch_ / "data", 2);
+      shared_ = test::shared_project("concurrency", 2, 14, 5, std::vector<std::string>{"--until", "sparse"});
     } catch (const std::exception& e) {
       setup_error_ = e.what();
-      return;
     }
-    const auto r = run_strata({"-q", "process", (*scratch_ / "template").string(), "--layer", "L1", "--until", "sparse"});
-    if (r.exit_code != 0) setup_error_ = "process: " + r.err;
   }
   // A failure while the shared project is made fails every test (gtest would report
   // them as skipped, and ctest count a skip as no failure).
@@ -46,16 +44,18 @@ class Concurrency : public ::testing::Test {
   fs::path copy_template(const std::string& name) const {
     const fs::path site = *scratch_ / name;
     fs::remove_all(site);
-    fs::copy(*scratch_ / "template", site, fs::copy_options::recursive);
+    test::copy_scene(shared_ / "template", site);
     return site;
   }
-  static fs::path data() { return *scratch_ / "data"; }
+  static fs::path data() { return shared_ / "data"; }
   static fs::path scratch() { return scratch_->path(); }
 
   static test::ScratchDir* scratch_;
+  static fs::path shared_;
   static std::string setup_error_;
 };
 test::ScratchDir* Concurrency::scratch_ = nullptr;
+fs::path Concurrency::shared_;
 std::string Concurrency::setup_error_;
 
 // `strata ARGS...` refused because `holder` has the project: exit 1, one line that

@@ -33,11 +33,13 @@ constexpr double kBlurSigmaPx = 25;
 
 class Degenerate : public ::testing::Test {
  protected:
-  // The synthetic excavation (seed 5); another place (seed 9) is made by the test that needs it.
+  // The synthetic excavation (seed 5), made once for every process of the suite
+  // (support/shared_scene.hpp; the tests only read it); another place (seed 9) is
+  // made by the test that needs it.
   static void SetUpTestSuite() {
     scratch_ = new test::ScratchDir("degenerate");
     try {
-      test::synth(*scratch_ / "data", 1, 12, 5);
+      shared_ = test::shared_project("degenerate", 1, 12, 5, std::nullopt);
     } catch (const std::exception& e) {
       setup_error_ = e.what();
     }
@@ -50,7 +52,7 @@ class Degenerate : public ::testing::Test {
     scratch_ = nullptr;
   }
   static fs::path scratch() { return scratch_->path(); }
-  static fs::path data() { return scratch() / "data"; }
+  static fs::path data() { return shared_ / "data"; }
   // Another place: the same kind of trench, dug and photographed otherwise (seed 9).
   static fs::path other_place() {
     const fs::path other = scratch() / "other";
@@ -132,9 +134,11 @@ class Degenerate : public ::testing::Test {
     EXPECT_TRUE(test::project_state(site) == before) << "the refused command recorded something";
   }
   static test::ScratchDir* scratch_;
+  static fs::path shared_;
   static std::string setup_error_;
 };
 test::ScratchDir* Degenerate::scratch_ = nullptr;
+fs::path Degenerate::shared_;
 std::string Degenerate::setup_error_;
 
 TEST_F(Degenerate, OnePhotoLayerIsRefused) {

@@ -27,18 +27,15 @@ constexpr std::uintmax_t kFreeBytesLeft = 256 * 1024;
 
 class Faults : public ::testing::Test {
  protected:
-  // One synthetic layer processed to its products.
+  // One synthetic layer processed to its products, made once for every process of the
+  // suite (support/shared_scene.hpp); each test works on its own copy.
   static void SetUpTestSuite() {
     scratch_ = new test::ScratchDir("faults");
     try {
-      test::synth(*scratch_ / "data", 1, 12, 5);
-      test::make_project(*scratch_ / "template", *scratch_ / "data", 1);
+      shared_ = test::shared_project("faults", 1, 12, 5, std::vector<std::string>{});
     } catch (const std::exception& e) {
       setup_error_ = e.what();
-      return;
     }
-    const auto r = run_strata({"-q", "process", (*scratch_ / "template").string(), "--layer", "L1"});
-    if (r.exit_code != 0) setup_error_ = "process: " + r.err;
   }
   // A failure while the shared project is made fails every test (gtest would report
   // them as skipped, and ctest count a skip as no failure).
@@ -51,14 +48,16 @@ class Faults : public ::testing::Test {
   }
   static fs::path copy_template(const fs::path& site) {
     fs::remove_all(site);
-    fs::copy(*scratch_ / "template", site, fs::copy_options::recursive);
+    test::copy_scene(shared_ / "template", site);
     return site;
   }
   static fs::path scratch() { return scratch_->path(); }
   static test::ScratchDir* scratch_;
+  static fs::path shared_;
   static std::string setup_error_;
 };
 test::ScratchDir* Faults::scratch_ = nullptr;
+fs::path Faults::shared_;
 std::string Faults::setup_error_;
 
 // A mount the test made, undone when it ends.
@@ -156,7 +155,7 @@ void expect_disk_full_changes_nothing(const fs::path& mnt, const fs::path& site,
 TEST_F(Faults, DiskFullDuringProductsRecordsNothing) {
   const fs::path mnt = scratch() / "small_disk";
   Mount disk(mnt);
-  if (const std::string why = mount_room_for(disk, *scratch_ / "template"); !why.empty())
+  if (const std::string why = mount_room_for(disk, shared_ / "template"); !why.empty())
     GTEST_SKIP() << "cannot mount a tmpfs here (" << why << "); the disk-full case needs one";
   const fs::path site = copy_template(mnt / "site");
   // New products (another contour interval): the stage runs, and the disk fills
@@ -202,7 +201,7 @@ TEST_F(Faults, ReadOnlyProjectServesReadsAndRefusesWrites) {
   for (const std::vector<std::string>& args :
        {std::vector<std::string>{"unit", "add", r_o, "999"},
         std::vector<std::string>{"process", r_o, "--layer", "L1", "--force", "--until", "sparse"},
-        std::vector<std::string>{"import", "markers", r_o, (scratch() / "data" / "markers.csv").string(), "--update"}}) {
+        std::vector<std::string>{"import", "markers", r_o, (shared_ / "data" / "markers.csv").string(), "--update"}}) {
     const auto r = run_strata(args);
     EXPECT_EQ(r.exit_code, 1) << args[0] << ": " << r.err;
     EXPECT_EQ(test::line_count(r.err), 1) << r.err;
@@ -228,7 +227,7 @@ TEST_F(Faults, MovedProjectKeepsWorking) {
   fs::rename(first, moved);
   // No row names the folder the project was processed in.
   const std::string rows = test::database_rows(moved / "project.gpkg");
-  EXPECT_EQ(rows.find((*scratch_ / "template").string()), std::string::npos);
+  EXPECT_EQ(rows.find((shared_ / "template").string()), std::string::npos);
   EXPECT_EQ(rows.find(first.string()), std::string::npos);
   const std::string m = moved.string();
   auto r = run_strata({"info", m, "--json"});
@@ -286,7 +285,7 @@ TEST_F(Faults, AlteredOrMissingPhotoIsNamedAndNotUsed) {
 
   // Put back, the layer is up to date again; photos unchanged since their last
   // check are not read in full.
-  fs::copy_file(*scratch_ / "template" / fs::relative(photos[1], site), photos[1]);
+  fs::copy_file(shared_ / "template" / fs::relative(photos[1], site), photos[1]);
   at_rest(photos[0]);
   at_rest(photos[1]);
   EXPECT_TRUE(test::project_state(site) == before);

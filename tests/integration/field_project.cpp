@@ -54,6 +54,24 @@ void synth(const fs::path& out, int stages, int photos, int seed) {
           "synth");
 }
 
+fs::path shared_project(const std::string& name, int layers, int photos, int seed,
+                        const std::optional<std::vector<std::string>>& process_l1) {
+  std::string parameters = "layers " + std::to_string(layers) + " photos " + std::to_string(photos) + " seed " +
+                           std::to_string(seed);
+  if (process_l1) {
+    parameters += " process";
+    for (const auto& a : *process_l1) parameters += " " + a;
+  }
+  return shared_scene(name, parameters, [&](const fs::path& dir) {
+    synth(dir / "data", 1, photos, seed);
+    make_project(dir / "template", dir / "data", layers);
+    if (!process_l1) return;
+    std::vector<std::string> args = {"-q", "process", (dir / "template").string(), "--layer", "L1"};
+    args.insert(args.end(), process_l1->begin(), process_l1->end());
+    require(run_strata(args), "process");
+  });
+}
+
 std::vector<std::string> layer_photos(const fs::path& data, const std::string& layer) {
   std::vector<std::string> files;
   for (const auto& e : fs::directory_iterator(data / "photos" / layer)) files.push_back(e.path().string());

@@ -2,9 +2,11 @@
 // Helpers of the hardening tests (issue 19): a small synthetic project made once and
 // copied per test, a snapshot of everything a project records (to show a refused
 // command changed nothing), and strata commands run in the background.
+#include "support/shared_scene.hpp"
 #include "support/test_support.hpp"
 
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -20,6 +22,14 @@ void synth(const std::filesystem::path& out, int stages, int photos, int seed);
 // `data`, k = layers), their photos, the generator's clicks on them and the surveyed
 // markers.
 void make_project(const std::filesystem::path& site, const std::filesystem::path& data, int layers);
+
+// A synthetic excavation of one stage, `data/` (synth(1, photos, seed)), and a project of its
+// `layers` first layers, `template/` (make_project), whose L1 is then processed with
+// `strata process template --layer L1 PROCESS_ARGS...` when `process_l1` is given:
+// made once and shared by every test process (support/shared_scene.hpp). Read it; copy
+// what a test changes (copy_scene). Throws std::runtime_error when a step fails.
+std::filesystem::path shared_project(const std::string& name, int layers, int photos, int seed,
+                                     const std::optional<std::vector<std::string>>& process_l1);
 
 // Every row of the given tables (default: every table) of project.gpkg, as text, in
 // a fixed order.

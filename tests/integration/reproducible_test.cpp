@@ -51,8 +51,8 @@ class Reproducible : public ::testing::Test {
   static void SetUpTestSuite() {
     scratch_ = new test::ScratchDir("reproducible");
     try {
-      test::synth(*scratch_ / "data", 1, 12, 5);
-      test::make_project(*scratch_ / "template", *scratch_ / "data", 1);
+      // Made once (support/shared_scene.hpp); each run works on a copy.
+      shared_ = test::shared_project("reproducible", 1, 12, 5, std::nullopt);
     } catch (const std::exception& e) {
       setup_error_ = e.what();
     }
@@ -68,13 +68,15 @@ class Reproducible : public ::testing::Test {
   static fs::path fresh(const std::string& name) {
     const fs::path site = *scratch_ / name;
     fs::remove_all(site);
-    fs::copy(*scratch_ / "template", site, fs::copy_options::recursive);
+    test::copy_scene(shared_ / "template", site);
     return site;
   }
   static test::ScratchDir* scratch_;
+  static fs::path shared_;
   static std::string setup_error_;
 };
 test::ScratchDir* Reproducible::scratch_ = nullptr;
+fs::path Reproducible::shared_;
 std::string Reproducible::setup_error_;
 
 TEST_F(Reproducible, ProductsAreTheSameWithOneOrTwoThreadsAndAfterKills) {

@@ -3,11 +3,13 @@
 // smear onto the floor behind it). The views differ in exposure.
 #include "core/error.hpp"
 #include "products/orthophoto.hpp"
+#include "support/shared_scene.hpp"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <cstdio>
+#include <fstream>
 
 namespace strata {
 namespace {
@@ -71,7 +73,8 @@ bool cast(const Eigen::Vector3d& o, const Eigen::Vector3d& d, Eigen::Vector3d& h
   return false;
 }
 
-OrthoView render(const std::string& name, const Eigen::Vector3d& centre, double exposure) {
+// A 320 x 240 camera at `centre` looking at the origin, no pixels yet.
+OrthoView camera_at(const std::string& name, const Eigen::Vector3d& centre) {
   OrthoView v;
   v.name = name;
   Intrinsics& K = v.camera.intrinsics;
@@ -82,6 +85,12 @@ OrthoView render(const std::string& name, const Eigen::Vector3d& centre, double 
   K.cy = 119.5;
   K.k1 = -0.03;
   v.camera.pose = Pose::look_at(centre, Eigen::Vector3d(0, 0, 0), Eigen::Vector3d::UnitY());
+  return v;
+}
+
+OrthoView render(const std::string& name, const Eigen::Vector3d& centre, double exposure) {
+  OrthoView v = camera_at(name, centre);
+  const Intrinsics& K = v.camera.intrinsics;
   v.rgb.assign(std::size_t(K.width) * K.height * 3, 0);
   const Eigen::Vector3d C = v.camera.pose.centre();
   for (int y = 0; y < K.height; ++y) {
@@ -112,9 +121,23 @@ class OrthoScene : public ::testing::Test {
     const std::vector<std::pair<Eigen::Vector3d, double>> cams = {
         {{0.0, 0.0, 1.0}, 1.00},   {{0.5, 0.1, 0.9}, 1.15},  {{-0.5, -0.1, 0.9}, 0.85},
         {{0.1, 0.5, 0.9}, 1.05},   {{-0.1, -0.5, 0.9}, 0.90}, {{0.6, -0.5, 0.8}, 1.10}};
+    // The pixels are rendered once for every process of the suite (ctest runs each
+    // test in its own process; support/shared_scene.hpp), the cameras made here.
+    const auto name = [](std::size_t i) { return "v" + std::to_string(i); };
+    const std::filesystem::path dir = test::shared_scene("ortho_views", "six views 320x240", [&](const auto& d) {
+      for (std::size_t i = 0; i < cams.size(); ++i) {
+        const OrthoView v = render(name(i), cams[i].first, cams[i].second);
+        std::ofstream(d / (name(i) + ".rgb"), std::ios::binary)
+            .write(reinterpret_cast<const char*>(v.rgb.data()), std::streamsize(v.rgb.size()));
+      }
+    });
     views_ = new std::vector<OrthoView>();
     for (std::size_t i = 0; i < cams.size(); ++i) {
-      views_->push_back(render("v" + std::to_string(i), cams[i].first, cams[i].second));
+      OrthoView v = camera_at(name(i), cams[i].first);
+      v.rgb.resize(std::size_t(v.camera.intrinsics.width) * v.camera.intrinsics.height * 3);
+      std::ifstream(dir / (name(i) + ".rgb"), std::ios::binary)
+          .read(reinterpret_cast<char*>(v.rgb.data()), std::streamsize(v.rgb.size()));
+      views_->push_back(std::move(v));
       exposures_.push_back(cams[i].second);
     }
   }

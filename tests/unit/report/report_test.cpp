@@ -9,6 +9,7 @@
 #include "project/project.hpp"
 #include "project/records.hpp"
 #include "report/report.hpp"
+#include "support/shared_scene.hpp"
 #include "support/test_support.hpp"
 #include "volume/raster_io.hpp"
 
@@ -17,6 +18,7 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <optional>
 #include <random>
 #include <regex>
 
@@ -267,26 +269,32 @@ void keep(const fs::path& file, const std::string& name) {
   }
 }
 
+// The project is built once for every process of the suite (ctest runs each test in
+// its own process; support/shared_scene.hpp); reports are written into the project,
+// so each test works on its own copy.
 class ReportTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    scratch_ = new test::ScratchDir("site");
-    Project p = make_project(scratch_->path());
-    process_layer(p, "L1", 0.0, true);
-    process_layer(p, "L2", -0.1, true);
-    import_photos(p, "L3", 12);  // photographed, not processed
-    add_volumes(p);              // L4: nothing at all
+    shared_ = test::shared_scene("report_site", "L1 L2 processed, L3 photographed, L4 empty", [](const fs::path& d) {
+      Project p = make_project(d / "site");
+      process_layer(p, "L1", 0.0, true);
+      process_layer(p, "L2", -0.1, true);
+      import_photos(p, "L3", 12);  // photographed, not processed
+      add_volumes(p);              // L4: nothing at all
+    });
   }
-  static void TearDownTestSuite() {
-    delete scratch_;
-    scratch_ = nullptr;
+  void SetUp() override {
+    scratch_.emplace("site");
+    test::copy_scene(shared_ / "site", site());
   }
-  static test::ScratchDir* scratch_;
+  fs::path site() const { return scratch_->path() / "site"; }
+  static fs::path shared_;
+  std::optional<test::ScratchDir> scratch_;
 };
-test::ScratchDir* ReportTest::scratch_ = nullptr;
+fs::path ReportTest::shared_;
 
 TEST_F(ReportTest, LayerReportHasEverySectionAndNoExternalUrl) {
-  Project p = Project::open(scratch_->path());
+  Project p = Project::open(site());
   const fs::path out = write_layer_report_product(p, "L1");
   ASSERT_TRUE(fs::exists(out));
   EXPECT_TRUE(find_product(p.db(), require_layer(p.db(), "L1").id, "report").has_value());
@@ -306,7 +314,7 @@ TEST_F(ReportTest, LayerReportHasEverySectionAndNoExternalUrl) {
 }
 
 TEST_F(ReportTest, LayerReportSummaryMatchesTheRules) {
-  Project p = Project::open(scratch_->path());
+  Project p = Project::open(site());
   ReportSummary s;
   layer_report_html(p, "L1", {}, &s);
   ASSERT_EQ(s.layers.size(), 1u);
@@ -321,7 +329,7 @@ TEST_F(ReportTest, LayerReportSummaryMatchesTheRules) {
 }
 
 TEST_F(ReportTest, UnprocessedLayersAreSaidInPlainWords) {
-  Project p = Project::open(scratch_->path());
+  Project p = Project::open(site());
   const std::string l3 = layer_report_html(p, "L3", {});
   expect_self_contained(l3);
   EXPECT_NE(l3.find("the layer has not been aligned"), std::string::npos);
@@ -332,8 +340,8 @@ TEST_F(ReportTest, UnprocessedLayersAreSaidInPlainWords) {
 }
 
 TEST_F(ReportTest, SiteReportHasEverySection) {
-  Project p = Project::open(scratch_->path());
-  const fs::path out = scratch_->path() / "site.html";
+  Project p = Project::open(site());
+  const fs::path out = site() / "site.html";
   const ReportSummary s = write_site_report(p, out, {});
   keep(out, "site.html");
   EXPECT_EQ(s.layers.size(), 4u);
@@ -359,15 +367,15 @@ TEST(ReportEmpty, SiteReportOfAnEmptyProject) {
 }
 
 TEST_F(ReportTest, CommandLine) {
-  const fs::path out = scratch_->path() / "cli" / "report.html";
-  auto r = test::run_strata({"report", scratch_->path().string(), "--layer", "L1", "--out", out.string(), "--json"});
+  const fs::path out = site() / "cli" / "report.html";
+  auto r = test::run_strata({"report", site().string(), "--layer", "L1", "--out", out.string(), "--json"});
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_TRUE(fs::exists(out));
   const auto j = nlohmann::json::parse(r.out);
   ASSERT_EQ(j.size(), 1u);
   EXPECT_EQ(j[0]["layer"], "L1");
   EXPECT_GE(j[0]["problems"].get<int>(), 1);
-  r = test::run_strata({"report", scratch_->path().string(), "--layer", "nope", "--out", out.string()});
+  r = test::run_strata({"report", site().string(), "--layer", "nope", "--out", out.string()});
   EXPECT_NE(r.exit_code, 0);
   EXPECT_NE(r.err.find("nope"), std::string::npos) << r.err;
 }

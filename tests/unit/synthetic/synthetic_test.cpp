@@ -2,6 +2,7 @@
 // itself and with the photos (issue 3).
 #include "core/error.hpp"
 #include "geometry/camera.hpp"
+#include "support/shared_scene.hpp"
 #include "support/test_support.hpp"
 #include "synthetic/finds.hpp"
 #include "synthetic/render.hpp"
@@ -130,39 +131,40 @@ Camera camera_from_row(const std::map<std::string, std::string>& row, const Eige
   return c;
 }
 
-// The small scene, generated once for the suite.
+// The small scene, generated once for every process of the suite (ctest runs each
+// test in its own process; support/shared_scene.hpp). The tests only read it; the
+// generator's summary figures they check are kept beside it, in summary.txt.
 class SmallExcavation : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    // One folder per process: ctest runs the tests of this suite in parallel processes.
-    dir_ = new fs::path(test::binary_dir() / "scratch" / ("synthetic_small." + std::to_string(::getpid())));
-    fs::remove_all(*dir_);
     options_ = SyntheticExcavationOptions::preset(SyntheticExcavationOptions::Size::small);
     options_.seed = 3;
     options_.photos.per_layer = 8;  // the small preset, fewer photos: keeps the suite fast
-    summary_ = new SyntheticExcavationSummary(generate_excavation(options_, *dir_));
-  }
-  static void TearDownTestSuite() {
-    if (!std::getenv("STRATA_KEEP_SCRATCH")) fs::remove_all(*dir_);
-    delete dir_;
-    delete summary_;
+    const fs::path scene = test::shared_scene("synthetic_small", "small seed 3 photos 8", [](const fs::path& d) {
+      const auto s = generate_excavation(options_, d / "data");
+      std::ofstream(d / "summary.txt") << s.layers << " " << s.photos << " " << s.finds << " "
+                                       << s.planted_contradictions << "\n";
+    });
+    dir_ = scene / "data";
+    std::ifstream(scene / "summary.txt") >> summary_.layers >> summary_.photos >> summary_.finds >>
+        summary_.planted_contradictions;
   }
   static Eigen::Vector3d origin() {
     return {options_.site.origin_e, options_.site.origin_n, options_.site.origin_z};
   }
-  static fs::path* dir_;
+  static fs::path dir_;
   static SyntheticExcavationOptions options_;
-  static SyntheticExcavationSummary* summary_;
+  static SyntheticExcavationSummary summary_;
 };
-fs::path* SmallExcavation::dir_ = nullptr;
+fs::path SmallExcavation::dir_;
 SyntheticExcavationOptions SmallExcavation::options_;
-SyntheticExcavationSummary* SmallExcavation::summary_ = nullptr;
+SyntheticExcavationSummary SmallExcavation::summary_;
 
 TEST_F(SmallExcavation, WritesTheDocumentedLayout) {
-  const fs::path& d = *dir_;
+  const fs::path& d = dir_;
   const int layers = options_.site.stages + 1;
-  EXPECT_EQ(summary_->layers, layers);
-  EXPECT_EQ(summary_->photos, layers * options_.photos.per_layer);
+  EXPECT_EQ(summary_.layers, layers);
+  EXPECT_EQ(summary_.photos, layers * options_.photos.per_layer);
   std::string h;
   read_csv(d / "units.csv", &h);
   EXPECT_EQ(h, "code,type,description");
@@ -210,14 +212,14 @@ TEST_F(SmallExcavation, WritesTheDocumentedLayout) {
 
 TEST_F(SmallExcavation, LaterSurfacesNeverRiseAndGroundOutsideStays) {
   const int layers = options_.site.stages + 1;
-  const Raster first = read_raster(*dir_ / "truth" / "L1" / "surface.tif");
+  const Raster first = read_raster(dir_ / "truth" / "L1" / "surface.tif");
   EXPECT_EQ(first.wkt, "32636");
   EXPECT_DOUBLE_EQ(first.gt[1], options_.render.truth_cell);
   // The site.json trench box, to tell inside from outside.
-  const Table markers = read_csv(*dir_ / "truth" / "markers.csv");
+  const Table markers = read_csv(dir_ / "truth" / "markers.csv");
   Raster prev = first;
   for (int k = 2; k <= layers; ++k) {
-    const Raster r = read_raster(*dir_ / "truth" / ("L" + std::to_string(k)) / "surface.tif");
+    const Raster r = read_raster(dir_ / "truth" / ("L" + std::to_string(k)) / "surface.tif");
     ASSERT_EQ(r.z.size(), prev.z.size());
     int lowered = 0, same_edge = 0, edge = 0;
     for (int row = 0; row < r.rows; ++row)
@@ -238,10 +240,10 @@ TEST_F(SmallExcavation, LaterSurfacesNeverRiseAndGroundOutsideStays) {
 }
 
 TEST_F(SmallExcavation, UnitVolumesAgreeWithTheTruthRasters) {
-  const Table volumes = read_csv(*dir_ / "truth" / "units.csv");
+  const Table volumes = read_csv(dir_ / "truth" / "units.csv");
   for (std::size_t k = 0; k < volumes.size(); ++k) {
-    const Raster before = read_raster(*dir_ / "truth" / ("L" + std::to_string(k + 1)) / "surface.tif");
-    const Raster after = read_raster(*dir_ / "truth" / ("L" + std::to_string(k + 2)) / "surface.tif");
+    const Raster before = read_raster(dir_ / "truth" / ("L" + std::to_string(k + 1)) / "surface.tif");
+    const Raster after = read_raster(dir_ / "truth" / ("L" + std::to_string(k + 2)) / "surface.tif");
     double volume = 0;
     for (std::size_t i = 0; i < before.z.size(); ++i) volume += double(before.z[i]) - double(after.z[i]);
     volume *= before.gt[1] * before.gt[1];
@@ -264,15 +266,15 @@ double height_at(const Raster& r, double e, double n) {
 
 TEST_F(SmallExcavation, FindsArePlantedWellInsideTheirTrueUnit) {
   std::string h;
-  const Table truth = read_csv(*dir_ / "truth" / "finds.csv", &h);
+  const Table truth = read_csv(dir_ / "truth" / "finds.csv", &h);
   EXPECT_EQ(h, "id,E,N,Z,true_unit,recorded_unit,planted_contradiction,depth_m,clearance_m");
-  const Table measured = read_csv(*dir_ / "finds.csv", &h);
+  const Table measured = read_csv(dir_ / "finds.csv", &h);
   EXPECT_EQ(h, "id,E,N,Z,unit,type,description");
   const int stages = options_.site.stages;
   ASSERT_EQ(int(truth.size()), stages * synthetic::kFindsPerUnit + synthetic::kPlantedContradictions);
   ASSERT_EQ(measured.size(), truth.size());
-  EXPECT_EQ(summary_->finds, int(truth.size()));
-  EXPECT_EQ(summary_->planted_contradictions, synthetic::kPlantedContradictions);
+  EXPECT_EQ(summary_.finds, int(truth.size()));
+  EXPECT_EQ(summary_.planted_contradictions, synthetic::kPlantedContradictions);
   std::map<std::string, int> per_unit;
   int contradictions = 0;
   for (std::size_t i = 0; i < truth.size(); ++i) {
@@ -289,8 +291,8 @@ TEST_F(SmallExcavation, FindsArePlantedWellInsideTheirTrueUnit) {
       EXPECT_NEAR(std::stod(m.at(axis)), std::stod(t.at(axis)), kSurveyNoiseBound) << t.at("id") << " " << axis;
     // Unit 10k lies between the surfaces of layers L(k-100) and L(k-99).
     const int k = std::stoi(t.at("true_unit")) - 100;
-    const Raster top = read_raster(*dir_ / "truth" / ("L" + std::to_string(k)) / "surface.tif");
-    const Raster bottom = read_raster(*dir_ / "truth" / ("L" + std::to_string(k + 1)) / "surface.tif");
+    const Raster top = read_raster(dir_ / "truth" / ("L" + std::to_string(k)) / "surface.tif");
+    const Raster bottom = read_raster(dir_ / "truth" / ("L" + std::to_string(k + 1)) / "surface.tif");
     // The raster cell's centre is up to half a cell away: allow for the slope.
     EXPECT_GE(height_at(top, e, n) - z, synthetic::kFindMinClearance - kFindRasterSlack) << t.at("id");
     EXPECT_GE(z - height_at(bottom, e, n), synthetic::kFindMinClearance - kFindRasterSlack) << t.at("id");
@@ -302,14 +304,14 @@ TEST_F(SmallExcavation, FindsArePlantedWellInsideTheirTrueUnit) {
 
 TEST_F(SmallExcavation, MarkersProjectOntoTheGcpListPixels) {
   std::string first;
-  const auto gcp = read_gcp(*dir_ / "gcp_list.txt", &first);
+  const auto gcp = read_gcp(dir_ / "gcp_list.txt", &first);
   EXPECT_EQ(first, "EPSG:32636");
   ASSERT_FALSE(gcp.empty());
   std::map<std::string, Eigen::Vector3d> truth, surveyed;
   std::map<std::string, std::string> kind;
-  for (const auto& m : read_csv(*dir_ / "truth" / "markers.csv"))
+  for (const auto& m : read_csv(dir_ / "truth" / "markers.csv"))
     truth[m.at("name")] = {std::stod(m.at("E")), std::stod(m.at("N")), std::stod(m.at("Z"))};
-  for (const auto& m : read_csv(*dir_ / "markers.csv")) {
+  for (const auto& m : read_csv(dir_ / "markers.csv")) {
     surveyed[m.at("name")] = {std::stod(m.at("E")), std::stod(m.at("N")), std::stod(m.at("Z"))};
     kind[m.at("name")] = m.at("kind");
   }
@@ -321,7 +323,7 @@ TEST_F(SmallExcavation, MarkersProjectOntoTheGcpListPixels) {
 
   std::map<std::string, Camera> cameras;
   for (int k = 1; k <= options_.site.stages + 1; ++k)
-    for (const auto& row : read_csv(*dir_ / "truth" / ("L" + std::to_string(k)) / "cameras.csv"))
+    for (const auto& row : read_csv(dir_ / "truth" / ("L" + std::to_string(k)) / "cameras.csv"))
       cameras[row.at("image")] = camera_from_row(row, origin(), options_.photos.width, options_.photos.height);
   std::map<std::string, int> per_image;
   for (const auto& g : gcp) {
@@ -347,13 +349,13 @@ TEST_F(SmallExcavation, MarkersProjectOntoTheGcpListPixels) {
 // The photos themselves: ArUco finds the printed targets where the truth says.
 TEST_F(SmallExcavation, ArucoFindsTheMarkersAtTheTruePixels) {
   std::string first;
-  const auto gcp = read_gcp(*dir_ / "gcp_list.txt", &first);
+  const auto gcp = read_gcp(dir_ / "gcp_list.txt", &first);
   std::map<std::string, Eigen::Vector3d> truth;
-  for (const auto& m : read_csv(*dir_ / "truth" / "markers.csv"))
+  for (const auto& m : read_csv(dir_ / "truth" / "markers.csv"))
     truth[m.at("name")] = Eigen::Vector3d(std::stod(m.at("E")), std::stod(m.at("N")), std::stod(m.at("Z"))) - origin();
   std::map<std::string, Camera> cameras;
   for (int k = 1; k <= options_.site.stages + 1; ++k)
-    for (const auto& row : read_csv(*dir_ / "truth" / ("L" + std::to_string(k)) / "cameras.csv"))
+    for (const auto& row : read_csv(dir_ / "truth" / ("L" + std::to_string(k)) / "cameras.csv"))
       cameras[row.at("image")] = camera_from_row(row, origin(), options_.photos.width, options_.photos.height);
   // Expected: per image, marker id -> (true pixel, apparent cell size in pixels).
   std::map<std::string, std::map<int, std::pair<Eigen::Vector2d, double>>> expected;
@@ -373,7 +375,7 @@ TEST_F(SmallExcavation, ArucoFindsTheMarkersAtTheTruePixels) {
   int found = 0, must_find = 0, found_of_must = 0;
   for (const auto& [name, markers] : expected) {
     const std::string layer = name.substr(0, name.find('_'));
-    const cv::Mat img = cv::imread((*dir_ / "photos" / layer / name).string());
+    const cv::Mat img = cv::imread((dir_ / "photos" / layer / name).string());
     ASSERT_FALSE(img.empty()) << name;
     std::vector<int> ids;
     std::vector<std::vector<cv::Point2f>> corners;

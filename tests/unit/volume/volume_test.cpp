@@ -6,6 +6,7 @@
 #include "project/project.hpp"
 #include "project/records.hpp"
 #include "stratigraphy/harris_matrix.hpp"
+#include "support/shared_scene.hpp"
 #include "support/test_support.hpp"
 #include "synthetic/synthetic.hpp"
 #include "volume/connected_components.hpp"
@@ -424,18 +425,22 @@ struct TruthUnit {
 
 class SyntheticVolumes : public ::testing::Test {
  protected:
+  // The scene is shared by every process of the suite (support/shared_scene.hpp);
+  // the tests only read it.
   static void SetUpTestSuite() {
-    dir_ = new test::ScratchDir("volume_synthetic");
-    auto o = SyntheticExcavationOptions::preset(SyntheticExcavationOptions::Size::small);
-    // Only the truth rasters matter here: the fewest, smallest photos the generator allows.
-    o.photos.per_layer = 3;
-    o.photos.width = 96;
-    o.photos.height = 64;
-    o.render.texel = 0.01;
-    o.render.edge_samples = 0;
-    o.render.truth_margin = 0.25;  // punch_gaps() below places the trench sides 0.25 m in
-    generate_excavation(o, *dir_ / "synth");
-    std::ifstream in(*dir_ / "synth" / "truth" / "units.csv");
+    dir_ = test::shared_scene("volume_synthetic", "small photos 3 96x64 texel 0.01 edges 0 margin 0.25",
+                              [](const fs::path& dir) {
+      auto o = SyntheticExcavationOptions::preset(SyntheticExcavationOptions::Size::small);
+      // Only the truth rasters matter here: the fewest, smallest photos the generator allows.
+      o.photos.per_layer = 3;
+      o.photos.width = 96;
+      o.photos.height = 64;
+      o.render.texel = 0.01;
+      o.render.edge_samples = 0;
+      o.render.truth_margin = 0.25;  // punch_gaps() below places the trench sides 0.25 m in
+      generate_excavation(o, dir / "synth");
+    });
+    std::ifstream in(synth() / "truth" / "units.csv");
     std::string line;
     std::getline(in, line);
     while (std::getline(in, line)) {
@@ -449,11 +454,7 @@ class SyntheticVolumes : public ::testing::Test {
       truth_[unit] = {std::stod(v), std::stod(a), std::stod(m), std::stod(x)};
     }
   }
-  static void TearDownTestSuite() {
-    delete dir_;
-    dir_ = nullptr;
-  }
-  static fs::path synth() { return *dir_ / "synth"; }
+  static fs::path synth() { return dir_ / "synth"; }
   static const Eigen::Vector3d origin() {
     static const Eigen::Vector3d o(734000.0, 4174000.0, 1450.0);  // SyntheticExcavationOptions::Site defaults
     return o;
@@ -470,10 +471,10 @@ class SyntheticVolumes : public ::testing::Test {
     }
     return out;
   }
-  static test::ScratchDir* dir_;
+  static fs::path dir_;
   static std::map<std::string, TruthUnit> truth_;
 };
-test::ScratchDir* SyntheticVolumes::dir_ = nullptr;
+fs::path SyntheticVolumes::dir_;
 std::map<std::string, TruthUnit> SyntheticVolumes::truth_;
 
 TEST_F(SyntheticVolumes, VolumesMatchTruth) {
