@@ -40,7 +40,7 @@ TEST(Qgis, GroupsInStratigraphicOrderWithRelativeSources) {
   ASSERT_NE(l1, std::string::npos);
   EXPECT_LT(l2, l1);  // latest capture on top
   EXPECT_NE(xml.find("<datasource>./products/L1/dtm.tif</datasource>"), std::string::npos);
-  EXPECT_NE(xml.find("./project.gpkg|layername=contours|subset=&quot;layer&quot; = &apos;L1&apos;"), std::string::npos);
+  EXPECT_NE(xml.find("./project.gpkg|layername=contours|subset=&quot;layer&quot; = &#39;L1&#39;"), std::string::npos);
   EXPECT_NE(xml.find("rasterrenderer type=\"hillshade\""), std::string::npos);
   EXPECT_NE(xml.find("<labeling type=\"simple\">"), std::string::npos);
   EXPECT_NE(xml.find("<Absolute type=\"bool\">false</Absolute>"), std::string::npos);
