@@ -1,5 +1,6 @@
 #include "products/grass_export.hpp"
 
+#include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/fault.hpp"
 #include "core/log.hpp"
@@ -65,21 +66,6 @@ void write_vectors(const fs::path& gpkg, const fs::path& out, const std::vector<
   if (ec) throw IoError(fmt::format("exporter.grass: {}: {}", out.string(), ec.message()));
 }
 
-// Copies (or writes) through a temporary name in the same folder, renamed into place
-// when complete.
-void copy_atomically(const fs::path& src, const fs::path& dst) {
-  const fs::path tmp = dst.string() + ".tmp";
-  std::error_code ec;
-  fs::copy_file(src, tmp, fs::copy_options::overwrite_existing, ec);
-  if (!ec) fs::rename(tmp, dst, ec);
-  if (ec) {
-    std::error_code ignored;
-    fs::remove(tmp, ignored);
-    throw IoError(fmt::format("exporter.grass: {}: cannot copy {} there: {}", dst.string(), src.string(),
-                              ec.message()));
-  }
-}
-
 }  // namespace
 
 std::string grass_map_name(const std::string& text) {
@@ -108,7 +94,7 @@ GrassExportSummary export_grass(Project& project, const fs::path& out) {
         continue;
       }
       const std::string file = fmt::format("{}_{}.tif", base, kind);
-      copy_atomically(src, out / file);
+      copy_atomically(src, out / file, "exporter.grass");
       fault::point("export.grass.raster_copied");
       sum.files.push_back(out / file);
       const std::string map = fmt::format("{}_{}", base, kind);
@@ -169,23 +155,17 @@ GrassExportSummary export_grass(Project& project, const fs::path& out) {
   // The script last, through a temporary name like every file here: whenever the
   // process dies, each file in the folder is whole (the old one or the new one).
   sum.script = out / "import.sh";
-  const fs::path tmp = sum.script.string() + ".tmp";
-  {
-    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
-    f << script;
-    f.close();  // the flush can fail (a full disk) as well as the write
-    if (!f) {
-      std::error_code ec;
-      fs::remove(tmp, ec);
-      throw IoError(fmt::format("exporter.grass: {}: cannot write", sum.script.string()));
-    }
-  }
-  fs::permissions(tmp, fs::perms::owner_exec | fs::perms::group_exec | fs::perms::others_exec,
-                  fs::perm_options::add);
-  fault::point("export.grass.script_temp_written");
-  std::error_code ec;
-  fs::rename(tmp, sum.script, ec);
-  if (ec) throw IoError(fmt::format("exporter.grass: {}: {}", sum.script.string(), ec.message()));
+  write_atomically(
+      sum.script, "exporter.grass",
+      [&](const fs::path& tmp) {
+        std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
+        f << script;
+        f.close();  // the flush can fail (a full disk) as well as the write
+        if (!f) throw IoError(fmt::format("exporter.grass: {}: cannot write", sum.script.string()));
+        fs::permissions(tmp, fs::perms::owner_exec | fs::perms::group_exec | fs::perms::others_exec,
+                        fs::perm_options::add);
+      },
+      "export.grass.script_temp_written");
   return sum;
 }
 

@@ -1,5 +1,6 @@
 #include "products/raster_io.hpp"
 
+#include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/fault.hpp"
 #include "core/log.hpp"
@@ -82,8 +83,6 @@ DatasetPtr make_mem(const RasterGrid& g, int bands, GDALDataType type, const Ras
 
 // Copies a MEM dataset to a GeoTIFF/COG at `path` through a temporary name.
 void write_copy(GDALDataset* src, const fs::path& path, const GeoTiffOptions& o, bool floating) {
-  if (path.has_parent_path()) fs::create_directories(path.parent_path());
-  const fs::path tmp = path.string() + ".tmp.tif";
   Options opt;
   GDALDriver* drv = nullptr;
   const std::string compress = o.compression.empty() ? "NONE" : o.compression;
@@ -103,21 +102,17 @@ void write_copy(GDALDataset* src, const fs::path& path, const GeoTiffOptions& o,
   }
   if (!drv) throw IoError(fmt::format("writer.geotiff: {}: GDAL lacks the {} driver", path.string(),
                                       o.cog ? "COG" : "GTiff"));
-  CPLErrorReset();
-  errno = 0;
-  DatasetPtr out(drv->CreateCopy(tmp.string().c_str(), src, FALSE, opt.get(), nullptr, nullptr));
-  const bool created = out != nullptr;
-  out.reset();  // flush and close before the rename; a failure here is a failed write too
-  if (!created || gdal_failed()) {
-    const std::string why = write_failure(tmp);
-    std::error_code ec;
-    fs::remove(tmp, ec);
-    throw IoError(fmt::format("writer.geotiff: {}: {}", path.string(), why));
-  }
-  fault::point("products.geotiff.temp_written");
-  std::error_code ec;
-  fs::rename(tmp, path, ec);
-  if (ec) throw IoError(fmt::format("writer.geotiff: {}: {}", path.string(), ec.message()));
+  write_atomically(
+      path, "writer.geotiff",
+      [&](const fs::path& tmp) {
+        CPLErrorReset();
+        errno = 0;
+        DatasetPtr out(drv->CreateCopy(tmp.string().c_str(), src, FALSE, opt.get(), nullptr, nullptr));
+        const bool created = out != nullptr;
+        out.reset();  // flush and close before the rename; a failure here is a failed write too
+        if (!created || gdal_failed()) throw IoError(fmt::format("writer.geotiff: {}: {}", path.string(), write_failure(tmp)));
+      },
+      "products.geotiff.temp_written");
 }
 
 bool table_exists(Database& db, const std::string& name) {

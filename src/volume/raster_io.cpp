@@ -1,6 +1,7 @@
 // GeoTIFF height rasters (reader.dtm) and thickness rasters (writer.thickness).
 #include "volume/raster_io.hpp"
 
+#include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "crs/crs.hpp"
 #include "products/gdal_util.hpp"
@@ -67,58 +68,54 @@ void write_field_geotiff(const fs::path& path, const HeightField& field, const E
   GDALAllRegister();
   GDALDriver* driver = GetGDALDriverManager()->GetDriverByName("GTiff");
   if (!driver) throw IoError("writer.thickness: GDAL has no GTiff driver");
-  const fs::path tmp = path.string() + ".partial";
-  char** opts = nullptr;
-  opts = CSLSetNameValue(opts, "COMPRESS", "DEFLATE");
-  opts = CSLSetNameValue(opts, "PREDICTOR", "3");
-  opts = CSLSetNameValue(opts, "TILED", "YES");
-  // A failure anywhere (create, a row, the flush on close: a full disk) removes the
-  // partial file and names the cause.
-  auto failed = [&](const std::string& what) {
-    const std::string why = products_detail::write_failure(tmp);
-    std::error_code ec;
-    fs::remove(tmp, ec);
-    return IoError(fmt::format("writer.thickness: {}: {}{}", path.string(), what, why));
-  };
-  CPLErrorReset();
-  errno = 0;
-  {
-    DatasetPtr ds(driver->Create(tmp.c_str(), field.nx, field.ny, 1, GDT_Float32, opts));
-    CSLDestroy(opts);
-    if (!ds) throw failed("cannot create: ");
-    const double west = site_origin.x() + field.x0 - 0.5 * field.cell;
-    const double north = site_origin.y() + field.y0 + (field.ny - 0.5) * field.cell;
-    double gt[6] = {west, field.cell, 0, north, 0, -field.cell};
-    ds->SetGeoTransform(gt);
-    OGRSpatialReference srs;
-    const CrsInfo info = describe_crs(crs);
-    if (srs.importFromWkt(info.wkt.c_str()) == OGRERR_NONE) {
-      srs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-      ds->SetSpatialRef(&srs);
-    }
-    GDALRasterBand* band = ds->GetRasterBand(1);
-    band->SetNoDataValue(kNodata);
-    band->SetDescription(description.c_str());
-    band->SetUnitType("m");
-    std::vector<float> row(std::size_t(field.nx));
-    CPLErrorReset();  // from here, any GDAL failure is the writing's
+  write_atomically(path, "writer.thickness", [&](const fs::path& tmp) {
+    char** opts = nullptr;
+    opts = CSLSetNameValue(opts, "COMPRESS", "DEFLATE");
+    opts = CSLSetNameValue(opts, "PREDICTOR", "3");
+    opts = CSLSetNameValue(opts, "TILED", "YES");
+    // A failure anywhere (create, a row, the flush on close: a full disk) names the
+    // cause; write_atomically removes the temporary.
+    auto failed = [&](const std::string& what) {
+      const std::string why = products_detail::write_failure(tmp);
+      return IoError(fmt::format("writer.thickness: {}: {}{}", path.string(), what, why));
+    };
+    CPLErrorReset();
     errno = 0;
-    for (int r = 0; r < field.ny; ++r) {
-      const int j = field.ny - 1 - r;
-      for (int i = 0; i < field.nx; ++i) {
-        const double v = field.at(i, j);
-        row[std::size_t(i)] = std::isfinite(v) ? float(v + value_offset) : float(kNodata);
+    {
+      DatasetPtr ds(driver->Create(tmp.c_str(), field.nx, field.ny, 1, GDT_Float32, opts));
+      CSLDestroy(opts);
+      if (!ds) throw failed("cannot create: ");
+      const double west = site_origin.x() + field.x0 - 0.5 * field.cell;
+      const double north = site_origin.y() + field.y0 + (field.ny - 0.5) * field.cell;
+      double gt[6] = {west, field.cell, 0, north, 0, -field.cell};
+      ds->SetGeoTransform(gt);
+      OGRSpatialReference srs;
+      const CrsInfo info = describe_crs(crs);
+      if (srs.importFromWkt(info.wkt.c_str()) == OGRERR_NONE) {
+        srs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+        ds->SetSpatialRef(&srs);
       }
-      if (band->RasterIO(GF_Write, 0, r, field.nx, 1, row.data(), field.nx, 1, GDT_Float32, 0, 0) != CE_None) {
-        ds.reset();
-        throw failed(fmt::format("cannot write row {}: ", r));
+      GDALRasterBand* band = ds->GetRasterBand(1);
+      band->SetNoDataValue(kNodata);
+      band->SetDescription(description.c_str());
+      band->SetUnitType("m");
+      std::vector<float> row(std::size_t(field.nx));
+      CPLErrorReset();  // from here, any GDAL failure is the writing's
+      errno = 0;
+      for (int r = 0; r < field.ny; ++r) {
+        const int j = field.ny - 1 - r;
+        for (int i = 0; i < field.nx; ++i) {
+          const double v = field.at(i, j);
+          row[std::size_t(i)] = std::isfinite(v) ? float(v + value_offset) : float(kNodata);
+        }
+        if (band->RasterIO(GF_Write, 0, r, field.nx, 1, row.data(), field.nx, 1, GDT_Float32, 0, 0) != CE_None) {
+          ds.reset();
+          throw failed(fmt::format("cannot write row {}: ", r));
+        }
       }
-    }
-  }  // closed: GDAL flushes here, and a failure shows in its error state
-  if (products_detail::gdal_failed()) throw failed("");
-  std::error_code ec;
-  fs::rename(tmp, path, ec);
-  if (ec) throw IoError(fmt::format("writer.thickness: {}: {}", path.string(), ec.message()));
+    }  // closed: GDAL flushes here, and a failure shows in its error state
+    if (products_detail::gdal_failed()) throw failed("");
+  });
 }
 
 }  // namespace strata
