@@ -35,8 +35,6 @@ class Unkeyed {
     return *this;
   }
   operator T() const { return value_; }  // NOLINT(google-explicit-constructor)
-  T& value() { return value_; }
-  const T& value() const { return value_; }
 
  private:
   T value_;

@@ -116,10 +116,6 @@ std::filesystem::path matches_file(const std::filesystem::path& cache_dir,
   return sharded(cache_dir / "matches", match_key, ".match");
 }
 
-void write_file_atomic(const std::filesystem::path& path, const std::string& bytes) {
-  write_bytes_atomically(path, "features cache", bytes, "process.features.file_temp_written");
-}
-
 void write_features(const std::filesystem::path& path, const StoredFeatures& f) {
   const std::size_t n = f.points.size();
   STRATA_CHECK(f.scales.size() == n && f.colours.size() == 3 * n &&
@@ -138,7 +134,7 @@ void write_features(const std::filesystem::path& path, const StoredFeatures& f) 
   w.raw(f.descriptors.data(), f.descriptors.size());
   w.raw(kEndMagic, sizeof kEndMagic);
   seal(w.bytes());
-  write_file_atomic(path, w.bytes());
+  write_bytes_atomically(path, "features cache", w.bytes(), "process.features.file_temp_written");
 }
 
 std::optional<StoredFeatures> read_features(const std::filesystem::path& path) {
@@ -188,7 +184,7 @@ void write_matches(const std::filesystem::path& path, const StoredMatches& m) {
   }
   w.raw(kEndMagic, sizeof kEndMagic);
   seal(w.bytes());
-  write_file_atomic(path, w.bytes());
+  write_bytes_atomically(path, "features cache", w.bytes(), "process.features.file_temp_written");
 }
 
 std::optional<StoredMatches> read_matches(const std::filesystem::path& path) {

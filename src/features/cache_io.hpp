@@ -38,10 +38,6 @@ std::filesystem::path features_file(const std::filesystem::path& cache_dir,
 std::filesystem::path matches_file(const std::filesystem::path& cache_dir,
                                    const std::string& match_key);
 
-// Writes bytes to `path` atomically (temporary file + rename); creates folders.
-// Throws IoError.
-void write_file_atomic(const std::filesystem::path& path, const std::string& bytes);
-
 void write_features(const std::filesystem::path& path, const StoredFeatures& f);
 // Empty when the file is missing; a corrupt or truncated file logs a warning and
 // also returns empty, so the caller recomputes and overwrites it.

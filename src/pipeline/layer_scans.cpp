@@ -55,7 +55,6 @@ LayerScans layer_scans(Project& project, const LayerRecord& layer) {
   LayerScans out;
   const SiteInfo site = project.site();
   CacheKey key("registered scans v1");
-  bool any = false;
   for (const ScanRecord& s : list_scans(project.db(), layer.id)) {
     if (s.registration == ScanRegistration::unregistered) {
       out.unregistered.push_back(s.name);
@@ -70,7 +69,6 @@ LayerScans layer_scans(Project& project, const LayerRecord& layer) {
       out.registered.push_back(survey_scan(file, s, site));
     }
     key.add(s.sha256).add(s.sigma_m).add(s.registration).add(s.crs).add(s.transform);
-    any = true;
     if (s.bounds) {
       if (!out.bounds) {
         out.bounds = s.bounds;
@@ -80,7 +78,7 @@ LayerScans layer_scans(Project& project, const LayerRecord& layer) {
       }
     }
   }
-  if (any) out.key = key.hex();
+  if (!out.registered.empty()) out.key = key.hex();
   return out;
 }
 

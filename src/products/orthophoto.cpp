@@ -356,7 +356,7 @@ RgbaRaster build_orthophoto(const Dtm& dtm, const std::vector<OrthoView>& views,
   {
     Progress progress("orthophoto: views", views.size());
     std::mutex merge;
-    parallel_for_index(views.size(), std::min<int>(o.threads, int(views.size())), [&](std::size_t v) {
+    parallel_for_index(views.size(), o.threads, [&](std::size_t v) {
       check_cancelled();
       const std::vector<ViewSample> samples = sample_view(rect, normals, views[v], o);
       const std::lock_guard<std::mutex> lock(merge);
