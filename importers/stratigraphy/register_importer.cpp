@@ -4,10 +4,12 @@
 #include "importers/markers/delimited.hpp"
 #include "project/records.hpp"
 #include "stratigraphy/harris_matrix.hpp"
+#include "stratigraphy/recorded_matrix.hpp"
+
+#include <fmt/ranges.h>
 
 #include <algorithm>
 #include <map>
-#include <set>
 
 namespace fs = std::filesystem;
 
@@ -16,7 +18,6 @@ namespace {
 
 constexpr const char* kUnitStage = "importer.units.csv";
 constexpr const char* kRelationStage = "importer.relations.csv";
-const std::set<std::string> kUnitTypes = {"deposit", "cut", "structure", "interface"};
 
 // A register's rows: the header names the columns (any order, any case); a line
 // with more fields than the header has an unquoted delimiter in a value.
@@ -80,9 +81,10 @@ std::vector<ParsedUnit> parse_units(const fs::path& file, std::vector<std::strin
   for (auto& row : reg.rows) {
     ParsedUnit u{{0, row.values[0], lower_case(row.values[1]), row.values[2]}, row.at, row.line};
     if (u.record.code.empty()) throw InputError(fmt::format("{}: the unit code is empty", u.at));
-    if (!kUnitTypes.count(u.record.type))
-      throw InputError(fmt::format("{}: unit '{}': type '{}' is not one of deposit, cut, structure, interface", u.at,
-                                   u.record.code, row.values[1]));
+    const auto& types = unit_types();
+    if (std::find(types.begin(), types.end(), u.record.type) == types.end())
+      throw InputError(fmt::format("{}: unit '{}': type '{}' is not one of {}", u.at, u.record.code, row.values[1],
+                                   fmt::join(types, ", ")));
     auto [it, inserted] = seen.try_emplace(u.record.code, units.size());
     if (!inserted) {
       if (!same_unit(units[it->second].record, u.record))
@@ -113,9 +115,7 @@ UnitImportSummary import_units(Project& project, const UnitImportOptions& option
                                      "--update to replace it",
                                      u.at, u.record.code, existing->type, existing->description, u.record.type,
                                      u.record.description));
-      db.prepare("UPDATE units SET type = ?, description = ? WHERE code = ?")
-          .bind_all(u.record.type, u.record.description, u.record.code)
-          .run();
+      update_unit(db, u.record);
       summary.units_updated++;
     } else {
       insert_unit(db, u.record);
@@ -135,11 +135,8 @@ RelationImportSummary import_relations(Project& project, const fs::path& file) {
                                      3, "a,relation,b");
   summary.ignored_columns = reg.ignored_columns;
   auto& db = project.db();
-  std::vector<std::string> codes;
-  for (const auto& u : list_units(db)) codes.push_back(u.code);
-  std::vector<CanonicalRelation> existing;
-  for (const auto& r : list_relations(db)) existing.push_back({r.unit_a, *relation_kind_from_string(r.kind), r.unit_b});
-  HarrisMatrix matrix(codes, existing);
+  HarrisMatrix matrix = recorded_matrix(db);
+  const std::vector<std::string>& codes = matrix.units();
   Transaction tx(db);
   for (const auto& row : reg.rows) {
     for (std::size_t c : {0, 2}) {

@@ -9,6 +9,7 @@
 #include "project/records.hpp"
 #include "stratigraphy/graphviz.hpp"
 #include "stratigraphy/harris_matrix.hpp"
+#include "stratigraphy/recorded_matrix.hpp"
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -19,22 +20,10 @@
 #include <unistd.h>
 
 namespace strata::cli {
+
 namespace {
 
-HarrisMatrix load_matrix(Database& db) {
-  std::vector<std::string> codes;
-  for (const auto& u : list_units(db)) codes.push_back(u.code);
-  std::vector<CanonicalRelation> rels;
-  for (const auto& r : list_relations(db)) {
-    rels.push_back({r.unit_a, *relation_kind_from_string(r.kind), r.unit_b});
-  }
-  return HarrisMatrix(codes, rels);
-}
-
-}  // namespace
-
-void register_stratigraphy_commands(CLI::App& app) {
-  // ---- unit
+void register_unit_commands(CLI::App& app) {
   auto* unit = app.add_subcommand("unit", "stratigraphic units (contexts): add, list");
   unit->require_subcommand(1);
   {
@@ -44,7 +33,7 @@ void register_stratigraphy_commands(CLI::App& app) {
     cmd->add_option("DIR", *dir, "project folder")->required();
     cmd->add_option("CODE", rec->code, "unit code, e.g. 101 or US1024")->required();
     cmd->add_option("--type", rec->type, "deposit (default), cut, structure or interface")
-        ->check(CLI::IsMember({"deposit", "cut", "structure", "interface"}));
+        ->check(CLI::IsMember(unit_types()));
     cmd->add_option("--description", rec->description, "free text, e.g. 'dark brown silty fill'");
     cmd->callback([=] {
       const ProjectLock lock = lock_project(*dir);
@@ -73,8 +62,9 @@ void register_stratigraphy_commands(CLI::App& app) {
       }
     });
   }
+}
 
-  // ---- relation
+void register_relation_commands(CLI::App& app) {
   auto* relation = app.add_subcommand("relation", "stratigraphic relations: add, list");
   relation->require_subcommand(1);
   {
@@ -98,7 +88,7 @@ void register_stratigraphy_commands(CLI::App& app) {
       const CanonicalRelation r = canonical_relation(*a, *word, *b);
       require_unit(p.db(), r.unit_a);
       require_unit(p.db(), r.unit_b);
-      HarrisMatrix matrix = load_matrix(p.db());
+      HarrisMatrix matrix = recorded_matrix(p.db());
       matrix.add(r);  // throws with the cycle
       Transaction tx(p.db());
       const bool added = insert_relation(p.db(), {0, r.unit_a, to_string(r.kind), r.unit_b}) != 0;
@@ -117,8 +107,9 @@ void register_stratigraphy_commands(CLI::App& app) {
       for (const auto& r : list_relations(p.db())) fmt::print("{} {} {}\n", r.unit_a, r.kind, r.unit_b);
     });
   }
+}
 
-  // ---- matrix
+void register_matrix_command(CLI::App& app) {
   {
     auto* cmd = app.add_subcommand(
         "matrix",
@@ -134,7 +125,7 @@ void register_stratigraphy_commands(CLI::App& app) {
     cmd->footer("Example: strata matrix site --format svg --out matrix.svg");
     cmd->callback([=] {
       Project p = Project::open(*dir);
-      const HarrisMatrix m = load_matrix(p.db());
+      const HarrisMatrix m = recorded_matrix(p.db());
       std::string text = *format == "json" ? m.to_json() : m.to_dot();
       if (*format == "svg") {
         const auto svg = graphviz_svg(text);
@@ -153,8 +144,9 @@ void register_stratigraphy_commands(CLI::App& app) {
       }
     });
   }
+}
 
-  // ---- layer
+void register_layer_commands(CLI::App& app) {
   auto* layer = app.add_subcommand("layer", "recorded surfaces (photo sets): add, list");
   layer->require_subcommand(1);
   {
@@ -197,6 +189,15 @@ void register_stratigraphy_commands(CLI::App& app) {
       }
     });
   }
+}
+
+}  // namespace
+
+void register_stratigraphy_commands(CLI::App& app) {
+  register_unit_commands(app);
+  register_relation_commands(app);
+  register_matrix_command(app);
+  register_layer_commands(app);
 }
 
 }  // namespace strata::cli

@@ -5,10 +5,9 @@
 #include "features/features.hpp"
 #include "georef/georeference.hpp"
 #include "pipeline/lens_setup.hpp"
+#include "pipeline/stage_results.hpp"
 #include "project/project.hpp"
 #include "sfm/incremental.hpp"
-
-#include <nlohmann/json.hpp>
 
 #include <string>
 
@@ -32,7 +31,7 @@ struct AlignOptions {
 
 struct AlignResult {
   bool skipped = false;       // up to date: nothing recomputed
-  nlohmann::json quality;     // the figures stored with the reconstruction
+  AlignmentQuality quality;   // the figures stored with the reconstruction
 };
 
 // Aligns one layer and stores cameras, points, residuals and quality in the

@@ -2,6 +2,7 @@
 
 #include "core/error.hpp"
 #include "core/fault.hpp"
+#include "pipeline/stage_json.hpp"
 #include "project/gpkg.hpp"
 
 #include <cstring>
@@ -29,15 +30,14 @@ constexpr std::size_t kPointBytes = 3 * 8 + 3 + 4 + 2;
 }  // namespace
 
 std::int64_t store_alignment(Database& db, const LayerRecord& layer, const SiteInfo& site,
-                             const StoredAlignment& a,
-                             const std::vector<std::pair<std::int64_t, nlohmann::json>>& residuals) {
+                             const StoredAlignment& a, const std::map<std::string, std::int64_t>& marker_ids) {
   // Replacing the sparse result invalidates everything derived from it.
   db.prepare("DELETE FROM reconstructions WHERE layer_id = ?").bind_all(layer.id).run();
   db.prepare("DELETE FROM camera_positions WHERE layer = ?").bind_all(layer.name).run();
   db.prepare(
         "INSERT INTO reconstructions(layer_id, stage, created_at, inputs_key, georeferenced, "
         "quality_json) VALUES (?, 'sparse', strftime('%Y-%m-%dT%H:%M:%SZ','now'), ?, ?, ?)")
-      .bind_all(layer.id, a.inputs_key, a.rec.georeferenced ? 1 : 0, a.quality.dump())
+      .bind_all(layer.id, a.inputs_key, a.rec.georeferenced ? 1 : 0, to_json(a.quality).dump())
       .run();
   const std::int64_t rid = db.last_insert_id();
   fault::point("process.align.reconstruction_inserted");
@@ -101,15 +101,11 @@ std::int64_t store_alignment(Database& db, const LayerRecord& layer, const SiteI
   auto res = db.prepare(
       "INSERT INTO marker_residuals(reconstruction_id, marker_id, role, triangulated, de, dn, dz, "
       "reprojection_px, images) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)");
-  for (const auto& [marker_id, r] : residuals) {
-    res.bind(1, rid).bind(2, marker_id).bind(3, r["role"].get<std::string>());
-    const bool tri = r["triangulated"].get<bool>();
-    res.bind(4, tri ? 1 : 0);
-    if (tri) {
-      res.bind(5, r["dE"].get<double>()).bind(6, r["dN"].get<double>()).bind(7, r["dZ"].get<double>());
-      res.bind(8, r["reprojection_px"].get<double>());
-    }
-    res.bind(9, r["images"].get<int>());
+  for (const MarkerResidual& r : a.quality.markers) {
+    res.bind(1, rid).bind(2, marker_ids.at(r.name)).bind(3, std::string(to_string(r.role)));
+    res.bind(4, r.triangulated ? 1 : 0);
+    if (r.triangulated) res.bind(5, r.dE).bind(6, r.dN).bind(7, r.dZ).bind(8, r.reprojection_px);
+    res.bind(9, r.images);
     res.run();
   }
   update_contents_extent(db, "camera_positions", "e", "n");
@@ -125,7 +121,7 @@ std::optional<StoredAlignment> load_alignment(Database& db, const LayerRecord& l
   StoredAlignment a;
   a.reconstruction_id = st.get_int(0);
   a.rec.georeferenced = st.get_int(1) != 0;
-  a.quality = nlohmann::json::parse(st.get_text(2));
+  a.quality = alignment_quality_from_json(nlohmann::json::parse(st.get_text(2)));
   a.inputs_key = st.get_text(3);
 
   std::map<std::int64_t, int> group_of_camera;

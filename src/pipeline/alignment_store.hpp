@@ -1,12 +1,12 @@
 #pragma once
 // Reading and writing a layer's alignment in the project database.
 #include "project/project.hpp"
+#include "pipeline/stage_results.hpp"
 #include "project/records.hpp"
 #include "sfm/reconstruction.hpp"
 
-#include <nlohmann/json.hpp>
-
 #include <cstdint>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -20,14 +20,14 @@ struct StoredAlignment {
   Reconstruction rec;                    // site frame (metres); groups index `camera_ids`
   std::vector<ImageRecord> images;       // same order as rec.images
   std::vector<std::int64_t> camera_ids;  // per group
-  nlohmann::json quality;
+  AlignmentQuality quality;
   std::string inputs_key;
 };
 
 // Replaces the layer's sparse reconstruction (and everything derived from it).
+// `marker_ids`: the marker rows by name, for the residuals table.
 std::int64_t store_alignment(Database& db, const LayerRecord& layer, const SiteInfo& site,
-                             const StoredAlignment& alignment,
-                             const std::vector<std::pair<std::int64_t, nlohmann::json>>& residuals);
+                             const StoredAlignment& alignment, const std::map<std::string, std::int64_t>& marker_ids);
 
 std::optional<StoredAlignment> load_alignment(Database& db, const LayerRecord& layer);
 

@@ -3,17 +3,16 @@
 // (level-set .vdb), mesh and dense point cloud under products/<layer>/, recorded
 // as products with checksums.
 #include "dense/dense.hpp"
+#include "pipeline/stage_results.hpp"
 #include "project/project.hpp"
-
-#include <nlohmann/json.hpp>
 
 #include <string>
 
 namespace strata {
 
 struct DenseLayerResult {
-  bool skipped = false;
-  nlohmann::json quality;
+  bool skipped = false;  // inputs unchanged since the last run
+  DenseQuality quality;
 };
 
 DenseLayerResult dense_layer(Project& project, const std::string& layer, const DenseOptions& options,

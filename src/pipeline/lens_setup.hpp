@@ -8,7 +8,6 @@
 #include "sfm/incremental.hpp"
 #include "sfm/reconstruction.hpp"
 
-#include <nlohmann/json.hpp>
 
 #include <functional>
 #include <optional>
@@ -97,11 +96,5 @@ Reconstruction reconstruct_with_focal_search(const FocalSearchOptions& options,
                                              const ReconstructFunction& reconstruct,
                                              IncrementalSummary& best_summary,
                                              FocalSearchSummary& summary);
-
-// Quality-report entries: one object per group (model, its source and reason, the
-// solved focal and coefficients, calibration source), and the focal search.
-nlohmann::json cameras_json(const Reconstruction& rec, const std::vector<LensChoice>& choices,
-                            const std::vector<std::int64_t>& camera_ids);
-nlohmann::json focal_search_json(const FocalSearchSummary& summary);
 
 }  // namespace strata

@@ -9,9 +9,8 @@
 #include "products/orthophoto.hpp"
 #include "products/raster_io.hpp"
 #include "products/site_plan.hpp"
+#include "pipeline/stage_results.hpp"
 #include "project/project.hpp"
-
-#include <nlohmann/json.hpp>
 
 #include <string>
 
@@ -35,7 +34,7 @@ struct ProductsOptions {
 
 struct ProductsLayerResult {
   bool skipped = false;            // inputs unchanged since the last run
-  nlohmann::json quality;
+  ProductsQuality quality;
 };
 
 ProductsLayerResult products_layer(Project& project, const std::string& layer, const ProductsOptions& options,

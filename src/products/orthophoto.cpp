@@ -334,42 +334,28 @@ Dtm median_heights(const Dtm& dtm, int radius) {
   return out;
 }
 
-}  // namespace
 
-RgbaRaster build_orthophoto(const Dtm& dtm, const std::vector<OrthoView>& views, const OrthoOptions& o,
-                            OrthoSummary* summary_out) {
-  o.validate();
-  Stopwatch clock;
-  const RasterGrid& g = dtm.grid;
-  STRATA_CHECK(dtm.z.size() == g.cells(), "DTM size mismatch");
-  if (views.size() > 32000) throw InputError("products.ortho: more than 32000 photos in one orthophoto");
-  OrthoSummary s;
-  s.views = int(views.size());
-  for (const auto& v : views) s.view_names.push_back(v.name);
-  for (float z : dtm.z) s.dtm_cells += std::isfinite(z) ? 1 : 0;
+// Visibility, scores and colours of every view, one photo per worker at a time.
+void collect_candidates(const Dtm& rect, const std::vector<Eigen::Vector3f>& normals, const std::vector<OrthoView>& views,
+                        const OrthoOptions& o, Candidates& cand) {
+  Progress progress("orthophoto: views", views.size());
+  std::mutex merge;
+  parallel_for_index(views.size(), o.threads, [&](std::size_t v) {
+    check_cancelled();
+    const std::vector<ViewSample> samples = sample_view(rect, normals, views[v], o);
+    const std::lock_guard<std::mutex> lock(merge);
+    for (const ViewSample& sm : samples) cand.insert(sm.cell, int(v), sm.score, sm.pixel_m, sm.rgb);
+    progress.step();
+  });
+  progress.finish();
+}
 
-  const Dtm rect = median_heights(dtm, int(std::lround(o.rectify_median_radius_m / g.cell)));
-  const std::vector<Eigen::Vector3f> normals = dtm_normals(smoothed_for_normals(rect, o.normal_radius_m));
-  Candidates cand(g.cells(), o.candidates);
-
-  // 1. Visibility, scores and colours, one photo per worker at a time.
-  {
-    Progress progress("orthophoto: views", views.size());
-    std::mutex merge;
-    parallel_for_index(views.size(), o.threads, [&](std::size_t v) {
-      check_cancelled();
-      const std::vector<ViewSample> samples = sample_view(rect, normals, views[v], o);
-      const std::lock_guard<std::mutex> lock(merge);
-      for (const ViewSample& sm : samples) cand.insert(sm.cell, int(v), sm.score, sm.pixel_m, sm.rgb);
-      progress.step();
-    });
-    progress.finish();
-  }
-
-  // 2. Radiometric balance.
-  std::vector<std::array<double, 3>> gains(views.size(), {1.0, 1.0, 1.0});
-  if (o.radiometric_balance && views.size() > 1) balance_gains(cand, int(views.size()), s, gains);
-  for (std::size_t i = 0; i < g.cells(); ++i) {
+// Radiometric balance: per-view gains fitted over the overlaps, applied to every
+// candidate colour.
+void balance_colours(Candidates& cand, std::size_t cells, int views, const OrthoOptions& o, OrthoSummary& s) {
+  std::vector<std::array<double, 3>> gains(std::size_t(views), {1.0, 1.0, 1.0});
+  if (o.radiometric_balance && views > 1) balance_gains(cand, views, s, gains);
+  for (std::size_t i = 0; i < cells; ++i) {
     for (int p = 0; p < cand.k; ++p) {
       const int v = cand.view[i * cand.k + p];
       if (v < 0) break;
@@ -380,10 +366,13 @@ RgbaRaster build_orthophoto(const Dtm& dtm, const std::vector<OrthoView>& views,
     }
   }
   s.gains = gains;
+}
 
-  // 3. Region labels: best score, then ICM on score/best + smoothness * agreeing
-  // 4-neighbours / 4 (a Potts prior, solved greedily; Besag 1986).
-  std::vector<std::int16_t> label(g.cells(), -1);  // view index
+// Region labels (view index per cell, -1 unseen): best score, then ICM on
+// score/best + smoothness * agreeing 4-neighbours / 4 (a Potts prior, solved
+// greedily; Besag 1986).
+std::vector<std::int16_t> region_labels(const Candidates& cand, const RasterGrid& g, const OrthoOptions& o) {
+  std::vector<std::int16_t> label(g.cells(), -1);
   for (std::size_t i = 0; i < g.cells(); ++i) label[i] = cand.view[i * cand.k];
   for (int it = 0; it < o.smoothing_iterations && o.smoothness > 0; ++it) {
     std::size_t changed = 0;
@@ -419,65 +408,87 @@ RgbaRaster build_orthophoto(const Dtm& dtm, const std::vector<OrthoView>& views,
     }
     if (changed == 0) break;
   }
+  return label;
+}
 
-  // 4. Feathered blend: each view's region mask, box-filtered twice (a tent of
-  // half-width about feather_m), weights the candidates that view provides.
+// Colour sums of the feathered blend and their weights per cell.
+struct Blend {
+  std::vector<float> acc;   // 3 per cell
+  std::vector<float> wsum;  // 1 per cell
+};
+
+// One view's region mask, box-filtered twice (a tent of half-width about
+// feather_m), weights the candidates that view provides.
+void blend_view(std::size_t v, const Candidates& cand, const std::vector<std::int16_t>& label, const RasterGrid& g,
+                int radius, Blend& b) {
+  int c0 = g.width, c1 = -1, r0 = g.height, r1 = -1;
+  for (int r = 0; r < g.height; ++r) {
+    for (int c = 0; c < g.width; ++c) {
+      if (label[g.index(c, r)] != std::int16_t(v)) continue;
+      c0 = std::min(c0, c);
+      c1 = std::max(c1, c);
+      r0 = std::min(r0, r);
+      r1 = std::max(r1, r);
+    }
+  }
+  c0 = std::max(0, c0 - 2 * radius);
+  r0 = std::max(0, r0 - 2 * radius);
+  c1 = std::min(g.width - 1, c1 + 2 * radius);
+  r1 = std::min(g.height - 1, r1 + 2 * radius);
+  const int w = c1 - c0 + 1, h = r1 - r0 + 1;
+  std::vector<float> mask(std::size_t(w) * h, 0.f);
+  for (int r = r0; r <= r1; ++r) {
+    for (int c = c0; c <= c1; ++c) {
+      mask[std::size_t(r - r0) * w + (c - c0)] = label[g.index(c, r)] == std::int16_t(v) ? 1.f : 0.f;
+    }
+  }
+  box_blur(mask, w, h, radius);
+  box_blur(mask, w, h, radius);
+  for (int r = r0; r <= r1; ++r) {
+    for (int c = c0; c <= c1; ++c) {
+      const float wt = mask[std::size_t(r - r0) * w + (c - c0)];
+      if (wt <= 1e-6f) continue;
+      const std::size_t i = g.index(c, r);
+      if (label[i] < 0) continue;
+      for (int p = 0; p < cand.k; ++p) {
+        const int cv = cand.view[i * cand.k + p];
+        if (cv < 0) break;
+        if (cv != int(v)) continue;
+        const std::uint8_t* col = &cand.rgb[(i * cand.k + p) * 3];
+        for (int ch = 0; ch < 3; ++ch) b.acc[i * 3 + ch] += wt * col[ch];
+        b.wsum[i] += wt;
+        break;
+      }
+    }
+  }
+}
+
+Blend feathered_blend(const Candidates& cand, const std::vector<std::int16_t>& label, const RasterGrid& g,
+                      std::size_t views, const OrthoOptions& o, OrthoSummary& s) {
   const int radius = std::max(0, int(std::lround(o.feather_m / g.cell / 2.0)));
-  std::vector<float> acc(g.cells() * 3, 0.f), wsum(g.cells(), 0.f);
-  s.cells_per_view.assign(views.size(), 0);
+  Blend b{std::vector<float>(g.cells() * 3, 0.f), std::vector<float>(g.cells(), 0.f)};
+  s.cells_per_view.assign(views, 0);
   for (std::size_t i = 0; i < g.cells(); ++i) {
     if (label[i] >= 0) ++s.cells_per_view[std::size_t(label[i])];
   }
-  for (std::size_t v = 0; v < views.size(); ++v) {
+  for (std::size_t v = 0; v < views; ++v) {
     if (s.cells_per_view[v] == 0) continue;
     ++s.views_used;
-    int c0 = g.width, c1 = -1, r0 = g.height, r1 = -1;
-    for (int r = 0; r < g.height; ++r) {
-      for (int c = 0; c < g.width; ++c) {
-        if (label[g.index(c, r)] != std::int16_t(v)) continue;
-        c0 = std::min(c0, c);
-        c1 = std::max(c1, c);
-        r0 = std::min(r0, r);
-        r1 = std::max(r1, r);
-      }
-    }
-    c0 = std::max(0, c0 - 2 * radius);
-    r0 = std::max(0, r0 - 2 * radius);
-    c1 = std::min(g.width - 1, c1 + 2 * radius);
-    r1 = std::min(g.height - 1, r1 + 2 * radius);
-    const int w = c1 - c0 + 1, h = r1 - r0 + 1;
-    std::vector<float> mask(std::size_t(w) * h, 0.f);
-    for (int r = r0; r <= r1; ++r) {
-      for (int c = c0; c <= c1; ++c) {
-        mask[std::size_t(r - r0) * w + (c - c0)] = label[g.index(c, r)] == std::int16_t(v) ? 1.f : 0.f;
-      }
-    }
-    box_blur(mask, w, h, radius);
-    box_blur(mask, w, h, radius);
-    for (int r = r0; r <= r1; ++r) {
-      for (int c = c0; c <= c1; ++c) {
-        const float wt = mask[std::size_t(r - r0) * w + (c - c0)];
-        if (wt <= 1e-6f) continue;
-        const std::size_t i = g.index(c, r);
-        if (label[i] < 0) continue;
-        for (int p = 0; p < cand.k; ++p) {
-          const int cv = cand.view[i * cand.k + p];
-          if (cv < 0) break;
-          if (cv != int(v)) continue;
-          const std::uint8_t* col = &cand.rgb[(i * cand.k + p) * 3];
-          for (int ch = 0; ch < 3; ++ch) acc[i * 3 + ch] += wt * col[ch];
-          wsum[i] += wt;
-          break;
-        }
-      }
-    }
+    blend_view(v, cand, label, g, radius, b);
   }
+  return b;
+}
 
+// The image: the blend where it has weight, else the cell's own view's colour;
+// counts the coloured cells and the seams between regions.
+RgbaRaster compose(const Candidates& cand, const std::vector<std::int16_t>& label, const Blend& b, const RasterGrid& g,
+                   OrthoSummary& s, std::size_t& seams) {
+  const std::vector<float>& acc = b.acc;
+  const std::vector<float>& wsum = b.wsum;
   RgbaRaster out;
   out.grid = g;
   out.rgba.assign(g.cells() * 4, 0);
   s.source_pixel_m.assign(g.cells(), std::numeric_limits<float>::quiet_NaN());
-  std::size_t seams = 0;
   for (int r = 0; r < g.height; ++r) {
     for (int c = 0; c < g.width; ++c) {
       const std::size_t i = g.index(c, r);
@@ -502,6 +513,32 @@ RgbaRaster build_orthophoto(const Dtm& dtm, const std::vector<OrthoView>& views,
       seams += seam ? 1 : 0;
     }
   }
+  return out;
+}
+
+}  // namespace
+
+RgbaRaster build_orthophoto(const Dtm& dtm, const std::vector<OrthoView>& views, const OrthoOptions& o,
+                            OrthoSummary* summary_out) {
+  o.validate();
+  Stopwatch clock;
+  const RasterGrid& g = dtm.grid;
+  STRATA_CHECK(dtm.z.size() == g.cells(), "DTM size mismatch");
+  if (views.size() > 32000) throw InputError("products.ortho: more than 32000 photos in one orthophoto");
+  OrthoSummary s;
+  s.views = int(views.size());
+  for (const auto& v : views) s.view_names.push_back(v.name);
+  for (float z : dtm.z) s.dtm_cells += std::isfinite(z) ? 1 : 0;
+
+  const Dtm rect = median_heights(dtm, int(std::lround(o.rectify_median_radius_m / g.cell)));
+  const std::vector<Eigen::Vector3f> normals = dtm_normals(smoothed_for_normals(rect, o.normal_radius_m));
+  Candidates cand(g.cells(), o.candidates);
+  collect_candidates(rect, normals, views, o, cand);
+  balance_colours(cand, g.cells(), int(views.size()), o, s);
+  const std::vector<std::int16_t> label = region_labels(cand, g, o);
+  const Blend blend = feathered_blend(cand, label, g, views.size(), o, s);
+  std::size_t seams = 0;
+  RgbaRaster out = compose(cand, label, blend, g, s, seams);
   if (s.coloured_cells == 0) {
     throw ProcessingError("products.ortho: no photo sees any DTM cell (check the alignment and the surface)");
   }

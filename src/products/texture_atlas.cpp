@@ -396,35 +396,12 @@ void dilate(Page& page, int gutter) {
   }
 }
 
-}  // namespace
 
-TexturedMesh build_texture_atlas(const DenseMesh& m, const std::vector<OrthoView>& views, const TextureOptions& o,
-                                 TextureSummary* summary) {
-  o.validate();
-  const Stopwatch clock;
-  if (m.faces.empty()) throw InputError("products.texture: the mesh has no faces");
-  const FaceGeometry g = face_geometry(m);
-
-  FaceCandidates cand(m.faces.size(), o.candidates);
-  for (std::size_t v = 0; v < views.size(); ++v) score_view(m, g, views[v], int(v), o, cand);
-  const std::vector<int> label = smooth_labels(cand, g, o);
-
-  std::vector<Chart> charts = grow_charts(label, g);
-  ChartPixels pixels;
-  for (Chart& c : charts) {
-    pixels.push_back(project_chart(c, m, views[std::size_t(c.view)].camera));
-    chart_bounds(c, pixels.back());
-  }
-  Chart grey;  // untextured faces
-  for (std::size_t f = 0; f < label.size(); ++f)
-    if (label[f] == kNoView) grey.faces.push_back(int(f));
-  if (!grey.faces.empty()) {
-    charts.push_back(grey);
-    pixels.emplace_back();
-  }
-
-  // Fit: shrink the texel scale until the charts pack into max_atlases.
-  double scale = o.texel_scale;
+// Shrinks the texel scale until the charts pack into max_atlases; returns the
+// number of pages, `scale` the scale they packed at.
+int fit_charts(std::vector<Chart>& charts, ChartPixels& pixels, const DenseMesh& m, const TextureOptions& o,
+               double& scale) {
+  scale = o.texel_scale;
   int pages = 0;
   for (int attempt = 0;; ++attempt) {
     split_large(charts, pixels, m, scale, o.atlas_size_px - 2 * o.gutter_px);
@@ -436,7 +413,14 @@ TexturedMesh build_texture_atlas(const DenseMesh& m, const std::vector<OrthoView
     throw ProcessingError(fmt::format("products.texture: the charts do not fit in {} atlases of {} px; raise max_atlases",
                                       o.max_atlases, o.atlas_size_px));
   }
+  return pages;
+}
 
+// The atlas pages: each chart's texels from its photo, then the grey patch of the
+// untextured faces (their mean vertex colour, or mid grey), then the gutters.
+std::vector<Page> paint_atlases(const std::vector<Chart>& charts, const ChartPixels& pixels, const Chart& grey,
+                                const DenseMesh& m, const std::vector<OrthoView>& views, const TextureOptions& o,
+                                int pages, double scale) {
   std::vector<Page> atlas(static_cast<std::size_t>(pages));
   for (Page& p : atlas) {
     p.image.width = p.image.height = o.atlas_size_px;
@@ -454,7 +438,6 @@ TexturedMesh build_texture_atlas(const DenseMesh& m, const std::vector<OrthoView
       fill_chart(charts[i], pixels[i], m, views[std::size_t(v)].camera, photo, o.gutter_px, scale,
                  atlas[std::size_t(charts[i].page)]);
   }
-  // The grey patch: the untextured faces' mean vertex colour, or mid grey.
   std::array<std::uint8_t, 3> grey_rgb = {128, 128, 128};
   if (!grey.faces.empty() && !m.colours.empty()) {
     std::array<double, 3> sum = {0, 0, 0};
@@ -475,7 +458,12 @@ TexturedMesh build_texture_atlas(const DenseMesh& m, const std::vector<OrthoView
   }
   for (Page& p : atlas) dilate(p, o.gutter_px);
 
-  // The output mesh: one vertex per (mesh vertex, chart).
+  return atlas;
+}
+
+// The output mesh: one vertex per (mesh vertex, chart).
+TexturedMesh textured_output(const std::vector<Chart>& charts, const ChartPixels& pixels, const DenseMesh& m,
+                             const TextureOptions& o, double scale) {
   TexturedMesh out;
   const double inv = 1.0 / o.atlas_size_px;
   for (std::size_t ci = 0; ci < charts.size(); ++ci) {
@@ -503,39 +491,78 @@ TexturedMesh build_texture_atlas(const DenseMesh& m, const std::vector<OrthoView
       out.face_view.push_back(c.view);
     }
   }
-  for (Page& p : atlas) out.atlases.push_back(std::move(p.image));
 
+  return out;
+}
+
+TextureSummary texture_summary(const DenseMesh& m, const std::vector<OrthoView>& views, const std::vector<int>& label,
+                               const FaceCandidates& cand, const FaceGeometry& g, std::size_t charts, int pages,
+                               double scale) {
+  TextureSummary s;
+  s.views = int(views.size());
+  s.faces = m.faces.size();
+  s.charts = charts;
+  s.atlases = pages;
+  s.texel_scale = scale;
+  s.faces_per_view.assign(views.size(), 0);
+  for (const auto& v : views) s.view_names.push_back(v.name);
+  std::vector<double> texel_m;
+  std::size_t interior = 0, seams = 0;
+  for (std::size_t f = 0; f < label.size(); ++f) {
+    if (label[f] == kNoView) continue;
+    ++s.textured_faces;
+    ++s.faces_per_view[std::size_t(label[f])];
+    for (int j = 0; j < cand.k; ++j)
+      if (cand.view[f * cand.k + j] == label[f]) texel_m.push_back(cand.texel_m[f * cand.k + j] / scale);
+    for (int nb : g.neighbours[f]) {
+      if (nb < 0) continue;
+      ++interior;
+      seams += label[std::size_t(nb)] != label[f] ? 1 : 0;
+    }
+  }
+  for (std::size_t n : s.faces_per_view) s.views_used += n > 0 ? 1 : 0;
+  if (!texel_m.empty()) {
+    std::nth_element(texel_m.begin(), texel_m.begin() + std::ptrdiff_t(texel_m.size() / 2), texel_m.end());
+    s.median_texel_m = texel_m[texel_m.size() / 2];
+  }
+  s.seam_fraction = interior ? double(seams) / interior : 0;
+  return s;
+}
+
+}  // namespace
+
+TexturedMesh build_texture_atlas(const DenseMesh& m, const std::vector<OrthoView>& views, const TextureOptions& o,
+                                 TextureSummary* summary) {
+  o.validate();
+  const Stopwatch clock;
+  if (m.faces.empty()) throw InputError("products.texture: the mesh has no faces");
+  const FaceGeometry g = face_geometry(m);
+
+  FaceCandidates cand(m.faces.size(), o.candidates);
+  for (std::size_t v = 0; v < views.size(); ++v) score_view(m, g, views[v], int(v), o, cand);
+  const std::vector<int> label = smooth_labels(cand, g, o);
+
+  std::vector<Chart> charts = grow_charts(label, g);
+  ChartPixels pixels;
+  for (Chart& c : charts) {
+    pixels.push_back(project_chart(c, m, views[std::size_t(c.view)].camera));
+    chart_bounds(c, pixels.back());
+  }
+  Chart grey;  // untextured faces
+  for (std::size_t f = 0; f < label.size(); ++f)
+    if (label[f] == kNoView) grey.faces.push_back(int(f));
+  if (!grey.faces.empty()) {
+    charts.push_back(grey);
+    pixels.emplace_back();
+  }
+  double scale = 1;
+  const int pages = fit_charts(charts, pixels, m, o, scale);
+  std::vector<Page> atlas = paint_atlases(charts, pixels, grey, m, views, o, pages, scale);
+  TexturedMesh out = textured_output(charts, pixels, m, o, scale);
+  for (Page& p : atlas) out.atlases.push_back(std::move(p.image));
   if (summary) {
-    TextureSummary& s = *summary;
-    s = TextureSummary{};
-    s.views = int(views.size());
-    s.faces = m.faces.size();
-    s.charts = charts.size() - (grey.faces.empty() ? 0 : 1);
-    s.atlases = pages;
-    s.texel_scale = scale;
-    s.faces_per_view.assign(views.size(), 0);
-    for (const auto& v : views) s.view_names.push_back(v.name);
-    std::vector<double> texel_m;
-    std::size_t interior = 0, seams = 0;
-    for (std::size_t f = 0; f < label.size(); ++f) {
-      if (label[f] == kNoView) continue;
-      ++s.textured_faces;
-      ++s.faces_per_view[std::size_t(label[f])];
-      for (int j = 0; j < cand.k; ++j)
-        if (cand.view[f * cand.k + j] == label[f]) texel_m.push_back(cand.texel_m[f * cand.k + j] / scale);
-      for (int nb : g.neighbours[f]) {
-        if (nb < 0) continue;
-        ++interior;
-        seams += label[std::size_t(nb)] != label[f] ? 1 : 0;
-      }
-    }
-    for (std::size_t n : s.faces_per_view) s.views_used += n > 0 ? 1 : 0;
-    if (!texel_m.empty()) {
-      std::nth_element(texel_m.begin(), texel_m.begin() + std::ptrdiff_t(texel_m.size() / 2), texel_m.end());
-      s.median_texel_m = texel_m[texel_m.size() / 2];
-    }
-    s.seam_fraction = interior ? double(seams) / interior : 0;
-    s.seconds = clock.seconds();
+    *summary = texture_summary(m, views, label, cand, g, charts.size() - (grey.faces.empty() ? 0 : 1), pages, scale);
+    summary->seconds = clock.seconds();
   }
   return out;
 }

@@ -1,5 +1,6 @@
 #include "project/media.hpp"
 
+#include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/fault.hpp"
 #include "core/hash.hpp"
@@ -41,17 +42,13 @@ std::map<std::string, FileState> read_checked(const fs::path& file) {
 void write_checked(const fs::path& file, const std::map<std::string, FileState>& checked) {
   std::error_code ec;
   fs::create_directories(file.parent_path(), ec);
-  const fs::path tmp = file.string() + ".tmp";
-  {
-    std::ofstream out(tmp);
-    for (const auto& [rel, state] : checked) out << rel << '\t' << state.first << '\t' << state.second << '\n';
-    if (!out) {
-      fs::remove(tmp, ec);
-      return;
-    }
+  std::string text;
+  for (const auto& [rel, state] : checked) text += rel + '\t' + std::to_string(state.first) + '\t' + std::to_string(state.second) + '\n';
+  try {
+    write_bytes_atomically(file, "media", text);
+  } catch (const Error&) {
+    // Not written: the next run hashes the photos again.
   }
-  fs::rename(tmp, file, ec);
-  if (ec) fs::remove(tmp, ec);
 }
 
 std::optional<FileState> state_of(const fs::path& path) {

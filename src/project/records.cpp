@@ -58,6 +58,15 @@ MarkerRecord read_marker(const Statement& st) {
 
 }  // namespace
 
+const std::vector<std::string>& unit_types() {
+  static const std::vector<std::string> types = {"deposit", "cut", "structure", "interface"};
+  return types;
+}
+
+void update_unit(Database& db, const UnitRecord& u) {
+  db.prepare("UPDATE units SET type = ?, description = ? WHERE code = ?").bind_all(u.type, u.description, u.code).run();
+}
+
 std::int64_t insert_unit(Database& db, const UnitRecord& u) {
   if (find_unit(db, u.code)) throw InputError(fmt::format("unit '{}' already exists", u.code));
   db.prepare("INSERT INTO units(code, type, description) VALUES (?, ?, ?)")

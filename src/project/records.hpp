@@ -78,7 +78,11 @@ struct ObservationRecord {
 };
 
 // ---- units and relations
+// The unit types the schema accepts (the units table's CHECK constraint).
+const std::vector<std::string>& unit_types();
 std::int64_t insert_unit(Database& db, const UnitRecord& u);
+// Replaces the type and description of the unit with u's code.
+void update_unit(Database& db, const UnitRecord& u);
 std::optional<UnitRecord> find_unit(Database& db, const std::string& code);
 UnitRecord require_unit(Database& db, const std::string& code);  // InputError when missing
 std::vector<UnitRecord> list_units(Database& db);

@@ -6,6 +6,7 @@
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/log.hpp"
+#include "pipeline/stage_json.hpp"
 #include "report/html_util.hpp"
 #include "report/report_internal.hpp"
 
@@ -27,27 +28,6 @@ using rd::PlanFrame;
 using rd::LayerData;
 
 namespace {
-
-std::optional<nlohmann::json> stage_quality(Database& db, std::int64_t layer_id, const char* stage) {
-  auto st = db.prepare("SELECT quality_json FROM reconstructions WHERE layer_id = ? AND stage = ?");
-  st.bind_all(layer_id, stage);
-  if (!st.step()) return std::nullopt;
-  try {
-    return nlohmann::json::parse(st.get_text(0));
-  } catch (const nlohmann::json::exception&) {
-    return nlohmann::json::object();
-  }
-}
-
-std::optional<double> json_number(const nlohmann::json& j, std::initializer_list<const char*> path) {
-  const nlohmann::json* p = &j;
-  for (const char* k : path) {
-    if (!p->is_object() || !p->contains(k)) return std::nullopt;
-    p = &(*p)[k];
-  }
-  if (!p->is_number()) return std::nullopt;
-  return p->get<double>();
-}
 
 std::string duration_words(std::int64_t s) {
   if (s < 60) return fmt::format("{} s", s);
@@ -396,20 +376,14 @@ std::string residual_plot(const LayerData& d, const ReportOptions& o) {
 
 // Why a marker's rays do not meet as one point (its own dispersion, clicks that
 // disagree), and findings about the block as a whole, from the alignment's figures.
-std::string marker_diagnosis(const nlohmann::json& q) {
+std::string marker_diagnosis(const AlignmentQuality& q) {
   std::string items;
-  if (q.contains("markers")) {
-    for (const auto& m : q["markers"]) {
-      const std::string text = m.value("diagnosis", std::string());
-      if (text.empty()) continue;
-      items += fmt::format("<li><b>{}</b> ({} of {} photos agree, spread {}): {}</li>", xml_escape(m.value("marker", std::string())),
-                           m.value("images", 0), m.value("observed", 0), format_mm(m.value("dispersion_m", 0.0)),
-                           xml_escape(text));
-    }
+  for (const auto& m : q.markers) {
+    if (m.diagnosis.empty()) continue;
+    items += fmt::format("<li><b>{}</b> ({} of {} photos agree, spread {}): {}</li>", xml_escape(m.name), m.images,
+                         m.observed, format_mm(m.dispersion_m), xml_escape(m.diagnosis));
   }
-  if (q.contains("georeference_diagnosis")) {
-    for (const auto& d : q["georeference_diagnosis"]) items += fmt::format("<li>{}</li>", xml_escape(d.get<std::string>()));
-  }
+  for (const auto& d : q.georeference_diagnosis) items += fmt::format("<li>{}</li>", xml_escape(d));
   if (items.empty()) return "";
   return "<p>Where the marker rays do not meet as one point:</p><ul class=\"notes\">" + items + "</ul>\n";
 }
@@ -423,18 +397,14 @@ std::string markers_section(const LayerData& d, const ReportOptions& o) {
            "</section>\n";
   }
   const auto& q = d.alignment->quality;
-  auto rmse_row = [&](const char* key, const char* label) {
-    const auto n = json_number(q, {key, "markers"});
-    if (!n || *n == 0) return fmt::format("<tr><th>{}</th><td colspan=\"4\">no {} markers</td></tr>", label, label);
-    auto mm = [&](const char* axis) {
-      const auto v = json_number(q, {key, axis});
-      return v ? format_mm(*v) : std::string("–");
-    };
+  auto rmse_row = [&](const AxisRmse& r, const char* label) {
+    if (r.markers == 0) return fmt::format("<tr><th>{}</th><td colspan=\"4\">no {} markers</td></tr>", label, label);
     return fmt::format("<tr><th>{} RMSE ({} {})</th><td>{}</td><td>{}</td><td>{}</td><td><b>{}</b></td></tr>",
-                       label, *n, *n == 1 ? "marker" : "markers", mm("e_m"), mm("n_m"), mm("z_m"), mm("xyz_m"));
+                       label, r.markers, r.markers == 1 ? "marker" : "markers", format_mm(r.e), format_mm(r.n),
+                       format_mm(r.z), format_mm(r.xyz));
   };
   s += "<table class=\"grid\"><tr><th></th><th>east</th><th>north</th><th>height</th><th>3D</th></tr>";
-  s += rmse_row("control_rmse", "control") + rmse_row("check_rmse", "check") + "</table>\n";
+  s += rmse_row(q.control_rmse, "control") + rmse_row(q.check_rmse, "check") + "</table>\n";
   s += "<table class=\"grid\"><tr><th>marker</th><th>role</th><th>photos</th><th>dE</th><th>dN</th><th>dZ</th>"
        "<th>3D</th><th>reprojection</th></tr>";
   for (const auto& m : d.figures.markers) {
@@ -582,14 +552,12 @@ std::string hillshade_section(const LayerData& d, const ReportOptions& o) {
   std::string caption = fmt::format("Heights {:.3f}–{:.3f} m ({} relief {:.0f} mm), lit from the north-west.", lo, hi,
                                     d.site.crs, 1000.0 * (hi - lo));
   if (d.products_quality) {
-    if (auto a = json_number(*d.products_quality, {"dtm", "area_m2"})) caption += fmt::format(" Area {:.2f} m².", *a);
-    if (auto c = json_number(*d.products_quality, {"dtm", "cell_m"})) caption += fmt::format(" Cell {:.0f} mm.", *c * 1000);
-    const auto sm = json_number(*d.products_quality, {"dtm", "sigma", "median_m"});
-    const auto sp = json_number(*d.products_quality, {"dtm", "sigma", "p95_m"});
-    if (sm && sp)
+    const DtmFigures& dtm = d.products_quality->dtm;
+    caption += fmt::format(" Area {:.2f} m². Cell {:.0f} mm.", dtm.area_m2, dtm.cell_m * 1000);
+    if (dtm.sigma)
       caption += fmt::format(" Height uncertainty per cell (one sigma, from the agreement of the fused depth maps; "
                              "dtm_sigma.tif): median {:.1f} mm, 95 % of cells within {:.1f} mm.",
-                             *sm * 1000, *sp * 1000);
+                             dtm.sigma->median_m * 1000, dtm.sigma->p95_m * 1000);
   }
   s += "<p class=\"caption\">" + xml_escape(caption) + "</p>\n";
   return s + "</section>\n";
@@ -604,26 +572,25 @@ std::string figures_section(const LayerData& d) {
   row("site CRS", d.site.crs);
   if (d.alignment) {
     const auto& q = d.alignment->quality;
-    if (auto v = json_number(q, {"points"})) row("sparse points", fmt::format("{:.0f}", *v));
-    if (auto v = json_number(q, {"mean_track_length"})) row("mean track length", fmt::format("{:.1f} photos", *v));
-    if (auto v = json_number(q, {"reprojection_rmse_px"})) row("reprojection RMSE", fmt::format("{:.2f} px", *v));
-    if (auto v = json_number(q, {"gsd_m"})) row("ground sampling distance", format_mm(*v) + " per pixel");
+    row("sparse points", fmt::format("{}", q.sparse.points));
+    row("mean track length", fmt::format("{:.1f} photos", q.sparse.mean_track_length));
+    row("reprojection RMSE", fmt::format("{:.2f} px", q.sparse.reprojection_rmse_px));
+    row("ground sampling distance", format_mm(q.sparse.gsd_m) + " per pixel");
     row("georeferenced", d.figures.georeferenced ? "yes" : "no");
-    if (auto v = json_number(q, {"timings", "total_s"})) row("alignment time", fmt::format("{:.0f} s", *v));
+    row("alignment time", fmt::format("{:.0f} s", q.timings.total_s));
   } else {
     row("alignment", "not processed");
   }
   if (d.dense_quality) {
-    if (auto v = json_number(*d.dense_quality, {"completeness"})) row("dense completeness", fmt::format("{:.0f} %", 100 * *v));
-    if (auto v = json_number(*d.dense_quality, {"median_distance_sparse_m"}))
-      row("dense vs sparse (median)", format_mm(*v));
+    const DenseSummary& dense = d.dense_quality->figures;
+    row("dense completeness", fmt::format("{:.0f} %", 100 * dense.completeness));
+    if (std::isfinite(dense.median_distance_sparse_m)) row("dense vs sparse (median)", format_mm(dense.median_distance_sparse_m));
   } else {
     row("dense surface", "not processed");
   }
   if (d.products_quality) {
-    if (auto v = json_number(*d.products_quality, {"ortho", "coverage"}))
-      row("orthophoto coverage", fmt::format("{:.0f} %", 100 * *v));
-    if (auto v = json_number(*d.products_quality, {"footprint", "area_m2"})) row("footprint area", fmt::format("{:.2f} m²", *v));
+    if (d.products_quality->ortho) row("orthophoto coverage", fmt::format("{:.0f} %", 100 * d.products_quality->ortho->coverage));
+    row("footprint area", fmt::format("{:.2f} m²", d.products_quality->footprint.area_m2));
   } else {
     row("DTM and orthophoto", "not produced");
   }
@@ -651,8 +618,8 @@ LayerData gather_layer(Project& project, const LayerRecord& layer, const ReportO
   } catch (const std::exception& e) {
     d.notes.push_back(fmt::format("The stored alignment could not be read ({}).", e.what()));
   }
-  d.dense_quality = stage_quality(db, layer.id, "dense");
-  d.products_quality = stage_quality(db, layer.id, "products");
+  d.dense_quality = stored_dense_quality(db, layer.id);
+  d.products_quality = stored_products_quality(db, layer.id);
   for (const char* kind : {"dtm", "ortho"}) {
     const auto p = find_product(db, layer.id, kind);
     if (!p) continue;
@@ -670,14 +637,10 @@ LayerData gather_layer(Project& project, const LayerRecord& layer, const ReportO
     const auto& a = *d.alignment;
     f.aligned = true;
     f.georeferenced = a.rec.georeferenced;
-    if (a.quality.contains("georeference_message") && a.quality["georeference_message"].is_string()) {
-      f.georeference_message = a.quality["georeference_message"].get<std::string>();
-    }
-    f.reprojection_rmse_px = json_number(a.quality, {"reprojection_rmse_px"});
-    if (json_number(a.quality, {"control_rmse", "markers"}).value_or(0) > 0)
-      f.control_rmse_m = json_number(a.quality, {"control_rmse", "xyz_m"});
-    if (json_number(a.quality, {"check_rmse", "markers"}).value_or(0) > 0)
-      f.check_rmse_m = json_number(a.quality, {"check_rmse", "xyz_m"});
+    f.georeference_message = a.quality.georeference_message;
+    f.reprojection_rmse_px = a.quality.sparse.reprojection_rmse_px;
+    if (a.quality.control_rmse.markers > 0) f.control_rmse_m = a.quality.control_rmse.xyz;
+    if (a.quality.check_rmse.markers > 0) f.check_rmse_m = a.quality.check_rmse.xyz;
     std::set<std::string> imported;
     for (const auto& im : a.rec.images) {
       imported.insert(im.name);

@@ -69,35 +69,40 @@ std::vector<Finding> evaluate_layer(const LayerFigures& f, const QualityThreshol
 
 namespace {
 
-std::vector<Finding> evaluate_unsorted(const LayerFigures& f, const QualityThresholds& t) {
+// The findings of one layer, in the order the rules ran.
+struct Findings {
   std::vector<Finding> out;
-  auto add = [&](Severity s, std::string rule, std::string message, std::string advice) {
+  void add(Severity s, std::string rule, std::string message, std::string advice) {
     out.push_back({s, std::move(rule), std::move(message), std::move(advice)});
-  };
+  }
+};
 
-  // ---- photos
+// False when nothing further can be judged (no photos, or not aligned yet).
+bool photo_rules(const LayerFigures& f, const QualityThresholds& t, Findings& r) {
   if (f.photos == 0) {
-    add(Severity::problem, "no_photos", "no photos have been imported for this layer",
+    r.add(Severity::problem, "no_photos", "no photos have been imported for this layer",
         fmt::format("photograph the layer (30-60 photos, markers in view) and run: strata import photos DIR "
                     "--layer {} PHOTOS...", f.layer));
-    return out;
+    return false;
   }
   if (f.photos < t.min_photos) {
-    add(Severity::warning, "few_photos",
+    r.add(Severity::warning, "few_photos",
         fmt::format("only {} {} of this layer (at least {} recommended)", f.photos, photos_word(f.photos), t.min_photos),
         "walk once more around the trench taking overlapping photos (every step, about 60-80 % overlap)");
   }
   if (!f.aligned) {
-    add(Severity::problem, "not_processed", "the photos have not been aligned yet: no quality figures exist",
+    r.add(Severity::problem, "not_processed", "the photos have not been aligned yet: no quality figures exist",
         fmt::format("run: strata process DIR --layer {}", f.layer));
-    return out;
+    return false;
   }
+  return true;
+}
 
-  // ---- alignment
+void alignment_rules(const LayerFigures& f, const QualityThresholds& t, Findings& r) {
   if (!f.unaligned.empty()) {
     const int n = int(f.unaligned.size());
     const double fraction = double(n) / double(std::max(1, f.photos));
-    add(fraction > t.max_unaligned_fraction ? Severity::problem : Severity::note, "unaligned_photos",
+    r.add(fraction > t.max_unaligned_fraction ? Severity::problem : Severity::note, "unaligned_photos",
         fmt::format("{} {} could not be aligned: {}", n, photos_word(n), list_names(f.unaligned)),
         fraction > t.max_unaligned_fraction
             ? "these photos overlap too little with the others or are blurred: retake that part of the walk with "
@@ -105,80 +110,86 @@ std::vector<Finding> evaluate_unsorted(const LayerFigures& f, const QualityThres
             : "nothing to do if the coverage map shows no gap; otherwise retake them with more overlap");
   }
   if (f.reprojection_rmse_px && *f.reprojection_rmse_px > t.max_reprojection_rmse_px) {
-    add(Severity::warning, "reprojection_rmse",
+    r.add(Severity::warning, "reprojection_rmse",
         fmt::format("mean reprojection error {:.2f} px exceeds {:.1f} px", *f.reprojection_rmse_px,
                     t.max_reprojection_rmse_px),
         "photos are probably blurred (camera shake, focus) or something moved (people, shadows, water): "
         "retake blurred photos with a faster shutter");
   }
+}
 
-  // ---- georeference
+void marker_rules(const LayerFigures& f, const QualityThresholds& t, Findings& r) {
+  for (const auto& m : f.markers) {
+    if (m.role == "rejected") {
+      r.add(Severity::warning, "marker_rejected",
+          fmt::format("marker {} was rejected as an outlier ({} off)", m.name, format_mm(m.residual_m.norm())),
+          fmt::format("check the surveyed coordinates of {} and that its target is the right one", m.name));
+      continue;
+    }
+    if (!m.triangulated) {
+      r.add(Severity::warning, "marker_not_located",
+          fmt::format("marker {} could not be located (seen in {} {})", m.name, m.images, photos_word(m.images)),
+          fmt::format("take photos that show {} clearly from at least {} positions", m.name, t.min_marker_photos));
+      continue;
+    }
+    if (m.images < t.min_marker_photos) {
+      r.add(Severity::warning, "marker_photos",
+          fmt::format("marker {} seen in only {} {}", m.name, m.images, photos_word(m.images)),
+          fmt::format("take {} more photos that show {} from different positions", t.min_marker_photos - m.images + 1,
+                      m.name));
+    }
+    if (m.residual_m.norm() > t.max_marker_residual_m) {
+      r.add(Severity::warning, "marker_residual",
+          fmt::format("{} marker {} is {} from its surveyed position (over {})", m.role, m.name,
+                      format_mm(m.residual_m.norm()), format_mm(t.max_marker_residual_m)),
+          fmt::format("check the survey of {} (typing error, wrong target, moved marker)", m.name));
+    }
+  }
+}
+
+void georeference_rules(const LayerFigures& f, const QualityThresholds& t, Findings& r) {
   int control = 0, check = 0;
   for (const auto& m : f.markers) {
     if (m.role == "control" && m.triangulated) ++control;
     if (m.role == "check" && m.triangulated) ++check;
   }
   if (!f.georeferenced) {
-    add(Severity::problem, "not_georeferenced",
+    r.add(Severity::problem, "not_georeferenced",
         "layer not georeferenced: it has no real-world position, scale or orientation" +
             (f.georeference_message.empty() ? std::string() : " (" + f.georeference_message + ")"),
         fmt::format("place at least {} surveyed markers around the trench, visible in the photos; survey them and "
                     "run: strata import markers DIR survey.csv, then process the layer again",
                     t.min_control_markers));
   } else if (control < t.min_control_markers) {
-    add(Severity::problem, "few_control_markers",
+    r.add(Severity::problem, "few_control_markers",
         fmt::format("only {} control {} located (at least {} needed)", control, control == 1 ? "marker" : "markers",
                     t.min_control_markers),
         "make sure at least 3 control markers, spread around the trench, each appear in 3 or more photos");
   }
-  for (const auto& m : f.markers) {
-    if (m.role == "rejected") {
-      add(Severity::warning, "marker_rejected",
-          fmt::format("marker {} was rejected as an outlier ({} off)", m.name, format_mm(m.residual_m.norm())),
-          fmt::format("check the surveyed coordinates of {} and that its target is the right one", m.name));
-      continue;
-    }
-    if (!m.triangulated) {
-      add(Severity::warning, "marker_not_located",
-          fmt::format("marker {} could not be located (seen in {} {})", m.name, m.images, photos_word(m.images)),
-          fmt::format("take photos that show {} clearly from at least {} positions", m.name, t.min_marker_photos));
-      continue;
-    }
-    if (m.images < t.min_marker_photos) {
-      add(Severity::warning, "marker_photos",
-          fmt::format("marker {} seen in only {} {}", m.name, m.images, photos_word(m.images)),
-          fmt::format("take {} more photos that show {} from different positions", t.min_marker_photos - m.images + 1,
-                      m.name));
-    }
-    if (m.residual_m.norm() > t.max_marker_residual_m) {
-      add(Severity::warning, "marker_residual",
-          fmt::format("{} marker {} is {} from its surveyed position (over {})", m.role, m.name,
-                      format_mm(m.residual_m.norm()), format_mm(t.max_marker_residual_m)),
-          fmt::format("check the survey of {} (typing error, wrong target, moved marker)", m.name));
-    }
-  }
+  marker_rules(f, t, r);
   if (f.georeferenced && f.control_rmse_m && *f.control_rmse_m > t.max_control_rmse_m) {
-    add(Severity::problem, "control_rmse",
+    r.add(Severity::problem, "control_rmse",
         fmt::format("control RMSE {} exceeds {}", format_mm(*f.control_rmse_m), format_mm(t.max_control_rmse_m)),
         "check the survey of the markers with the largest residuals in the table below, then process again");
   }
   if (f.georeferenced && f.check_rmse_m && *f.check_rmse_m > t.max_check_rmse_m) {
-    add(Severity::problem, "check_rmse",
+    r.add(Severity::problem, "check_rmse",
         fmt::format("check RMSE {} exceeds {}", format_mm(*f.check_rmse_m), format_mm(t.max_check_rmse_m)),
         "the model is less accurate than required: add control markers on the side of the worst check marker, "
         "or check its survey");
   }
   if (f.georeferenced && check == 0) {
-    add(Severity::note, "no_check_markers", "no check marker: the accuracy is not measured independently",
+    r.add(Severity::note, "no_check_markers", "no check marker: the accuracy is not measured independently",
         "survey one more marker and mark it as 'check' in the survey file");
   }
+}
 
-  // ---- coverage
+void coverage_rules(const LayerFigures& f, const QualityThresholds& t, Findings& r) {
   if (f.coverage_known) {
     for (const auto& g : f.gaps) {
       const int more = std::max(2, t.min_photos_per_area - g.min_count + 1);
       const std::string side = side_to_photograph(g, f.camera_centres, f.trench_centre);
-      add(Severity::problem, "coverage_gap",
+      r.add(Severity::problem, "coverage_gap",
           fmt::format("the {} is seen by fewer than {} photos ({:.0f} % of it, {:.2f} m²)", g.sector.name,
                       t.min_photos_per_area, 100 * g.fraction, g.area_m2),
           side.empty() ? fmt::format("take {} more photos from above the centre of the trench, looking down", more)
@@ -191,7 +202,7 @@ std::vector<Finding> evaluate_unsorted(const LayerFigures& f, const QualityThres
     if (f.low_resolution.size() >= kMostSectors) {
       double worst = 0;
       for (const auto& g : f.low_resolution) worst = std::max(worst, g.worst_gsd_m);
-      add(Severity::warning, "low_resolution",
+      r.add(Severity::warning, "low_resolution",
           fmt::format("most of the trench ({} of 9 parts) is photographed only at low resolution (down to {} per "
                       "pixel, over {})",
                       f.low_resolution.size(), format_mm(worst), format_mm(t.max_gsd_m)),
@@ -199,27 +210,36 @@ std::vector<Finding> evaluate_unsorted(const LayerFigures& f, const QualityThres
     }
     for (const auto& g : f.low_resolution.size() >= kMostSectors ? std::vector<CoverageShortfall>{} : f.low_resolution) {
       const std::string side = side_to_photograph(g, f.camera_centres, f.trench_centre);
-      add(Severity::warning, "low_resolution",
+      r.add(Severity::warning, "low_resolution",
           fmt::format("the {} is photographed only at low resolution ({} per pixel at best, over {})", g.sector.name,
                       format_mm(g.worst_gsd_m), format_mm(t.max_gsd_m)),
           side.empty() ? "take a few photos closer to the centre of the trench"
                        : fmt::format("take a few photos closer to the {} from the {} side", g.sector.name, side));
     }
   } else {
-    add(Severity::note, "coverage_unknown", "the photo coverage could not be mapped (no plan of the surface)",
+    r.add(Severity::note, "coverage_unknown", "the photo coverage could not be mapped (no plan of the surface)",
         "process the layer to the products stage for a full coverage map");
   }
+}
 
-  // ---- later stages
+void later_stage_rules(const LayerFigures& f, Findings& r) {
   if (!f.dense) {
-    add(Severity::note, "no_dense", "no dense surface yet",
+    r.add(Severity::note, "no_dense", "no dense surface yet",
         fmt::format("run: strata process DIR --layer {} (the dense stage follows the alignment)", f.layer));
   } else if (!f.products) {
-    add(Severity::note, "no_products", "no DTM or orthophoto yet",
+    r.add(Severity::note, "no_products", "no DTM or orthophoto yet",
         fmt::format("run: strata process DIR --layer {} --until products", f.layer));
   }
+}
 
-  return out;
+std::vector<Finding> evaluate_unsorted(const LayerFigures& f, const QualityThresholds& t) {
+  Findings r;
+  if (!photo_rules(f, t, r)) return r.out;
+  alignment_rules(f, t, r);
+  georeference_rules(f, t, r);
+  coverage_rules(f, t, r);
+  later_stage_rules(f, r);
+  return r.out;
 }
 
 }  // namespace

@@ -1,6 +1,7 @@
 #pragma once
 // Internal to the report module: what the layer and site reports share.
 #include "pipeline/alignment_store.hpp"
+#include "pipeline/stage_results.hpp"
 #include "report/report.hpp"
 
 #include <nlohmann/json.hpp>
@@ -19,7 +20,8 @@ struct LayerData {
   SiteInfo site;
   std::vector<ImageRecord> images;
   std::optional<StoredAlignment> alignment;
-  std::optional<nlohmann::json> dense_quality, products_quality;
+  std::optional<DenseQuality> dense_quality;
+  std::optional<ProductsQuality> products_quality;
   std::map<std::string, Eigen::Vector3d> marker_positions;  // site frame, by name
   std::optional<std::filesystem::path> dtm, ortho;          // absolute paths of existing files
   std::vector<Camera> cameras;                              // registered photos, site frame

@@ -8,6 +8,7 @@
 #include "report/report_internal.hpp"
 #include "stratigraphy/graphviz.hpp"
 #include "stratigraphy/harris_matrix.hpp"
+#include "stratigraphy/recorded_matrix.hpp"
 #include "volume/section.hpp"
 #include "volume/site_volumes.hpp"
 
@@ -80,20 +81,14 @@ std::string matrix_section(Database& db) {
   std::string s = "<section><h2>Harris matrix</h2>\n";
   const auto units = list_units(db);
   if (units.empty()) return s + missing("No stratigraphic units recorded yet.") + "</section>\n";
-  std::vector<std::string> codes;
-  for (const auto& u : units) codes.push_back(u.code);
-  std::vector<CanonicalRelation> relations;
-  for (const auto& r : list_relations(db)) {
-    if (auto k = relation_kind_from_string(r.kind)) relations.push_back({r.unit_a, *k, r.unit_b});
-  }
   try {
-    const HarrisMatrix m(codes, relations);
+    const HarrisMatrix m = recorded_matrix(db);
     std::string svg = rd::inline_svg(graphviz_svg(m.to_dot()).value_or(""));
     const bool graphviz = !svg.empty();
     if (!graphviz) svg = own_matrix_svg(m);
     s += "<div class=\"svgbox\">" + svg + "</div>\n";
     s += fmt::format("<p class=\"caption\">{} units, {} relations; later units above earlier ones{}.</p>\n", units.size(),
-                     relations.size(), graphviz ? "" : " (simple layout: install Graphviz for a better one)");
+                     m.relations().size(), graphviz ? "" : " (simple layout: install Graphviz for a better one)");
   } catch (const Error& e) {
     s += missing(fmt::format("The Harris matrix cannot be drawn: {}", e.what()));
   }

@@ -48,6 +48,8 @@ class HarrisMatrix {
     std::vector<std::string> units;  // sorted codes; the first is the node's name
     std::string label() const;       // "101" or "101 = 105"
   };
+  const std::vector<std::string>& units() const { return units_; }  // the codes given
+  const std::vector<CanonicalRelation>& relations() const { return relations_; }
   const std::vector<Node>& nodes() const { return nodes_; }
   // Temporal edges (later -> earlier) between nodes, after transitive reduction:
   // only the direct relations, as a Harris matrix is drawn.

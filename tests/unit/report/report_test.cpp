@@ -5,6 +5,7 @@
 #include "core/error.hpp"
 #include "crs/crs.hpp"
 #include "pipeline/alignment_store.hpp"
+#include "pipeline/stage_json.hpp"
 #include "products/raster_io.hpp"
 #include "project/project.hpp"
 #include "project/records.hpp"
@@ -18,6 +19,7 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <map>
 #include <optional>
 #include <random>
 #include <regex>
@@ -148,7 +150,7 @@ void process_layer(Project& p, const std::string& layer, double base, bool produ
   }
   const nlohmann::json rmse_control = {{"e_m", 0.003}, {"n_m", 0.004}, {"z_m", 0.005}, {"xyz_m", 0.0071}, {"markers", 4}};
   const nlohmann::json rmse_check = {{"e_m", 0.006}, {"n_m", 0.008}, {"z_m", 0.009}, {"xyz_m", kCheckResidual_m}, {"markers", 1}};
-  std::vector<std::pair<std::int64_t, nlohmann::json>> residuals;
+  std::map<std::string, std::int64_t> marker_ids;
   nlohmann::json rows = nlohmann::json::array();
   for (const auto& m : list_markers(db)) {
     const bool check = m.kind == "check";
@@ -157,10 +159,11 @@ void process_layer(Project& p, const std::string& layer, double base, bool produ
                         {"dE", s * 0.006 * (m.name == "GCP2" ? -1 : 1)}, {"dN", s * 0.008},
                         {"dZ", s * (m.name == "GCP3" ? -0.009 : 0.007)}, {"reprojection_px", 0.4 + 0.1 * m.id},
                         {"images", check ? 2 : 6 + int(m.id)}};
-    residuals.emplace_back(m.id, r);
+    marker_ids[m.name] = m.id;
     rows.push_back(r);
   }
-  a.quality = {{"layer", layer},
+  // As an earlier version stored it, without the newer keys.
+  a.quality = alignment_quality_from_json({{"layer", layer},
                {"images_total", images.size()},
                {"images_registered", images.size() - 1},
                {"unregistered", {images.back().name}},
@@ -172,11 +175,11 @@ void process_layer(Project& p, const std::string& layer, double base, bool produ
                {"control_rmse", rmse_control},
                {"check_rmse", rmse_check},
                {"markers", rows},
-               {"timings", {{"total_s", 41.0}}}};
+               {"timings", {{"total_s", 41.0}}}});
   a.inputs_key = "test";
   {
     Transaction tx(db);
-    store_alignment(db, l, p.site(), a, residuals);
+    store_alignment(db, l, p.site(), a, marker_ids);
     tx.commit();
   }
   if (!products) return;
