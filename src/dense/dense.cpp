@@ -103,10 +103,8 @@ DenseSummary run_dense(const DenseOptions& options, const Reconstruction& rec,
 
 namespace {
 
-DenseSummary run_dense_steps(const DenseOptions& options, const Reconstruction& rec,
-                             const std::vector<std::filesystem::path>& image_paths,
-                             const std::vector<RangeScanInput>& scans, const Eigen::Vector3d& site_origin,
-                             const std::filesystem::path& cache_dir, const std::filesystem::path& out_dir) {
+void check_inputs(const Reconstruction& rec, const std::vector<std::filesystem::path>& image_paths,
+                  const std::vector<RangeScanInput>& scans) {
   for (const auto& scan : scans) {
     if (!(scan.sigma_m > 0) || !scan.read) {
       throw InputError(fmt::format("dense: scan {} needs a positive sigma_m and a reader", scan.name));
@@ -122,252 +120,326 @@ DenseSummary run_dense_steps(const DenseOptions& options, const Reconstruction& 
                                    im.group, rec.groups.size()));
     }
   }
-  const Stopwatch total;
-  DenseSummary summary;
-  const int n = static_cast<int>(rec.images.size());
-  summary.images_total = n;
-  PatchMatchOptions pm = options.patch_match;  // scale resolved below when 0
-  const auto image_dir = cache_dir / "dense" / "images";
-  const auto depth_dir = cache_dir / "dense" / "depth";
+}
+
+// The layer's views and their files in the cache, filled in step by step: the source
+// views of each reference image, then the keys of its undistorted image and of its raw
+// and filtered depth maps (0: none).
+struct Views {
+  Views(const Reconstruction& r, const std::filesystem::path& cache_dir)
+      : rec(r), image_dir(cache_dir / "dense" / "images"), depth_dir(cache_dir / "dense" / "depth") {}
+
+  const Reconstruction& rec;
+  std::filesystem::path image_dir, depth_dir;
+  double scale = 1;  // of the depth maps, relative to the photos
+  std::vector<dense::ViewNeighbours> neighbours;
+  std::vector<int> refs;      // the reference images: those with source views
+  std::vector<char> needed;   // undistorted image needed
+  std::vector<std::uint64_t> image_key, raw_key, filtered_key;
+
+  PinholeCamera camera(int i) const {
+    const auto& im = rec.images[i];
+    return dense::undistorted_camera(rec.groups[im.group].intrinsics, im.pose, scale);
+  }
+  std::filesystem::path image_file(int i) const { return image_dir / fmt::format("{:05d}.img", i); }
+  std::filesystem::path raw_file(int i) const { return depth_dir / fmt::format("{:05d}.raw.dmap", i); }
+  std::filesystem::path filtered_file(int i) const { return depth_dir / fmt::format("{:05d}.filtered.dmap", i); }
+  double reference_count() const { return static_cast<double>(std::max<std::size_t>(refs.size(), 1)); }
+  ViewImage load_image(int i) const {
+    ViewImage img;
+    if (!dense::read_view_image(image_file(i), image_key[i], img)) {
+      throw IoError(fmt::format("dense.cache: {}: unreadable undistorted image", image_file(i).string()));
+    }
+    return img;
+  }
+};
+
+void create_folders(const Views& views, const std::filesystem::path& out_dir) {
   std::error_code ec;
-  for (const auto& d : {image_dir, depth_dir, out_dir}) {
+  for (const auto& d : {views.image_dir, views.depth_dir, out_dir}) {
     std::filesystem::create_directories(d, ec);
     if (ec) throw IoError(fmt::format("dense: {}: cannot create folder: {}", d.string(), ec.message()));
   }
+}
 
-  // ---- 1. view selection ------------------------------------------------------
-  Stopwatch sw;
-  const auto neighbours = dense::select_views(rec, options.views, pm.depth_margin);
-  std::vector<char> needed(static_cast<std::size_t>(n), 0);  // undistorted image needed
-  std::vector<int> refs;
+// Step 1: the source views of every image; resolves pm.scale when 0.
+void select_source_views(const DenseOptions& options, const std::vector<RangeScanInput>& scans,
+                         PatchMatchOptions& pm, Views& views, DenseSummary& summary) {
+  const Stopwatch sw;
+  const auto& rec = views.rec;
+  const int n = static_cast<int>(rec.images.size());
+  views.neighbours = dense::select_views(rec, options.views, pm.depth_margin);
+  views.needed.assign(static_cast<std::size_t>(n), 0);
   for (int i = 0; i < n; ++i) {
-    if (neighbours[i].sources.empty()) continue;
-    refs.push_back(i);
-    needed[i] = 1;
-    for (int s : neighbours[i].sources) needed[s] = 1;
+    if (views.neighbours[i].sources.empty()) continue;
+    views.refs.push_back(i);
+    views.needed[i] = 1;
+    for (int s : views.neighbours[i].sources) views.needed[s] = 1;
   }
-  if (refs.empty() && scans.empty()) {
+  if (views.refs.empty() && scans.empty()) {
     throw ProcessingError("dense: no registered image has overlapping neighbours with shared sparse points");
   }
-  if (refs.empty() && n > 0) {
+  if (views.refs.empty() && n > 0) {
     log::warn("dense: no registered photo has overlapping neighbours; the surface comes from the {} scan(s) alone",
               scans.size());
   }
-  if (pm.scale == 0) pm.scale = choose_scale(rec, neighbours, refs, pm.target_gsd_m);
+  if (pm.scale == 0) pm.scale = choose_scale(rec, views.neighbours, views.refs, pm.target_gsd_m);
+  views.scale = pm.scale;
   summary.depth_scale = pm.scale;
   summary.view_selection = figures(sw);
   fault::point("process.dense.views_selected");
-  if (n > 0) log::info("dense: {} of {} images have source views; depth maps at scale {}", refs.size(), n, pm.scale);
+  if (n > 0) {
+    log::info("dense: {} of {} images have source views; depth maps at scale {}", views.refs.size(), n, pm.scale);
+  }
+  views.image_key.assign(static_cast<std::size_t>(n), 0);
+  views.raw_key.assign(static_cast<std::size_t>(n), 0);
+  views.filtered_key.assign(static_cast<std::size_t>(n), 0);
+}
 
-  auto camera_of = [&](int i) {
-    const auto& im = rec.images[i];
-    return dense::undistorted_camera(rec.groups[im.group].intrinsics, im.pose, pm.scale);
-  };
+// The key of a photo's undistorted image.
+std::uint64_t undistorted_key(const std::filesystem::path& photo, double scale, const Intrinsics& intr,
+                              const Pose& pose) {
+  std::error_code ec;
+  const auto size = std::filesystem::file_size(photo, ec);
+  if (ec) throw IoError(fmt::format("dense.undistort: {}: cannot read the photo", photo.string()));
+  CacheKey image("undistorted view v2");
+  if (const std::string name = photo.filename().string(); is_content_address(name)) {
+    // A photo of the media store: its name is its SHA-256 (checked before the
+    // stage runs), so the key holds whatever folder the project was moved to.
+    image.add(name).add(size);
+  } else {
+    const auto mtime = std::filesystem::last_write_time(photo, ec).time_since_epoch().count();
+    image.add(photo).add(size).add(mtime);
+  }
+  return image.add(scale).add(intr).add(pose).u64();
+}
 
-  // ---- 2. undistortion (once per image, into the cache) ------------------------
-  sw = Stopwatch();
-  std::vector<std::uint64_t> image_key(static_cast<std::size_t>(n), 0);
-  auto image_file = [&](int i) { return image_dir / fmt::format("{:05d}.img", i); };
+// Step 2: undistortion, once per needed image, into the cache.
+void undistort_views(const DenseOptions& options, const std::vector<std::filesystem::path>& image_paths,
+                     Views& views, DenseSummary& summary) {
+  const Stopwatch sw;
+  const auto& rec = views.rec;
+  const int n = static_cast<int>(rec.images.size());
   {
-    Progress progress("dense: undistort", static_cast<std::size_t>(std::count(needed.begin(), needed.end(), 1)));
+    Progress progress("dense: undistort",
+                      static_cast<std::size_t>(std::count(views.needed.begin(), views.needed.end(), 1)));
     for (int i = 0; i < n; ++i) {
-      if (!needed[i]) continue;
+      if (!views.needed[i]) continue;
       check_cancelled();
       const auto& im = rec.images[i];
       const auto& intr = rec.groups[im.group].intrinsics;
-      const auto size = std::filesystem::file_size(image_paths[i], ec);
-      if (ec) throw IoError(fmt::format("dense.undistort: {}: cannot read the photo", image_paths[i].string()));
-      CacheKey image("undistorted view v2");
-      if (const std::string name = image_paths[i].filename().string(); is_content_address(name)) {
-        // A photo of the media store: its name is its SHA-256 (checked before the
-        // stage runs), so the key holds whatever folder the project was moved to.
-        image.add(name).add(size);
-      } else {
-        const auto mtime = std::filesystem::last_write_time(image_paths[i], ec).time_since_epoch().count();
-        image.add(image_paths[i]).add(size).add(mtime);
-      }
-      const std::uint64_t key = image.add(pm.scale).add(intr).add(im.pose).u64();
-      image_key[i] = key;
+      const std::uint64_t key = undistorted_key(image_paths[i], views.scale, intr, im.pose);
+      views.image_key[i] = key;
       ViewImage cached;
-      if (!options.reuse_cache || !dense::read_view_image(image_file(i), key, cached)) {
-        dense::write_view_image(image_file(i), dense::undistort_image(image_paths[i], intr, im.pose, pm.scale), key);
+      if (!options.reuse_cache || !dense::read_view_image(views.image_file(i), key, cached)) {
+        dense::write_view_image(views.image_file(i),
+                                dense::undistort_image(image_paths[i], intr, im.pose, views.scale), key);
         fault::point("process.dense.image_undistorted");
       }
       progress.step();
     }
   }
   summary.undistortion = figures(sw);
+}
 
-  auto load_image = [&](int i) {
-    ViewImage img;
-    if (!dense::read_view_image(image_file(i), image_key[i], img)) {
-      throw IoError(fmt::format("dense.cache: {}: unreadable undistorted image", image_file(i).string()));
-    }
-    return img;
-  };
+// The ground sampling distance of a depth map: its median depth over the focal length,
+// metres per pixel.
+double depth_map_gsd(const DepthMap& map, const PinholeCamera& camera) {
+  std::vector<double> d;
+  d.reserve(map.valid_count());
+  for (float v : map.depth) if (v > 0) d.push_back(v);
+  return percentile(std::move(d), 0.5) / camera.fx;
+}
 
-  // ---- 3. depth maps (PatchMatch; one reference + sources in memory) ------------
-  sw = Stopwatch();
-  std::vector<std::uint64_t> raw_key(static_cast<std::size_t>(n), 0);
-  auto raw_file = [&](int i) { return depth_dir / fmt::format("{:05d}.raw.dmap", i); };
-  auto filtered_file = [&](int i) { return depth_dir / fmt::format("{:05d}.filtered.dmap", i); };
+// The raw depth map of reference image i, from the cache or PatchMatch.
+DepthMap raw_depth_map(const DenseOptions& options, const PatchMatchOptions& pm, int i, Views& views,
+                       DenseSummary& summary) {
+  const auto& nb = views.neighbours[i];
+  CacheKey raw("raw depth map v2");
+  raw.add(views.image_key[i]);
+  for (int s : nb.sources) raw.add(views.image_key[s]);
+  const std::uint64_t key = raw.add(nb.depth_min).add(nb.depth_max).add(pm).u64();
+  views.raw_key[i] = key;
+  DepthMap map;
+  if (options.reuse_cache && dense::read_depth_map(views.raw_file(i), key, map)) {
+    ++summary.depth_maps_from_cache;
+    return map;
+  }
+  const ViewImage ref = views.load_image(i);
+  std::vector<ViewImage> src;
+  src.reserve(nb.sources.size());
+  for (int s : nb.sources) src.push_back(views.load_image(s));
+  std::vector<const ViewImage*> src_ptr;
+  for (const auto& s : src) src_ptr.push_back(&s);
+  map = dense::patch_match(ref, src_ptr, nb.depth_min, nb.depth_max, pm);
+  dense::write_depth_map(views.raw_file(i), map, key);
+  fault::point("process.dense.depth_map_written");
+  return map;
+}
+
+// Step 3: depth maps (PatchMatch; one reference and its sources in memory). Returns the
+// ground sampling distance of each map with depth, metres per pixel.
+std::vector<double> compute_depth_maps(const DenseOptions& options, const PatchMatchOptions& pm, Views& views,
+                                       DenseSummary& summary) {
+  const Stopwatch sw;
   std::vector<double> gsd;
   double valid_sum = 0;
   {
-    Progress progress("dense: depth maps", refs.size());
-    for (int i : refs) {
+    Progress progress("dense: depth maps", views.refs.size());
+    for (int i : views.refs) {
       check_cancelled();
-      const auto& nb = neighbours[i];
-      CacheKey raw("raw depth map v2");
-      raw.add(image_key[i]);
-      for (int s : nb.sources) raw.add(image_key[s]);
-      const std::uint64_t key = raw.add(nb.depth_min).add(nb.depth_max).add(pm).u64();
-      raw_key[i] = key;
-      DepthMap map;
-      if (options.reuse_cache && dense::read_depth_map(raw_file(i), key, map)) {
-        ++summary.depth_maps_from_cache;
-      } else {
-        const ViewImage ref = load_image(i);
-        std::vector<ViewImage> src;
-        src.reserve(nb.sources.size());
-        for (int s : nb.sources) src.push_back(load_image(s));
-        std::vector<const ViewImage*> src_ptr;
-        for (const auto& s : src) src_ptr.push_back(&s);
-        map = dense::patch_match(ref, src_ptr, nb.depth_min, nb.depth_max, pm);
-        dense::write_depth_map(raw_file(i), map, key);
-        fault::point("process.dense.depth_map_written");
-      }
+      const DepthMap map = raw_depth_map(options, pm, i, views, summary);
       const std::size_t valid = map.valid_count();
       valid_sum += static_cast<double>(valid) / (static_cast<double>(map.width) * map.height);
-      if (valid > 0) {
-        std::vector<double> d;
-        d.reserve(valid);
-        for (float v : map.depth) if (v > 0) d.push_back(v);
-        gsd.push_back(percentile(std::move(d), 0.5) / camera_of(i).fx);  // metres per pixel
-      }
+      if (valid > 0) gsd.push_back(depth_map_gsd(map, views.camera(i)));
       progress.step();
     }
   }
-  const double ref_count = static_cast<double>(std::max<std::size_t>(refs.size(), 1));
-  summary.valid_depth_fraction = valid_sum / ref_count;
+  summary.valid_depth_fraction = valid_sum / views.reference_count();
   summary.depth_maps = figures(sw);
   fault::point("process.dense.depth_maps_done");
+  return gsd;
+}
 
-  // ---- 4. geometric consistency (reads raw maps of the reference and its sources) --
-  sw = Stopwatch();
+// The depth map of reference image i kept by the consistency test against its sources'
+// raw maps, from the cache or computed.
+DepthMap filtered_depth_map(const DenseOptions& options, int i, Views& views) {
   const auto& cons = options.consistency;
-  std::vector<std::uint64_t> filtered_key(static_cast<std::size_t>(n), 0);
+  CacheKey filtered_depth("filtered depth map v2");
+  filtered_depth.add(views.raw_key[i]);
+  for (int s : views.neighbours[i].sources) filtered_depth.add(views.raw_key[s]);
+  const std::uint64_t key = filtered_depth.add(cons).u64();
+  views.filtered_key[i] = key;
+  DepthMap filtered;
+  if (options.reuse_cache && dense::read_depth_map(views.filtered_file(i), key, filtered)) return filtered;
+  DepthMap ref;
+  if (!dense::read_depth_map(views.raw_file(i), views.raw_key[i], ref)) {
+    throw IoError(fmt::format("dense.cache: {}: unreadable depth map", views.raw_file(i).string()));
+  }
+  std::vector<DepthMap> maps;
+  std::vector<PinholeCamera> cams;
+  for (int s : views.neighbours[i].sources) {
+    DepthMap m;
+    if (views.raw_key[s] == 0 || !dense::read_depth_map(views.raw_file(s), views.raw_key[s], m)) continue;
+    maps.push_back(std::move(m));
+    cams.push_back(views.camera(s));
+  }
+  std::vector<dense::DepthNeighbour> nbs;
+  for (std::size_t k = 0; k < maps.size(); ++k) nbs.push_back({&maps[k], &cams[k]});
+  filtered = dense::filter_consistent(ref, views.camera(i), nbs, cons);
+  dense::write_depth_map(views.filtered_file(i), filtered, key);
+  fault::point("process.dense.filtered_map_written");
+  return filtered;
+}
+
+// Step 4: geometric consistency (reads the raw maps of each reference and its sources).
+void filter_depth_maps(const DenseOptions& options, Views& views, DenseSummary& summary) {
+  const Stopwatch sw;
   double kept_sum = 0;
   {
-    Progress progress("dense: consistency", refs.size());
-    for (int i : refs) {
+    Progress progress("dense: consistency", views.refs.size());
+    for (int i : views.refs) {
       check_cancelled();
-      CacheKey filtered_depth("filtered depth map v2");
-      filtered_depth.add(raw_key[i]);
-      for (int s : neighbours[i].sources) filtered_depth.add(raw_key[s]);
-      const std::uint64_t key = filtered_depth.add(cons).u64();
-      filtered_key[i] = key;
-      DepthMap filtered;
-      if (!options.reuse_cache || !dense::read_depth_map(filtered_file(i), key, filtered)) {
-        DepthMap ref;
-        if (!dense::read_depth_map(raw_file(i), raw_key[i], ref)) {
-          throw IoError(fmt::format("dense.cache: {}: unreadable depth map", raw_file(i).string()));
-        }
-        std::vector<DepthMap> maps;
-        std::vector<PinholeCamera> cams;
-        for (int s : neighbours[i].sources) {
-          DepthMap m;
-          if (raw_key[s] == 0 || !dense::read_depth_map(raw_file(s), raw_key[s], m)) continue;
-          maps.push_back(std::move(m));
-          cams.push_back(camera_of(s));
-        }
-        std::vector<dense::DepthNeighbour> nbs;
-        for (std::size_t k = 0; k < maps.size(); ++k) nbs.push_back({&maps[k], &cams[k]});
-        filtered = dense::filter_consistent(ref, camera_of(i), nbs, cons);
-        dense::write_depth_map(filtered_file(i), filtered, key);
-        fault::point("process.dense.filtered_map_written");
-      }
+      const DepthMap filtered = filtered_depth_map(options, i, views);
       kept_sum += static_cast<double>(filtered.valid_count()) /
                   (static_cast<double>(filtered.width) * filtered.height);
       if (filtered.valid_count() > 0) ++summary.images_with_depth;
       progress.step();
     }
   }
-  summary.consistent_depth_fraction = kept_sum / ref_count;
+  summary.consistent_depth_fraction = kept_sum / views.reference_count();
   summary.filtering = figures(sw);
+}
 
-  // ---- 5. TSDF fusion ------------------------------------------------------------
-  sw = Stopwatch();
-  const auto& fo = options.fusion;
-  summary.gsd_m = gsd.empty() ? 0 : percentile(gsd, 0.5);
-  summary.smoothing_m = options.patch_match.smoothing_m(summary.gsd_m);
-  double voxel = fo.voxel_size_m;
-  if (voxel == 0) {
-    if (summary.gsd_m > 0) {
-      voxel = std::clamp(fo.voxel_gsd_factor * summary.gsd_m, fo.min_voxel_size_m, fo.max_voxel_size_m);
-    } else if (!scans.empty()) {
-      // No photo depth: the scans' own point spacing takes the place of the GSD.
-      const double spacing = dense::scan_point_spacing(scans);
-      voxel = std::clamp(fo.voxel_gsd_factor * spacing, fo.min_voxel_size_m, fo.max_voxel_size_m);
-      log::info("dense: no photo depth; voxel from the scans' median point spacing {:.1f} mm", spacing * 1e3);
-    } else {
-      throw ProcessingError("dense: no depth estimated, cannot choose a voxel size");
-    }
-  }
-  summary.voxel_size_m = voxel;
-  summary.truncation_m = fo.truncation_voxels * voxel;
-  dense::TsdfVolume volume(voxel, summary.truncation_m);
-  {
-    Progress progress("dense: fusion", refs.size());
-    for (int i : refs) {
-      check_cancelled();
-      DepthMap map;
-      if (!dense::read_depth_map(filtered_file(i), filtered_key[i], map)) {
-        throw IoError(fmt::format("dense.cache: {}: unreadable depth map", filtered_file(i).string()));
-      }
-      if (map.valid_count() > 0) volume.integrate(camera_of(i), map, load_image(i).rgb);
-      progress.step();
-    }
-  }
+// The voxel size the options ask for, or one from the depth maps' GSD (the scans' point
+// spacing without photo depth).
+double voxel_size(const FusionOptions& fo, double gsd_m, const std::vector<RangeScanInput>& scans) {
+  if (fo.voxel_size_m != 0) return fo.voxel_size_m;
+  if (gsd_m > 0) return std::clamp(fo.voxel_gsd_factor * gsd_m, fo.min_voxel_size_m, fo.max_voxel_size_m);
   if (!scans.empty()) {
-    // Photos and scans in one unit of weight: 1 for a confidence-1 photo depth seen
-    // head-on, whose noise is photo_depth_sigma_gsd depth-map GSDs (dense.hpp).
-    summary.unit_sigma_m = summary.gsd_m > 0 ? fo.photo_depth_sigma_gsd * summary.gsd_m : voxel;
-    const double photo_weight = volume.total_weight();
-    const dense::ScanFusionFigures f = dense::fuse_scans(volume, scans, summary.unit_sigma_m);
-    summary.scans_fused = f.scans;
-    summary.scan_points = f.points;
-    const double all = photo_weight + f.weight;
-    summary.scan_weight_share = all > 0 ? f.weight / all : 0;
-    log::info("dense: {} scan(s), {} points fused ({:.0f} % of the weight; unit sigma {:.1f} mm)", f.scans, f.points,
-              100 * summary.scan_weight_share, summary.unit_sigma_m * 1e3);
+    // No photo depth: the scans' own point spacing takes the place of the GSD.
+    const double spacing = dense::scan_point_spacing(scans);
+    const double voxel = std::clamp(fo.voxel_gsd_factor * spacing, fo.min_voxel_size_m, fo.max_voxel_size_m);
+    log::info("dense: no photo depth; voxel from the scans' median point spacing {:.1f} mm", spacing * 1e3);
+    return voxel;
   }
+  throw ProcessingError("dense: no depth estimated, cannot choose a voxel size");
+}
+
+void integrate_depth_maps(const Views& views, dense::TsdfVolume& volume) {
+  Progress progress("dense: fusion", views.refs.size());
+  for (int i : views.refs) {
+    check_cancelled();
+    DepthMap map;
+    if (!dense::read_depth_map(views.filtered_file(i), views.filtered_key[i], map)) {
+      throw IoError(fmt::format("dense.cache: {}: unreadable depth map", views.filtered_file(i).string()));
+    }
+    if (map.valid_count() > 0) volume.integrate(views.camera(i), map, views.load_image(i).rgb);
+    progress.step();
+  }
+}
+
+void integrate_scans(const FusionOptions& fo, const std::vector<RangeScanInput>& scans, double voxel,
+                     dense::TsdfVolume& volume, DenseSummary& summary) {
+  // Photos and scans in one unit of weight: 1 for a confidence-1 photo depth seen
+  // head-on, whose noise is photo_depth_sigma_gsd depth-map GSDs (dense.hpp).
+  summary.unit_sigma_m = summary.gsd_m > 0 ? fo.photo_depth_sigma_gsd * summary.gsd_m : voxel;
+  const double photo_weight = volume.total_weight();
+  const dense::ScanFusionFigures f = dense::fuse_scans(volume, scans, summary.unit_sigma_m);
+  summary.scans_fused = f.scans;
+  summary.scan_points = f.points;
+  const double all = photo_weight + f.weight;
+  summary.scan_weight_share = all > 0 ? f.weight / all : 0;
+  log::info("dense: {} scan(s), {} points fused ({:.0f} % of the weight; unit sigma {:.1f} mm)", f.scans, f.points,
+            100 * summary.scan_weight_share, summary.unit_sigma_m * 1e3);
+}
+
+// Step 5: TSDF fusion of the filtered depth maps and the scans, then the clean-up of
+// the volume.
+void fuse(const DenseOptions& options, const Views& views, const std::vector<RangeScanInput>& scans,
+          dense::TsdfVolume& volume, DenseSummary& summary, const Stopwatch& sw) {
+  const auto& fo = options.fusion;
+  integrate_depth_maps(views, volume);
+  if (!scans.empty()) integrate_scans(fo, scans, summary.voxel_size_m, volume, summary);
   volume.finalise(fo.min_weight);
   summary.floating_voxels_removed = volume.remove_small_components(fo.min_component_fraction);
   summary.active_voxels = volume.active_voxels();
   summary.fusion = figures(sw);
   fault::point("process.dense.fusion_done");
-  log::info("dense: voxel {:.1f} mm, {} active voxels ({} in small floating pieces removed)", voxel * 1e3,
-            summary.active_voxels, summary.floating_voxels_removed);
+  log::info("dense: voxel {:.1f} mm, {} active voxels ({} in small floating pieces removed)",
+            summary.voxel_size_m * 1e3, summary.active_voxels, summary.floating_voxels_removed);
   if (summary.active_voxels == 0) throw ProcessingError("dense: fusion left no observed voxel");
+}
 
-  // ---- 6. mesh and points -----------------------------------------------------------
-  sw = Stopwatch();
-  DenseMesh mesh = volume.extract_mesh(0.0);
-  const DenseMesh points = volume.points_from_mesh(mesh);
-  if (options.mesh.adaptivity > 0) mesh = volume.extract_mesh(options.mesh.adaptivity);
-  if (options.mesh.target_faces > 0 && mesh.faces.size() > options.mesh.target_faces) {
-    mesh = simplify_mesh(mesh, options.mesh.target_faces);
-    volume.colour_vertices(mesh);
+struct Surfaces {
+  DenseMesh mesh;
+  DenseMesh points;
+};
+
+// Step 6: the mesh (adaptive and simplified as the options say) and the points.
+Surfaces extract_surfaces(const MeshOptions& mo, dense::TsdfVolume& volume, DenseSummary& summary) {
+  const Stopwatch sw;
+  Surfaces s;
+  s.mesh = volume.extract_mesh(0.0);
+  s.points = volume.points_from_mesh(s.mesh);
+  if (mo.adaptivity > 0) s.mesh = volume.extract_mesh(mo.adaptivity);
+  if (mo.target_faces > 0 && s.mesh.faces.size() > mo.target_faces) {
+    s.mesh = simplify_mesh(s.mesh, mo.target_faces);
+    volume.colour_vertices(s.mesh);
   }
-  summary.mesh_vertices = mesh.vertices.size();
-  summary.mesh_faces = mesh.faces.size();
-  summary.points = points.vertices.size();
+  summary.mesh_vertices = s.mesh.vertices.size();
+  summary.mesh_faces = s.mesh.faces.size();
+  summary.points = s.points.vertices.size();
   summary.meshing = figures(sw);
   fault::point("process.dense.mesh_done");
+  return s;
+}
 
-  // ---- 7. writers ---------------------------------------------------------------------
-  sw = Stopwatch();
+// Step 7: the products, each recorded with its checksum.
+void write_products(const DenseOptions& options, const dense::TsdfVolume& volume, const Surfaces& s,
+                    const Eigen::Vector3d& site_origin, const std::filesystem::path& out_dir,
+                    DenseSummary& summary) {
+  const Stopwatch sw;
   ExportFrame frame = options.exports;
   frame.site_origin = site_origin;
   auto record = [&](const std::string& kind, const std::filesystem::path& p) {
@@ -376,46 +448,53 @@ DenseSummary run_dense_steps(const DenseOptions& options, const Reconstruction& 
   volume.write(out_dir / "surface.vdb", site_origin, frame.crs);
   record("surface", out_dir / "surface.vdb");
   fault::point("process.dense.surface_written");
-  write_ply(out_dir / "mesh.ply", mesh, frame);
+  write_ply(out_dir / "mesh.ply", s.mesh, frame);
   record("mesh", out_dir / "mesh.ply");
   fault::point("process.dense.mesh_written");
   if (options.mesh.write_obj) {
-    write_obj(out_dir / "mesh.obj", mesh, frame);
+    write_obj(out_dir / "mesh.obj", s.mesh, frame);
     record("mesh_obj", out_dir / "mesh.obj");
   }
-  write_ply(out_dir / "points.ply", points, frame);
+  write_ply(out_dir / "points.ply", s.points, frame);
   record("points", out_dir / "points.ply");
   fault::point("process.dense.points_written");
   summary.writing = figures(sw);
+}
 
-  // ---- 8. quality: completeness over the area, distance to the sparse points ---------
-  std::vector<Eigen::Vector2d> area = options.quality.area;
+// Step 8a: completeness, the share of the area's cells that have a surface; the area is
+// the convex hull of the sparse points unless the options give one.
+void measure_completeness(const QualityOptions& q, const Reconstruction& rec, const dense::TsdfVolume& volume,
+                          DenseSummary& summary) {
+  std::vector<Eigen::Vector2d> area = q.area;
   if (area.empty()) {
     std::vector<Eigen::Vector2d> xy;
     for (const auto& p : rec.points) xy.push_back(p.X.head<2>());
     area = convex_hull(std::move(xy));
   }
-  if (area.size() >= 3) {
-    Eigen::Vector2d lo = area[0], hi = area[0];
-    for (const auto& p : area) {
-      lo = lo.cwiseMin(p);
-      hi = hi.cwiseMax(p);
-    }
-    const double cell = options.quality.cell_size_m;
-    const int nx = std::max(1, static_cast<int>(std::ceil((hi.x() - lo.x()) / cell)));
-    const int ny = std::max(1, static_cast<int>(std::ceil((hi.y() - lo.y()) / cell)));
-    const HeightField hf = volume.top_surface(lo.x() + 0.5 * cell, lo.y() + 0.5 * cell, cell, nx, ny);
-    std::size_t inside = 0, covered = 0;
-    for (int j = 0; j < ny; ++j) {
-      for (int i = 0; i < nx; ++i) {
-        if (!inside_polygon(area, {hf.x0 + i * cell, hf.y0 + j * cell})) continue;
-        ++inside;
-        if (std::isfinite(hf.at(i, j))) ++covered;
-      }
-    }
-    summary.area_m2 = static_cast<double>(inside) * cell * cell;
-    summary.completeness = inside > 0 ? static_cast<double>(covered) / inside : 0;
+  if (area.size() < 3) return;
+  Eigen::Vector2d lo = area[0], hi = area[0];
+  for (const auto& p : area) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
   }
+  const double cell = q.cell_size_m;
+  const int nx = std::max(1, static_cast<int>(std::ceil((hi.x() - lo.x()) / cell)));
+  const int ny = std::max(1, static_cast<int>(std::ceil((hi.y() - lo.y()) / cell)));
+  const HeightField hf = volume.top_surface(lo.x() + 0.5 * cell, lo.y() + 0.5 * cell, cell, nx, ny);
+  std::size_t inside = 0, covered = 0;
+  for (int j = 0; j < ny; ++j) {
+    for (int i = 0; i < nx; ++i) {
+      if (!inside_polygon(area, {hf.x0 + i * cell, hf.y0 + j * cell})) continue;
+      ++inside;
+      if (std::isfinite(hf.at(i, j))) ++covered;
+    }
+  }
+  summary.area_m2 = static_cast<double>(inside) * cell * cell;
+  summary.completeness = inside > 0 ? static_cast<double>(covered) / inside : 0;
+}
+
+// Step 8b: the distance of the surface to the sparse points.
+void measure_sparse_distance(const Reconstruction& rec, const dense::TsdfVolume& volume, DenseSummary& summary) {
   std::vector<Eigen::Vector3d> sparse;
   for (const auto& p : rec.points) sparse.push_back(p.X);
   std::vector<double> dist;
@@ -423,6 +502,37 @@ DenseSummary run_dense_steps(const DenseOptions& options, const Reconstruction& 
   summary.sparse_points_compared = dist.size();
   summary.median_distance_sparse_m = percentile(dist, 0.5);
   summary.p95_distance_sparse_m = percentile(dist, 0.95);
+}
+
+DenseSummary run_dense_steps(const DenseOptions& options, const Reconstruction& rec,
+                             const std::vector<std::filesystem::path>& image_paths,
+                             const std::vector<RangeScanInput>& scans, const Eigen::Vector3d& site_origin,
+                             const std::filesystem::path& cache_dir, const std::filesystem::path& out_dir) {
+  check_inputs(rec, image_paths, scans);
+  const Stopwatch total;
+  DenseSummary summary;
+  summary.images_total = static_cast<int>(rec.images.size());
+  PatchMatchOptions pm = options.patch_match;  // scale resolved by select_source_views when 0
+  Views views(rec, cache_dir);
+  create_folders(views, out_dir);
+
+  select_source_views(options, scans, pm, views, summary);
+  undistort_views(options, image_paths, views, summary);
+  const std::vector<double> gsd = compute_depth_maps(options, pm, views, summary);
+  filter_depth_maps(options, views, summary);
+
+  const Stopwatch fusion;
+  summary.gsd_m = gsd.empty() ? 0 : percentile(gsd, 0.5);
+  summary.smoothing_m = options.patch_match.smoothing_m(summary.gsd_m);
+  summary.voxel_size_m = voxel_size(options.fusion, summary.gsd_m, scans);
+  summary.truncation_m = options.fusion.truncation_voxels * summary.voxel_size_m;
+  dense::TsdfVolume volume(summary.voxel_size_m, summary.truncation_m);
+  fuse(options, views, scans, volume, summary, fusion);
+
+  const Surfaces surfaces = extract_surfaces(options.mesh, volume, summary);
+  write_products(options, volume, surfaces, site_origin, out_dir, summary);
+  measure_completeness(options.quality, rec, volume, summary);
+  measure_sparse_distance(rec, volume, summary);
 
   summary.total = figures(total);
   log::info("dense: {} faces, {} points, completeness {:.1f} %, sparse distance median {:.1f} mm, "

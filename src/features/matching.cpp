@@ -234,28 +234,29 @@ void MatchingOptions::validate() const {
     fail("verification.planar_ratio", fmt::format("must be in (0, 1] (got {})", v.planar_ratio));
 }
 
-std::vector<PairMatches> match_pairs(const MatchingOptions& options,
-                                     const std::vector<ImageKeypoints>& images,
-                                     const std::vector<ImagePair>& pairs,
-                                     const std::vector<std::optional<Intrinsics>>& priors,
-                                     const std::filesystem::path& cache_dir,
-                                     MatchingSummary* summary) {
-  options.validate();
-  STRATA_CHECK(!cache_dir.empty(), "match_pairs needs the features cache folder");
-  Stopwatch clock;
-  const std::clock_t cpu_start = std::clock();
-  const int n = static_cast<int>(images.size());
+namespace {
+
+void check_pairs(const std::vector<ImagePair>& pairs, int n) {
   for (const auto& [a, b] : pairs) {
     if (a < 0 || b < 0 || a >= n || b >= n || a == b) {
       throw InputError(
           fmt::format("matching: pair ({}, {}) is not two distinct images of {}", a, b, n));
     }
   }
+}
+
+// The cache key of a pair's matches: the options, both images' features and their
+// calibration priors.
+struct PairKeys {
+  const MatchingOptions& options;
+  const std::vector<ImageKeypoints>& images;
+  const std::vector<std::optional<Intrinsics>>& priors;
+
   // A prior without a focal length is no prior.
-  auto prior = [&](int i) -> std::optional<Intrinsics> {
+  std::optional<Intrinsics> prior(int i) const {
     return i < static_cast<int>(priors.size()) && has_focal(priors[i]) ? priors[i] : std::nullopt;
-  };
-  auto pair_key = [&](int a, int b) {
+  }
+  std::string key(int a, int b) const {
     return CacheKey(fmt::format("matches v{}", kMatchingVersion))
         .add(options)
         .add(images[a].features_key)
@@ -263,22 +264,38 @@ std::vector<PairMatches> match_pairs(const MatchingOptions& options,
         .add(prior(a))
         .add(prior(b))
         .hex();
-  };
+  }
+};
 
-  // Pass 1: cached results. Only the images of uncached pairs need descriptors.
-  std::vector<std::optional<features::StoredMatches>> results(pairs.size());
-  std::vector<std::size_t> todo;
-  std::vector<char> needed(n, 0);
+// The matches of each pair as far as the cache holds them, and the pairs left to match.
+struct CachedPairs {
+  std::vector<std::optional<features::StoredMatches>> results;  // per pair
+  std::vector<std::size_t> todo;                                 // pairs not in the cache
+  std::vector<char> needed;                                      // per image: descriptors needed
+};
+
+CachedPairs read_cached_pairs(const std::vector<ImagePair>& pairs, int n, const PairKeys& keys,
+                              const std::filesystem::path& cache_dir) {
+  CachedPairs c;
+  c.results.resize(pairs.size());
+  c.needed.assign(n, 0);
   for (std::size_t p = 0; p < pairs.size(); ++p) {
     const auto [a, b] = pairs[p];
-    results[p] = features::read_matches(features::matches_file(cache_dir, pair_key(a, b)));
-    if (!results[p]) {
-      todo.push_back(p);
-      needed[a] = needed[b] = 1;
+    c.results[p] = features::read_matches(features::matches_file(cache_dir, keys.key(a, b)));
+    if (!c.results[p]) {
+      c.todo.push_back(p);
+      c.needed[a] = c.needed[b] = 1;
     }
   }
-  const std::size_t from_cache = pairs.size() - todo.size();
+  return c;
+}
 
+// The descriptors of the images marked needed, with their FLANN index.
+std::vector<ImageDescriptors> load_needed_descriptors(const MatchingOptions& options,
+                                                      const std::vector<ImageKeypoints>& images,
+                                                      const std::vector<char>& needed,
+                                                      const std::filesystem::path& cache_dir) {
+  const int n = static_cast<int>(images.size());
   std::vector<int> needed_list;
   for (int i = 0; i < n; ++i)
     if (needed[i]) needed_list.push_back(i);
@@ -300,38 +317,50 @@ std::vector<PairMatches> match_pairs(const MatchingOptions& options,
           cvflann::FLANN_DIST_L2);
     }
   });
+  return descriptors;
+}
 
+struct MatchingTimes {
+  double matching_seconds = 0, verification_seconds = 0;  // summed over pairs
+};
+
+// Matches and verifies the pairs not in the cache, and writes them to it.
+MatchingTimes match_uncached(const MatchingOptions& options, const std::vector<ImageKeypoints>& images,
+                             const std::vector<ImagePair>& pairs, const PairKeys& keys,
+                             const std::vector<ImageDescriptors>& descriptors,
+                             const std::filesystem::path& cache_dir, CachedPairs& c) {
   std::mutex time_mutex;
-  double matching_seconds = 0, verification_seconds = 0;
-  Progress progress("matching", todo.size());
-  parallel_for_index(todo.size(), options.num_threads, [&](std::size_t k) {
+  MatchingTimes times;
+  Progress progress("matching", c.todo.size());
+  parallel_for_index(c.todo.size(), options.num_threads, [&](std::size_t k) {
     check_cancelled();
-    const std::size_t p = todo[k];
+    const std::size_t p = c.todo[k];
     const auto [a, b] = pairs[p];
     Stopwatch t_match;
     const auto putative = putative_matches(options, descriptors[a], descriptors[b]);
     const double dt_match = t_match.seconds();
     Stopwatch t_verify;
-    auto verified = verify(options.verification, images[a], images[b], putative, prior(a),
-                           prior(b));
+    auto verified = verify(options.verification, images[a], images[b], putative, keys.prior(a),
+                           keys.prior(b));
     const double dt_verify = t_verify.seconds();
-    features::write_matches(features::matches_file(cache_dir, pair_key(a, b)), verified);
+    features::write_matches(features::matches_file(cache_dir, keys.key(a, b)), verified);
     fault::point("process.matching.pair_done");
-    results[p] = std::move(verified);
+    c.results[p] = std::move(verified);
     {
       std::lock_guard lock(time_mutex);
-      matching_seconds += dt_match;
-      verification_seconds += dt_verify;
+      times.matching_seconds += dt_match;
+      times.verification_seconds += dt_verify;
     }
     progress.step();
   });
   progress.finish();
+  return times;
+}
 
-  MatchingSummary s;
-  s.pairs = pairs.size();
-  s.from_cache = from_cache;
-  s.matching_seconds = matching_seconds;
-  s.verification_seconds = verification_seconds;
+// The verified pairs, counted by model in `s`.
+std::vector<PairMatches> verified_pairs(const std::vector<ImagePair>& pairs,
+                                        std::vector<std::optional<features::StoredMatches>>& results,
+                                        MatchingSummary& s) {
   std::vector<PairMatches> out;
   for (std::size_t p = 0; p < pairs.size(); ++p) {
     auto& r = *results[p];
@@ -353,6 +382,37 @@ std::vector<PairMatches> match_pairs(const MatchingOptions& options,
     }
     out.push_back(std::move(m));
   }
+  return out;
+}
+
+}  // namespace
+
+std::vector<PairMatches> match_pairs(const MatchingOptions& options,
+                                     const std::vector<ImageKeypoints>& images,
+                                     const std::vector<ImagePair>& pairs,
+                                     const std::vector<std::optional<Intrinsics>>& priors,
+                                     const std::filesystem::path& cache_dir,
+                                     MatchingSummary* summary) {
+  options.validate();
+  STRATA_CHECK(!cache_dir.empty(), "match_pairs needs the features cache folder");
+  Stopwatch clock;
+  const std::clock_t cpu_start = std::clock();
+  const int n = static_cast<int>(images.size());
+  check_pairs(pairs, n);
+  const PairKeys keys{options, images, priors};
+
+  // Cached results first: only the images of uncached pairs need descriptors.
+  CachedPairs cached = read_cached_pairs(pairs, n, keys, cache_dir);
+  const std::size_t from_cache = pairs.size() - cached.todo.size();
+  const std::vector<ImageDescriptors> descriptors = load_needed_descriptors(options, images, cached.needed, cache_dir);
+  const MatchingTimes times = match_uncached(options, images, pairs, keys, descriptors, cache_dir, cached);
+
+  MatchingSummary s;
+  s.pairs = pairs.size();
+  s.from_cache = from_cache;
+  s.matching_seconds = times.matching_seconds;
+  s.verification_seconds = times.verification_seconds;
+  std::vector<PairMatches> out = verified_pairs(pairs, cached.results, s);
   s.seconds = clock.seconds();
   s.cpu_seconds = static_cast<double>(std::clock() - cpu_start) / CLOCKS_PER_SEC;
   log::info("matching: {} pairs ({} from cache), {} verified ({} E, {} F, {} H), {} inliers, "

@@ -161,25 +161,17 @@ std::unique_ptr<ceres::LossFunction> make_loss(RobustLoss loss, double scale) {
   return nullptr;
 }
 
-}  // namespace
+// The blocks that some residual reads: only those can be held constant.
+struct UsedBlocks {
+  std::vector<char> camera, group, point;
+};
 
-BundleSummary solve_bundle(const BundleOptions& options, BaProblem& problem) {
-  Stopwatch clock;
-  BundleSummary summary;
-  ceres::Problem::Options problem_options;
-  problem_options.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-  problem_options.manifold_ownership = ceres::TAKE_OWNERSHIP;
-  ceres::Problem ceres_problem(problem_options);
-
-  // Residuals are in units of sigma, so the loss scale is too.
-  const auto keypoint_loss =
-      make_loss(options.loss, options.loss_scale_px / options.keypoint_sigma_px);
-  const auto marker_loss =
-      make_loss(options.marker_loss, options.loss_scale_px / options.marker_sigma_px);
-
-  std::vector<char> camera_used(problem.cameras.size(), 0);
-  std::vector<char> group_used(problem.intrinsics.size(), 0);
-  std::vector<char> point_used(problem.points.size(), 0);
+// A reprojection residual per observation that moves something, a prior per control
+// marker; counts them in `summary`.
+UsedBlocks add_residuals(const BundleOptions& options, BaProblem& problem, ceres::LossFunction* keypoint_loss,
+                         ceres::LossFunction* marker_loss, ceres::Problem& ceres_problem, BundleSummary& summary) {
+  UsedBlocks used{std::vector<char>(problem.cameras.size(), 0), std::vector<char>(problem.intrinsics.size(), 0),
+                  std::vector<char>(problem.points.size(), 0)};
   for (const auto& obs : problem.observations) {
     auto& cam = problem.cameras[obs.camera];
     if (!cam.variable && !problem.point_variable[obs.point]) continue;
@@ -188,30 +180,30 @@ BundleSummary solve_bundle(const BundleOptions& options, BaProblem& problem) {
                                           : options.keypoint_sigma_px;
     auto* cost = new ceres::AutoDiffCostFunction<ReprojectionCost, 2, kPoseSize, kIntrinsicsSize, 3>(
         new ReprojectionCost(obs.pixel, sigma, problem.models[cam.group]));
-    ceres_problem.AddResidualBlock(cost, obs.marker ? marker_loss.get() : keypoint_loss.get(),
+    ceres_problem.AddResidualBlock(cost, obs.marker ? marker_loss : keypoint_loss,
                                    cam.pose.data(), problem.intrinsics[cam.group].data(),
                                    problem.points[obs.point].data());
-    camera_used[obs.camera] = 1;
-    group_used[cam.group] = 1;
-    point_used[obs.point] = 1;
+    used.camera[obs.camera] = 1;
+    used.group[cam.group] = 1;
+    used.point[obs.point] = 1;
     (obs.marker ? summary.marker_observations : summary.observations)++;
   }
   for (const auto& prior : problem.priors) {
     auto* cost = new ceres::AutoDiffCostFunction<MarkerPriorCost, 3, 3>(
         new MarkerPriorCost(prior.position, prior.sigma));
     ceres_problem.AddResidualBlock(cost, nullptr, problem.points[prior.point].data());
-    point_used[prior.point] = 1;
+    used.point[prior.point] = 1;
     ++summary.control_markers;
   }
-  if (summary.observations + summary.marker_observations == 0) {
-    summary.message = "nothing to adjust";
-    return summary;
-  }
+  return used;
+}
 
-  // Constant blocks: fixed cameras, fixed points, intrinsics as options say.
+// Constant blocks: fixed cameras, fixed points, intrinsics as options say.
+void hold_constant_blocks(const BundleOptions& options, BaProblem& problem, const UsedBlocks& used,
+                          ceres::Problem& ceres_problem) {
   bool any_variable_camera = false;
   for (std::size_t c = 0; c < problem.cameras.size(); ++c) {
-    if (!camera_used[c]) continue;
+    if (!used.camera[c]) continue;
     auto& cam = problem.cameras[c];
     if (!cam.variable) {
       ceres_problem.SetParameterBlockConstant(cam.pose.data());
@@ -220,12 +212,12 @@ BundleSummary solve_bundle(const BundleOptions& options, BaProblem& problem) {
     }
   }
   for (std::size_t p = 0; p < problem.points.size(); ++p) {
-    if (point_used[p] && !problem.point_variable[p]) {
+    if (used.point[p] && !problem.point_variable[p]) {
       ceres_problem.SetParameterBlockConstant(problem.points[p].data());
     }
   }
   for (std::size_t g = 0; g < problem.intrinsics.size(); ++g) {
-    if (!group_used[g]) continue;
+    if (!used.group[g]) continue;
     double* block = problem.intrinsics[g].data();
     const bool fixed = g < problem.intrinsics_fixed.size() && problem.intrinsics_fixed[g];
     const std::vector<int> constant = constant_intrinsics(options.refine, problem.models[g]);
@@ -236,23 +228,27 @@ BundleSummary solve_bundle(const BundleOptions& options, BaProblem& problem) {
       ceres_problem.SetManifold(block, new ceres::SubsetManifold(kIntrinsicsSize, constant));
     }
   }
+}
 
-  // Datum of an unreferenced problem.
-  if (problem.gauge_camera >= 0 && camera_used[problem.gauge_camera] &&
+// Datum of an unreferenced problem.
+void fix_gauge(BaProblem& problem, const UsedBlocks& used, ceres::Problem& ceres_problem, BundleSummary& summary) {
+  if (problem.gauge_camera >= 0 && used.camera[problem.gauge_camera] &&
       problem.cameras[problem.gauge_camera].variable) {
     ceres_problem.SetParameterBlockConstant(problem.cameras[problem.gauge_camera].pose.data());
     summary.gauge_fixed = true;
   }
-  if (problem.gauge_scale_camera >= 0 && camera_used[problem.gauge_scale_camera] &&
+  if (problem.gauge_scale_camera >= 0 && used.camera[problem.gauge_scale_camera] &&
       problem.cameras[problem.gauge_scale_camera].variable) {
     ceres_problem.SetManifold(problem.cameras[problem.gauge_scale_camera].pose.data(),
                               new ceres::SubsetManifold(kPoseSize, {3 + problem.gauge_scale_axis}));
     summary.gauge_fixed = true;
   }
+}
 
+ceres::Solver::Options make_solver_options(const BundleOptions& options, const UsedBlocks& used) {
   ceres::Solver::Options solver_options;
   const std::size_t n_cameras =
-      std::size_t(std::count(camera_used.begin(), camera_used.end(), char(1)));
+      std::size_t(std::count(used.camera.begin(), used.camera.end(), char(1)));
   // The reduced camera system is small for a layer (tens of photos): dense Schur is
   // fastest there (COLMAP uses the same threshold idea).
   if (n_cameras <= 60) {
@@ -276,15 +272,11 @@ BundleSummary solve_bundle(const BundleOptions& options, BaProblem& problem) {
   solver_options.num_threads = 1;
   solver_options.logging_type = ceres::SILENT;
   solver_options.minimizer_progress_to_stdout = false;
+  return solver_options;
+}
 
-  ceres::Solver::Summary ceres_summary;
-  ceres::Solve(solver_options, &ceres_problem, &ceres_summary);
-
-  summary.iterations = int(ceres_summary.iterations.size());
-  summary.converged = ceres_summary.termination_type == ceres::CONVERGENCE;
-  summary.initial_cost = ceres_summary.initial_cost;
-  summary.final_cost = ceres_summary.final_cost;
-  summary.message = ceres_summary.BriefReport();
+// RMS reprojection error of the keypoint observations, pixels.
+double keypoint_rmse_px(const BaProblem& problem) {
   double sum2 = 0;
   std::size_t n = 0;
   for (const auto& obs : problem.observations) {
@@ -294,7 +286,42 @@ BundleSummary solve_bundle(const BundleOptions& options, BaProblem& problem) {
     sum2 += e * e;
     ++n;
   }
-  summary.rmse_px = n ? std::sqrt(sum2 / double(n)) : 0.0;
+  return n ? std::sqrt(sum2 / double(n)) : 0.0;
+}
+
+}  // namespace
+
+BundleSummary solve_bundle(const BundleOptions& options, BaProblem& problem) {
+  Stopwatch clock;
+  BundleSummary summary;
+  ceres::Problem::Options problem_options;
+  problem_options.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  problem_options.manifold_ownership = ceres::TAKE_OWNERSHIP;
+  ceres::Problem ceres_problem(problem_options);
+
+  // Residuals are in units of sigma, so the loss scale is too.
+  const auto keypoint_loss =
+      make_loss(options.loss, options.loss_scale_px / options.keypoint_sigma_px);
+  const auto marker_loss =
+      make_loss(options.marker_loss, options.loss_scale_px / options.marker_sigma_px);
+
+  const UsedBlocks used = add_residuals(options, problem, keypoint_loss.get(), marker_loss.get(), ceres_problem, summary);
+  if (summary.observations + summary.marker_observations == 0) {
+    summary.message = "nothing to adjust";
+    return summary;
+  }
+  hold_constant_blocks(options, problem, used, ceres_problem);
+  fix_gauge(problem, used, ceres_problem, summary);
+
+  ceres::Solver::Summary ceres_summary;
+  ceres::Solve(make_solver_options(options, used), &ceres_problem, &ceres_summary);
+
+  summary.iterations = int(ceres_summary.iterations.size());
+  summary.converged = ceres_summary.termination_type == ceres::CONVERGENCE;
+  summary.initial_cost = ceres_summary.initial_cost;
+  summary.final_cost = ceres_summary.final_cost;
+  summary.message = ceres_summary.BriefReport();
+  summary.rmse_px = keypoint_rmse_px(problem);
   summary.seconds = clock.seconds();
   return summary;
 }

@@ -159,45 +159,185 @@ void write_layer_scans(const synthetic::Scene& scene, int k, const fs::path& dir
   }
 }
 
-void write_dataset(const SyntheticExcavationOptions& o, const fs::path& dir, SyntheticExcavationSummary& summary) {
-  using namespace synthetic;
-  log::info("synth: building the site (seed {}, {} stages)", o.seed, o.site.stages);
-  Stopwatch step;
-  const Scene scene(o);
-  log::debug("synth: scene built in {:.2f} s", step.seconds());
-  const Intrinsics intrinsics = make_intrinsics(o);
-  const auto& site = o.site;
-  const Eigen::Vector3d origin(site.origin_e, site.origin_n, site.origin_z);
-  const std::string crs = fmt::format("EPSG:{}", site.epsg);
-  fs::create_directories(dir / "truth");
+Eigen::Vector3d site_origin(const SyntheticExcavationOptions& o) {
+  return {o.site.origin_e, o.site.origin_n, o.site.origin_z};
+}
 
-  // Markers: truth and a 'surveyed' copy with Gaussian noise.
+double focal_mm(const Intrinsics& intrinsics, double sensor_width_mm) {
+  return intrinsics.fx / intrinsics.width * sensor_width_mm;
+}
+
+// Markers: truth and a 'surveyed' copy with Gaussian noise; returns the surveyed
+// positions (CRS).
+std::vector<Eigen::Vector3d> write_markers(const synthetic::Scene& scene, const SyntheticExcavationOptions& o,
+                                           const fs::path& dir) {
+  using namespace synthetic;
+  const auto& site = o.site;
+  const Eigen::Vector3d origin = site_origin(o);
   Rng survey(o.seed ^ 0x5EB7E7ull);
   std::vector<Eigen::Vector3d> surveyed;
-  {
-    TextFile truth(dir / "truth" / "markers.csv"), meas(dir / "markers.csv");
-    truth.out() << "name,E,N,Z,sigma,kind\n";
-    meas.out() << "name,E,N,Z,sigma,kind\n";
-    for (const auto& m : scene.markers()) {
-      const Eigen::Vector3d t = m.centre + origin;
-      const Eigen::Vector3d s = t + site.survey_sigma * Eigen::Vector3d(survey.normal(), survey.normal(), survey.normal());
-      surveyed.push_back(s);
-      const char* kind = m.check ? "check" : "control";
-      truth.out() << fmt::format("{},{:.6f},{:.6f},{:.6f},0,{}\n", m.name, t.x(), t.y(), t.z(), kind);
-      meas.out() << fmt::format("{},{:.4f},{:.4f},{:.4f},{},{}\n", m.name, s.x(), s.y(), s.z(), site.survey_sigma, kind);
-    }
-    truth.close();
-    meas.close();
+  TextFile truth(dir / "truth" / "markers.csv"), meas(dir / "markers.csv");
+  truth.out() << "name,E,N,Z,sigma,kind\n";
+  meas.out() << "name,E,N,Z,sigma,kind\n";
+  for (const auto& m : scene.markers()) {
+    const Eigen::Vector3d t = m.centre + origin;
+    const Eigen::Vector3d s = t + site.survey_sigma * Eigen::Vector3d(survey.normal(), survey.normal(), survey.normal());
+    surveyed.push_back(s);
+    const char* kind = m.check ? "check" : "control";
+    truth.out() << fmt::format("{},{:.6f},{:.6f},{:.6f},0,{}\n", m.name, t.x(), t.y(), t.z(), kind);
+    meas.out() << fmt::format("{},{:.4f},{:.4f},{:.4f},{},{}\n", m.name, s.x(), s.y(), s.z(), site.survey_sigma, kind);
   }
+  truth.close();
+  meas.close();
+  return surveyed;
+}
 
-  // Each recorded layer: bake its lit texture, photograph it, write its truth.
+synthetic::ExifFields photo_exif(const SyntheticExcavationOptions& o, const Intrinsics& intrinsics,
+                                 const std::string& layer, int k, const synthetic::PlannedPhoto& p) {
+  using namespace synthetic;
+  const double sensor = o.photos.sensor_width_mm;
+  const double focal = focal_mm(intrinsics, sensor);
+  ExifFields exif;
+  exif.write = o.photos.exif;
+  exif.make = kMake;
+  exif.model = camera_name(o);
+  exif.software = "strata synth 0.1.0";
+  exif.description = fmt::format("strata synthetic excavation, seed {}, layer {}", o.seed, layer);
+  exif.datetime = exif_time(session_time(k, p.seconds_after_start));
+  exif.focal_mm = focal;
+  exif.focal_35mm = int(std::lround(focal * 36.0 / sensor));
+  exif.sensor_width_mm = sensor;
+  exif.width = intrinsics.width;
+  exif.height = intrinsics.height;
+  return exif;
+}
+
+// The true observations of every marker centre photo p sees, as lines of gcp_list.txt
+// (with the surveyed positions).
+std::vector<std::string> marker_observations(const synthetic::Scene& scene, int k, const synthetic::PlannedPhoto& p,
+                                             const Intrinsics& intrinsics,
+                                             const std::vector<Eigen::Vector3d>& surveyed) {
+  using namespace synthetic;
+  std::vector<std::string> lines;
+  const Eigen::Vector3d c = p.camera.pose.centre();
+  for (std::size_t m = 0; m < scene.markers().size(); ++m) {
+    const Eigen::Vector3d& x = scene.markers()[m].centre;
+    const auto px = p.camera.project(x);
+    if (!px || px->x() < 0 || px->y() < 0 || px->x() > intrinsics.width - 1 || px->y() > intrinsics.height - 1)
+      continue;
+    const Eigen::Vector3d d = (x - c).normalized();
+    if (-d.z() < std::cos(kMaxMarkerIncidence * 3.141592653589793 / 180)) continue;
+    const RayHit hit = cast_ray(scene, k, c, d);
+    if (hit.where == RayHit::Where::sky || hit.t < (x - c).norm() - kOcclusionTol) continue;
+    const Eigen::Vector3d& s = surveyed[m];
+    lines.push_back(fmt::format("{:.4f}\t{:.4f}\t{:.4f}\t{:.4f}\t{:.4f}\t{}\t{}", s.x(), s.y(), s.z(), px->x(),
+                                px->y(), p.name, scene.markers()[m].name));
+  }
+  return lines;
+}
+
+// Renders, develops and writes every planned photo of layer k (in parallel); returns
+// the marker observations of each photo, in the plan's order.
+std::vector<std::vector<std::string>> photograph_layer(const synthetic::Scene& scene, int k,
+                                                       const synthetic::LayerTexture& texture,
+                                                       const synthetic::Lighting& light,
+                                                       const std::vector<synthetic::PlannedPhoto>& plan,
+                                                       const Intrinsics& intrinsics,
+                                                       const std::vector<Eigen::Vector3d>& surveyed,
+                                                       const SyntheticExcavationOptions& o, const fs::path& dir) {
+  using namespace synthetic;
+  const std::string layer = fmt::format("L{}", k + 1);
+  RenderSettings settings;
+  settings.edge_samples = o.render.edge_samples;
+  std::vector<std::vector<std::string>> observations(plan.size());
+  Progress progress(fmt::format("synth: photographing {}", layer), plan.size());
+  tbb::parallel_for(std::size_t(0), plan.size(), [&](std::size_t i) {
+    check_cancelled();
+    const PlannedPhoto& p = plan[i];
+    const LinearImage img = render_view(scene, k, texture, light, p.camera, settings);
+    const auto rgb = develop(img, intrinsics, o.photos.noise_sigma, mix64(o.seed * 1000003 + std::uint64_t(k) * 1009 + i));
+    write_jpeg(dir / "photos" / layer / p.name, rgb, img.width, img.height, o.photos.jpeg_quality,
+               photo_exif(o, intrinsics, layer, k, p));
+    observations[i] = marker_observations(scene, k, p, intrinsics, surveyed);
+    progress.step();
+  });
+  progress.finish();
+  return observations;
+}
+
+// The end of a line of the true cameras: the rotation row by row, then the centre (CRS).
+std::string pose_columns(const synthetic::PlannedPhoto& p, const Eigen::Vector3d& origin) {
+  const auto& R = p.camera.pose.R;
+  const Eigen::Vector3d c = p.camera.pose.centre() + origin;
+  std::string text;
+  for (int r = 0; r < 3; ++r)
+    for (int q = 0; q < 3; ++q) text += fmt::format(",{:.17g}", R(r, q));
+  return text + fmt::format(",{:.17g},{:.17g},{:.17g}\n", c.x(), c.y(), c.z());
+}
+
+// The true cameras of a layer, as `strata export cameras --format csv` writes them
+// and, with every lens term, as `--format csv-lens`.
+void write_true_cameras(const std::vector<synthetic::PlannedPhoto>& plan, const Eigen::Vector3d& origin,
+                        const fs::path& truth_dir) {
+  using namespace synthetic;
+  TextFile cams(truth_dir / "cameras.csv");
+  cams.out() << "image,fx,fy,ppx,ppy,k1,k2,r11,r12,r13,r21,r22,r23,r31,r32,r33,X,Y,Z\n";
+  for (const auto& p : plan) {
+    const auto& K = p.camera.intrinsics;
+    cams.out() << fmt::format("{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g}", p.name, K.fx, K.fy, K.cx, K.cy,
+                              K.k1, K.k2);
+    cams.out() << pose_columns(p, origin);
+  }
+  cams.close();
+  TextFile lens(truth_dir / "cameras_lens.csv");
+  lens.out() << "image,model,fx,fy,ppx,ppy,k1,k2,k3,k4,p1,p2,r11,r12,r13,r21,r22,r23,r31,r32,r33,X,Y,Z\n";
+  for (const auto& p : plan) {
+    const auto& K = p.camera.intrinsics;
+    lens.out() << fmt::format("{},{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g}",
+                              p.name, to_string(K.model), K.fx, K.fy, K.cx, K.cy, K.k1, K.k2, K.k3, K.k4,
+                              K.p1, K.p2);
+    lens.out() << pose_columns(p, origin);
+  }
+  lens.close();
+}
+
+// Truth surface: cell centres on a grid aligned to multiples of the cell in the CRS.
+void write_truth_surface(const synthetic::Scene& scene, int k, const SyntheticExcavationOptions& o,
+                         const fs::path& path) {
+  using namespace synthetic;
+  const Eigen::Vector3d origin = site_origin(o);
+  Raster raster;
+  raster.cell = o.render.truth_cell;
+  const double margin = o.render.truth_margin;
+  raster.epsg = o.site.epsg;
+  raster.west = std::floor((origin.x() + scene.trench_x0() - margin) / raster.cell) * raster.cell;
+  raster.north = std::ceil((origin.y() + scene.trench_y1() + margin) / raster.cell) * raster.cell;
+  raster.cols = int(std::ceil((origin.x() + scene.trench_x1() + margin - raster.west) / raster.cell));
+  raster.rows = int(std::ceil((raster.north - (origin.y() + scene.trench_y0() - margin)) / raster.cell));
+  raster.values.resize(std::size_t(raster.cols) * std::size_t(raster.rows));
+  const HeightGrid& surface = scene.surface(k);
+  tbb::parallel_for(0, raster.rows, [&](int r) {
+    for (int q = 0; q < raster.cols; ++q) {
+      const double x = raster.west + (q + 0.5) * raster.cell - origin.x();
+      const double y = raster.north - (r + 0.5) * raster.cell - origin.y();
+      raster.values[std::size_t(r) * std::size_t(raster.cols) + std::size_t(q)] =
+          surface.contains(x, y) ? float(surface.sample(x, y) + origin.z()) : raster.nodata;
+    }
+  });
+  write_geotiff(path, raster);
+}
+
+// Each recorded layer: bake its lit texture (over the first layer's, for the ground
+// around the trench), photograph it, write its truth and its scans. Returns the lines
+// of gcp_list.txt.
+std::vector<std::string> record_layers(const synthetic::Scene& scene, const SyntheticExcavationOptions& o,
+                                       const Intrinsics& intrinsics, const std::vector<Eigen::Vector3d>& surveyed,
+                                       const fs::path& dir, SyntheticExcavationSummary& summary) {
+  using namespace synthetic;
+  const Eigen::Vector3d origin = site_origin(o);
   std::vector<std::string> gcp_lines;
   std::vector<std::string> scan_lines;  // of scans.csv
   std::unique_ptr<LayerTexture> ground;
-  const double sensor = o.photos.sensor_width_mm;
-  const double focal_mm = intrinsics.fx / intrinsics.width * sensor;
-  RenderSettings settings;
-  settings.edge_samples = o.render.edge_samples;
   for (int k = 0; k < scene.layers(); ++k) {
     check_cancelled();
     const std::string layer = fmt::format("L{}", k + 1);
@@ -208,100 +348,11 @@ void write_dataset(const SyntheticExcavationOptions& o, const fs::path& dir, Syn
     auto texture = std::make_unique<LayerTexture>(scene, k, light, o.render.texel, ground.get());
     log::debug("synth: {} texture baked in {:.2f} s", layer, bake.seconds());
     const auto plan = plan_photos(scene, k, intrinsics);
-    std::vector<std::vector<std::string>> observations(plan.size());
-    {
-      Progress progress(fmt::format("synth: photographing {}", layer), plan.size());
-      tbb::parallel_for(std::size_t(0), plan.size(), [&](std::size_t i) {
-        check_cancelled();
-        const PlannedPhoto& p = plan[i];
-        const LinearImage img = render_view(scene, k, *texture, light, p.camera, settings);
-        const auto rgb = develop(img, intrinsics, o.photos.noise_sigma, mix64(o.seed * 1000003 + std::uint64_t(k) * 1009 + i));
-        ExifFields exif;
-        exif.write = o.photos.exif;
-        exif.make = kMake;
-        exif.model = camera_name(o);
-        exif.software = "strata synth 0.1.0";
-        exif.description = fmt::format("strata synthetic excavation, seed {}, layer {}", o.seed, layer);
-        exif.datetime = exif_time(session_time(k, p.seconds_after_start));
-        exif.focal_mm = focal_mm;
-        exif.focal_35mm = int(std::lround(focal_mm * 36.0 / sensor));
-        exif.sensor_width_mm = sensor;
-        exif.width = intrinsics.width;
-        exif.height = intrinsics.height;
-        write_jpeg(dir / "photos" / layer / p.name, rgb, img.width, img.height, o.photos.jpeg_quality, exif);
-
-        // True observations of every marker centre this photo sees.
-        const Eigen::Vector3d c = p.camera.pose.centre();
-        for (std::size_t m = 0; m < scene.markers().size(); ++m) {
-          const Eigen::Vector3d& x = scene.markers()[m].centre;
-          const auto px = p.camera.project(x);
-          if (!px || px->x() < 0 || px->y() < 0 || px->x() > intrinsics.width - 1 || px->y() > intrinsics.height - 1)
-            continue;
-          const Eigen::Vector3d d = (x - c).normalized();
-          if (-d.z() < std::cos(kMaxMarkerIncidence * 3.141592653589793 / 180)) continue;
-          const RayHit hit = cast_ray(scene, k, c, d);
-          if (hit.where == RayHit::Where::sky || hit.t < (x - c).norm() - kOcclusionTol) continue;
-          const Eigen::Vector3d& s = surveyed[m];
-          observations[i].push_back(fmt::format("{:.4f}\t{:.4f}\t{:.4f}\t{:.4f}\t{:.4f}\t{}\t{}", s.x(), s.y(), s.z(),
-                                                px->x(), px->y(), p.name, scene.markers()[m].name));
-        }
-        progress.step();
-      });
-      progress.finish();
-    }
-    for (const auto& v : observations) gcp_lines.insert(gcp_lines.end(), v.begin(), v.end());
+    for (const auto& v : photograph_layer(scene, k, *texture, light, plan, intrinsics, surveyed, o, dir))
+      gcp_lines.insert(gcp_lines.end(), v.begin(), v.end());
     summary.photos += int(plan.size());
-
-    TextFile cams(dir / "truth" / layer / "cameras.csv");
-    cams.out() << "image,fx,fy,ppx,ppy,k1,k2,r11,r12,r13,r21,r22,r23,r31,r32,r33,X,Y,Z\n";
-    for (const auto& p : plan) {
-      const auto& K = p.camera.intrinsics;
-      const auto& R = p.camera.pose.R;
-      const Eigen::Vector3d c = p.camera.pose.centre() + origin;
-      cams.out() << fmt::format("{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g}", p.name, K.fx, K.fy, K.cx, K.cy,
-                                K.k1, K.k2);
-      for (int r = 0; r < 3; ++r)
-        for (int q = 0; q < 3; ++q) cams.out() << fmt::format(",{:.17g}", R(r, q));
-      cams.out() << fmt::format(",{:.17g},{:.17g},{:.17g}\n", c.x(), c.y(), c.z());
-    }
-    cams.close();
-    // The same with every lens term (the header of 'strata export cameras --format csv-lens').
-    TextFile lens(dir / "truth" / layer / "cameras_lens.csv");
-    lens.out() << "image,model,fx,fy,ppx,ppy,k1,k2,k3,k4,p1,p2,r11,r12,r13,r21,r22,r23,r31,r32,r33,X,Y,Z\n";
-    for (const auto& p : plan) {
-      const auto& K = p.camera.intrinsics;
-      const auto& R = p.camera.pose.R;
-      const Eigen::Vector3d c = p.camera.pose.centre() + origin;
-      lens.out() << fmt::format("{},{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g}",
-                                p.name, to_string(K.model), K.fx, K.fy, K.cx, K.cy, K.k1, K.k2, K.k3, K.k4,
-                                K.p1, K.p2);
-      for (int r = 0; r < 3; ++r)
-        for (int q = 0; q < 3; ++q) lens.out() << fmt::format(",{:.17g}", R(r, q));
-      lens.out() << fmt::format(",{:.17g},{:.17g},{:.17g}\n", c.x(), c.y(), c.z());
-    }
-    lens.close();
-
-    // Truth surface: cell centres on a grid aligned to multiples of the cell in the CRS.
-    Raster raster;
-    raster.cell = o.render.truth_cell;
-    const double margin = o.render.truth_margin;
-    raster.epsg = site.epsg;
-    raster.west = std::floor((origin.x() + scene.trench_x0() - margin) / raster.cell) * raster.cell;
-    raster.north = std::ceil((origin.y() + scene.trench_y1() + margin) / raster.cell) * raster.cell;
-    raster.cols = int(std::ceil((origin.x() + scene.trench_x1() + margin - raster.west) / raster.cell));
-    raster.rows = int(std::ceil((raster.north - (origin.y() + scene.trench_y0() - margin)) / raster.cell));
-    raster.values.resize(std::size_t(raster.cols) * std::size_t(raster.rows));
-    const HeightGrid& surface = scene.surface(k);
-    tbb::parallel_for(0, raster.rows, [&](int r) {
-      for (int q = 0; q < raster.cols; ++q) {
-        const double x = raster.west + (q + 0.5) * raster.cell - origin.x();
-        const double y = raster.north - (r + 0.5) * raster.cell - origin.y();
-        raster.values[std::size_t(r) * std::size_t(raster.cols) + std::size_t(q)] =
-            surface.contains(x, y) ? float(surface.sample(x, y) + origin.z()) : raster.nodata;
-      }
-    });
-    write_geotiff(dir / "truth" / layer / "surface.tif", raster);
-
+    write_true_cameras(plan, origin, dir / "truth" / layer);
+    write_truth_surface(scene, k, o, dir / "truth" / layer / "surface.tif");
     if (k == 0) ground = std::move(texture);
     if (o.scans.enabled) write_layer_scans(scene, k, dir, scan_lines, summary);
   }
@@ -311,92 +362,104 @@ void write_dataset(const SyntheticExcavationOptions& o, const fs::path& dir, Syn
     for (const auto& l : scan_lines) csv.out() << l << "\n";
     csv.close();
   }
+  return gcp_lines;
+}
 
-  {
-    TextFile gcp(dir / "gcp_list.txt");
-    gcp.out() << crs << "\n";
-    for (const auto& l : gcp_lines) gcp.out() << l << "\n";
-    gcp.close();
-  }
-  {
-    // The limit of excavation as the surveyor laid it out: a field record, used by
-    // `strata volume --outline` (nothing outside it was dug).
-    const double e0 = origin.x() + scene.trench_x0(), e1 = origin.x() + scene.trench_x1();
-    const double n0 = origin.y() + scene.trench_y0(), n1 = origin.y() + scene.trench_y1();
-    TextFile outline(dir / "trench_outline.geojson");
-    outline.out() << fmt::format(
-        "{{\"type\": \"FeatureCollection\", \"crs\": {{\"type\": \"name\", \"properties\": {{\"name\": "
-        "\"urn:ogc:def:crs:EPSG::{}\"}}}},\n \"features\": [{{\"type\": \"Feature\", \"properties\": "
-        "{{\"name\": \"trench\"}}, \"geometry\": {{\"type\": \"Polygon\", \"coordinates\": "
-        "[[[{:.4f}, {:.4f}], [{:.4f}, {:.4f}], [{:.4f}, {:.4f}], [{:.4f}, {:.4f}], [{:.4f}, {:.4f}]]]}}}}]}}\n",
-        o.site.epsg, e0, n0, e1, n0, e1, n1, e0, n1, e0, n0);
-    outline.close();
-  }
-  summary.marker_observations = int(gcp_lines.size());
-  summary.markers = int(scene.markers().size());
-  summary.layers = scene.layers();
+void write_gcp_list(const std::string& crs, const std::vector<std::string>& lines, const fs::path& path) {
+  synthetic::TextFile gcp(path);
+  gcp.out() << crs << "\n";
+  for (const auto& l : lines) gcp.out() << l << "\n";
+  gcp.close();
+}
 
-  // Volumes removed, per excavated unit.
-  {
-    TextFile units(dir / "truth" / "units.csv");
-    units.out() << "unit,volume_m3,area_m2,mean_thickness_m,max_thickness_m\n";
-    for (int k = 1; k < scene.layers(); ++k) {
-      const UnitVolume v = removed_volume(scene.surface(k - 1), scene.surface(k));
-      SyntheticExcavationSummary::UnitVolume u;
-      u.unit = scene.layer_unit_code(k - 1);
-      u.volume_m3 = v.volume;
-      u.area_m2 = v.area;
-      u.mean_thickness_m = v.area > 0 ? v.volume / v.area : 0;
-      u.max_thickness_m = v.max;
-      summary.units.push_back(u);
-      units.out() << fmt::format("{},{:.9g},{:.9g},{:.9g},{:.9g}\n", u.unit, u.volume_m3, u.area_m2,
-                                 u.mean_thickness_m, u.max_thickness_m);
-    }
-    units.close();
-  }
+// The limit of excavation as the surveyor laid it out: a field record, used by
+// `strata volume --outline` (nothing outside it was dug).
+void write_trench_outline(const synthetic::Scene& scene, const SyntheticExcavationOptions& o, const fs::path& path) {
+  const Eigen::Vector3d origin = site_origin(o);
+  const double e0 = origin.x() + scene.trench_x0(), e1 = origin.x() + scene.trench_x1();
+  const double n0 = origin.y() + scene.trench_y0(), n1 = origin.y() + scene.trench_y1();
+  synthetic::TextFile outline(path);
+  outline.out() << fmt::format(
+      "{{\"type\": \"FeatureCollection\", \"crs\": {{\"type\": \"name\", \"properties\": {{\"name\": "
+      "\"urn:ogc:def:crs:EPSG::{}\"}}}},\n \"features\": [{{\"type\": \"Feature\", \"properties\": "
+      "{{\"name\": \"trench\"}}, \"geometry\": {{\"type\": \"Polygon\", \"coordinates\": "
+      "[[[{:.4f}, {:.4f}], [{:.4f}, {:.4f}], [{:.4f}, {:.4f}], [{:.4f}, {:.4f}], [{:.4f}, {:.4f}]]]}}}}]}}\n",
+      o.site.epsg, e0, n0, e1, n0, e1, n1, e0, n1, e0, n0);
+  outline.close();
+}
 
-  // Finds planted in the removed units, surveyed like the markers; the truth names
-  // each one's unit and whether the register was planted wrong.
-  {
-    Rng find_survey(o.seed ^ 0xF1D55EB7ull);
-    TextFile truth(dir / "truth" / "finds.csv"), meas(dir / "finds.csv");
-    truth.out() << "id,E,N,Z,true_unit,recorded_unit,planted_contradiction,depth_m,clearance_m\n";
-    meas.out() << "id,E,N,Z,unit,type,description\n";
-    for (const auto& f : plant_finds(scene, o.seed)) {
-      const Eigen::Vector3d t = f.position + origin;
-      const Eigen::Vector3d s =
-          t + site.survey_sigma * Eigen::Vector3d(find_survey.normal(), find_survey.normal(), find_survey.normal());
-      truth.out() << fmt::format("{},{:.6f},{:.6f},{:.6f},{},{},{},{:.4f},{:.4f}\n", f.id, t.x(), t.y(), t.z(),
-                                 f.true_unit, f.recorded_unit, f.contradiction() ? 1 : 0, f.depth_m, f.clearance_m);
-      meas.out() << fmt::format("{},{:.4f},{:.4f},{:.4f},{},{},{}\n", f.id, s.x(), s.y(), s.z(), f.recorded_unit,
-                                csv_field(f.type), csv_field(f.description));
-      summary.finds++;
-      summary.planted_contradictions += f.contradiction() ? 1 : 0;
-    }
-    truth.close();
-    meas.close();
+// Volumes removed, per excavated unit.
+void write_removed_volumes(const synthetic::Scene& scene, const fs::path& path, SyntheticExcavationSummary& summary) {
+  synthetic::TextFile units(path);
+  units.out() << "unit,volume_m3,area_m2,mean_thickness_m,max_thickness_m\n";
+  for (int k = 1; k < scene.layers(); ++k) {
+    const UnitVolume v = removed_volume(scene.surface(k - 1), scene.surface(k));
+    SyntheticExcavationSummary::UnitVolume u;
+    u.unit = scene.layer_unit_code(k - 1);
+    u.volume_m3 = v.volume;
+    u.area_m2 = v.area;
+    u.mean_thickness_m = v.area > 0 ? v.volume / v.area : 0;
+    u.max_thickness_m = v.max;
+    summary.units.push_back(u);
+    units.out() << fmt::format("{},{:.9g},{:.9g},{:.9g},{:.9g}\n", u.unit, u.volume_m3, u.area_m2,
+                               u.mean_thickness_m, u.max_thickness_m);
   }
+  units.close();
+}
 
-  // Stratigraphy and layers.
-  {
-    TextFile units(dir / "units.csv");
-    units.out() << "code,type,description\n";
-    for (const auto& u : scene.units())
-      units.out() << csv_field(u.code) << ',' << csv_field(u.type) << ',' << csv_field(u.description) << '\n';
-    units.close();
-    TextFile rel(dir / "relations.csv");
-    rel.out() << "a,relation,b\n";
-    for (const auto& r : scene.relations()) rel.out() << r.a << ',' << r.relation << ',' << r.b << '\n';
-    rel.close();
-    TextFile layers(dir / "layers.csv");
-    layers.out() << "layer,unit,captured_at,photos_dir\n";
-    for (int k = 0; k < scene.layers(); ++k)
-      layers.out() << fmt::format("L{},{},{},photos/L{}\n", k + 1, scene.layer_unit_code(k), session_time(k, 0), k + 1);
-    layers.close();
+// Finds planted in the removed units, surveyed like the markers; the truth names
+// each one's unit and whether the register was planted wrong.
+void write_finds(const synthetic::Scene& scene, const SyntheticExcavationOptions& o, const fs::path& dir,
+                 SyntheticExcavationSummary& summary) {
+  using namespace synthetic;
+  const Eigen::Vector3d origin = site_origin(o);
+  Rng find_survey(o.seed ^ 0xF1D55EB7ull);
+  TextFile truth(dir / "truth" / "finds.csv"), meas(dir / "finds.csv");
+  truth.out() << "id,E,N,Z,true_unit,recorded_unit,planted_contradiction,depth_m,clearance_m\n";
+  meas.out() << "id,E,N,Z,unit,type,description\n";
+  for (const auto& f : plant_finds(scene, o.seed)) {
+    const Eigen::Vector3d t = f.position + origin;
+    const Eigen::Vector3d s =
+        t + o.site.survey_sigma * Eigen::Vector3d(find_survey.normal(), find_survey.normal(), find_survey.normal());
+    truth.out() << fmt::format("{},{:.6f},{:.6f},{:.6f},{},{},{},{:.4f},{:.4f}\n", f.id, t.x(), t.y(), t.z(),
+                               f.true_unit, f.recorded_unit, f.contradiction() ? 1 : 0, f.depth_m, f.clearance_m);
+    meas.out() << fmt::format("{},{:.4f},{:.4f},{:.4f},{},{},{}\n", f.id, s.x(), s.y(), s.z(), f.recorded_unit,
+                              csv_field(f.type), csv_field(f.description));
+    summary.finds++;
+    summary.planted_contradictions += f.contradiction() ? 1 : 0;
   }
+  truth.close();
+  meas.close();
+}
 
+// Stratigraphy and layers.
+void write_stratigraphy(const synthetic::Scene& scene, const fs::path& dir) {
+  using namespace synthetic;
+  TextFile units(dir / "units.csv");
+  units.out() << "code,type,description\n";
+  for (const auto& u : scene.units())
+    units.out() << csv_field(u.code) << ',' << csv_field(u.type) << ',' << csv_field(u.description) << '\n';
+  units.close();
+  TextFile rel(dir / "relations.csv");
+  rel.out() << "a,relation,b\n";
+  for (const auto& r : scene.relations()) rel.out() << r.a << ',' << r.relation << ',' << r.b << '\n';
+  rel.close();
+  TextFile layers(dir / "layers.csv");
+  layers.out() << "layer,unit,captured_at,photos_dir\n";
+  for (int k = 0; k < scene.layers(); ++k)
+    layers.out() << fmt::format("L{},{},{},photos/L{}\n", k + 1, scene.layer_unit_code(k), session_time(k, 0), k + 1);
+  layers.close();
+}
+
+// site.json: the site, its layers, camera, markers and scans, for the reader of the
+// dataset.
+void write_site_json(const synthetic::Scene& scene, const SyntheticExcavationOptions& o, const Intrinsics& intrinsics,
+                     const fs::path& path) {
+  using namespace synthetic;
+  const auto& site = o.site;
+  const Eigen::Vector3d origin = site_origin(o);
   nlohmann::ordered_json j;
-  j["crs"] = crs;
+  j["crs"] = fmt::format("EPSG:{}", site.epsg);
   j["origin"] = {origin.x(), origin.y(), origin.z()};
   j["seed"] = o.seed;
   const double cx = 0.5 * (scene.trench_x0() + scene.trench_x1()), cy = 0.5 * (scene.trench_y0() + scene.trench_y1());
@@ -418,10 +481,10 @@ void write_dataset(const SyntheticExcavationOptions& o, const fs::path& dir, Syn
                  {"model", camera_name(o)},
                  {"lens", to_string(intrinsics.model)},
                  {"exif", o.photos.exif},
-                 {"sensor_width_mm", sensor},
+                 {"sensor_width_mm", o.photos.sensor_width_mm},
                  {"width", intrinsics.width},
                  {"height", intrinsics.height},
-                 {"focal_mm", focal_mm}};
+                 {"focal_mm", focal_mm(intrinsics, o.photos.sensor_width_mm)}};
   const bool quadrant = site.marker_pattern == SyntheticExcavationOptions::Site::MarkerPattern::quadrant;
   j["markers"] = {{"pattern", quadrant ? "quadrant" : "aruco"},
                   {"dictionary", quadrant ? nlohmann::ordered_json(nullptr) : nlohmann::ordered_json("DICT_4X4_50")},
@@ -433,9 +496,30 @@ void write_dataset(const SyntheticExcavationOptions& o, const fs::path& dir, Syn
     j["scans"] = {{"csv", "scans.csv"},          {"stations", o.scans.stations}, {"step_mrad", o.scans.step_mrad},
                   {"sigma_m", o.scans.sigma_m}, {"height_m", o.scans.height_m}, {"crop_margin_m", o.scans.crop_margin_m}};
   j["generator"] = {{"name", "strata synth"}, {"version", "0.1.0"}};
-  TextFile json(dir / "site.json");
+  TextFile json(path);
   json.out() << j.dump(2) << "\n";
   json.close();
+}
+
+void write_dataset(const SyntheticExcavationOptions& o, const fs::path& dir, SyntheticExcavationSummary& summary) {
+  using namespace synthetic;
+  log::info("synth: building the site (seed {}, {} stages)", o.seed, o.site.stages);
+  Stopwatch step;
+  const Scene scene(o);
+  log::debug("synth: scene built in {:.2f} s", step.seconds());
+  const Intrinsics intrinsics = make_intrinsics(o);
+  fs::create_directories(dir / "truth");
+  const std::vector<Eigen::Vector3d> surveyed = write_markers(scene, o, dir);
+  const std::vector<std::string> gcp_lines = record_layers(scene, o, intrinsics, surveyed, dir, summary);
+  write_gcp_list(fmt::format("EPSG:{}", o.site.epsg), gcp_lines, dir / "gcp_list.txt");
+  write_trench_outline(scene, o, dir / "trench_outline.geojson");
+  summary.marker_observations = int(gcp_lines.size());
+  summary.markers = int(scene.markers().size());
+  summary.layers = scene.layers();
+  write_removed_volumes(scene, dir / "truth" / "units.csv", summary);
+  write_finds(scene, o, dir, summary);
+  write_stratigraphy(scene, dir);
+  write_site_json(scene, o, intrinsics, dir / "site.json");
 }
 
 }  // namespace
