@@ -5,7 +5,6 @@
 #include "core/fault.hpp"
 #include "core/log.hpp"
 #include "project/project.hpp"
-#include "volume/raster_io.hpp"
 #include "volume/section.hpp"
 #include "volume/site_volumes.hpp"
 
@@ -215,9 +214,7 @@ void register_exports(CLI::App& app) {
       Project p = Project::open(a->dir);
       const SiteModel m = load_site_model(p, o);
       const UnitSolid& s = require_solid(m, *unit);
-      HeightField t = s.top;
-      for (std::size_t c = 0; c < t.z.size(); ++c) t.z[c] = s.dug(c) ? s.thickness(c) : t.z[c];
-      write_field_geotiff(*out, t, m.site.origin, m.site.crs, 0, fmt::format("thickness of unit {} (m)", s.unit));
+      write_thickness_geotiff(*out, s, m.site);
       log::info("wrote {} (unit {}: {:.4f} m3 over {:.3f} m2)", *out, s.unit, s.measures.volume_m3, s.measures.area_m2);
     });
   }

@@ -7,7 +7,7 @@
 #include "products/dtm.hpp"
 #include "products/ortho_markers.hpp"
 #include "products/orthophoto.hpp"
-#include "products/raster_io.hpp"
+#include "exporters/raster/geotiff.hpp"
 #include "products/site_plan.hpp"
 #include "pipeline/stage_results.hpp"
 #include "project/project.hpp"

@@ -2,10 +2,9 @@
 // Digital terrain model of a layer: the uppermost fused surface seen from above,
 // on a north-up grid.
 //
-// Frames: grids live in the site frame (site CRS minus the site origin, metres).
-// Heights are stored as Float32 site-frame values (design.md allows Float32 in
-// rasters expressed in the local frame); writers add the origin back.
+// Frames: see geometry/raster.hpp.
 #include "dense/dense.hpp"
+#include "geometry/raster.hpp"
 
 #include <Eigen/Core>
 
@@ -16,36 +15,6 @@
 #include <vector>
 
 namespace strata {
-
-// A north-up raster grid in the site frame. Column c covers
-// [x_min + c*cell, x_min + (c+1)*cell]; row r covers [y_max - (r+1)*cell, y_max - r*cell].
-// The GeoTIFF geotransform is {E0 + x_min, cell, 0, N0 + y_max, 0, -cell}.
-struct RasterGrid {
-  double x_min = 0;  // metres, site frame: west edge of column 0
-  double y_max = 0;  // metres, site frame: north edge of row 0
-  double cell = 0;   // metres
-  int width = 0;     // columns
-  int height = 0;    // rows
-
-  double x_centre(int col) const { return x_min + (col + 0.5) * cell; }
-  double y_centre(int row) const { return y_max - (row + 0.5) * cell; }
-  double x_max() const { return x_min + width * cell; }
-  double y_min() const { return y_max - height * cell; }
-  std::size_t cells() const { return std::size_t(width) * std::size_t(height); }
-  std::size_t index(int col, int row) const { return std::size_t(row) * std::size_t(width) + std::size_t(col); }
-};
-
-// Heights in metres (site frame), row-major north-up; NaN where there is no surface.
-struct Dtm {
-  RasterGrid grid;
-  std::vector<float> z;
-  // Height uncertainty per cell, metres, one sigma, same layout (NaN where
-  // unknown, and on cells filled by fill_small_gaps); empty: none.
-  std::vector<float> sigma;
-
-  float at(int col, int row) const { return z[grid.index(col, row)]; }
-  bool valid(int col, int row) const { return std::isfinite(at(col, row)); }
-};
 
 struct DtmOptions {
   double cell_m = 0.005;  // metres; 5 mm is about the dense GSD of a 24 Mpx photo at 1.5 m

@@ -4,8 +4,7 @@
 #include "core/error.hpp"
 #include "core/fault.hpp"
 #include "core/log.hpp"
-#include "products/gdal_util.hpp"
-#include "products/raster_io.hpp"
+#include "exporters/raster/gdal_util.hpp"
 #include "project/records.hpp"
 
 #include <gdal_priv.h>
@@ -23,7 +22,7 @@ namespace strata {
 namespace {
 
 double raster_cell(const fs::path& tif) {
-  products_detail::init_gdal();
+  gdal_detail::init_gdal();
   GDALDatasetH ds = GDALOpen(tif.string().c_str(), GA_ReadOnly);
   if (!ds) throw IoError(fmt::format("exporter.grass: {}: {}", tif.string(), CPLGetLastErrorMsg()));
   double gt[6] = {0, 0, 0, 0, 0, 0};
@@ -57,7 +56,7 @@ void write_vectors(const fs::path& gpkg, const fs::path& out, const std::vector<
   CPLErrorReset();
   GDALClose(dst);  // GPKG commits here; a full disk shows in GDAL's error state
   std::error_code ec;
-  if (products_detail::gdal_failed()) {
+  if (gdal_detail::gdal_failed()) {
     const std::string why = CPLGetLastErrorMsg();
     fs::remove(tmp, ec);
     throw IoError(fmt::format("exporter.grass: {}: {}", out.string(), why));

@@ -5,7 +5,7 @@
 // and compared with the surveyed position of its marker. Acceptance: every
 // visible marker's centre within `tolerance_px` orthophoto pixels of its survey.
 #include "features/targets.hpp"
-#include "products/raster_io.hpp"
+#include "geometry/raster.hpp"
 
 #include <Eigen/Core>
 

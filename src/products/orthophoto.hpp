@@ -21,7 +21,7 @@
 #include "core/cache_key.hpp"
 #include "geometry/camera.hpp"
 #include "products/dtm.hpp"
-#include "products/raster_io.hpp"
+#include "geometry/raster.hpp"
 
 #include <array>
 #include <cstdint>

@@ -1,7 +1,7 @@
 #include "products/site_plan.hpp"
 
 #include "core/error.hpp"
-#include "products/gdal_util.hpp"
+#include "exporters/raster/gdal_util.hpp"
 #include "project/gpkg.hpp"
 
 #include <gdal_alg.h>
@@ -18,8 +18,8 @@
 namespace strata {
 namespace {
 
-using products_detail::DatasetPtr;
-using products_detail::init_gdal;
+using gdal_detail::DatasetPtr;
+using gdal_detail::init_gdal;
 
 DatasetPtr make_driver_dataset(const char* driver, int w, int h, int bands, GDALDataType type) {
   init_gdal();

@@ -5,6 +5,7 @@
 //
 // Frames: site frame (site CRS minus the site origin, metres), north-up plan grid.
 #include "geometry/camera.hpp"
+#include "geometry/raster.hpp"
 
 #include <Eigen/Core>
 
@@ -15,18 +16,11 @@ namespace strata {
 
 // A north-up plan grid over the trench; cells whose height is NaN lie outside the
 // recorded area and are ignored.
-struct CoverageMap {
-  double x_min = 0;  // metres, site frame: west edge of column 0
-  double y_max = 0;  // metres, site frame: north edge of row 0
-  double cell = 0;   // metres
-  int width = 0, height = 0;
+struct CoverageMap : RasterGrid {
   std::vector<float> z;      // metres, site frame, row-major; NaN outside the area
   std::vector<int> count;    // registered photos that see the cell centre
   std::vector<float> gsd_m;  // finest ground sampling distance among them, metres/pixel; NaN when unseen
 
-  std::size_t index(int col, int row) const { return std::size_t(row) * std::size_t(width) + std::size_t(col); }
-  double x_centre(int col) const { return x_min + (col + 0.5) * cell; }
-  double y_centre(int row) const { return y_max - (row + 0.5) * cell; }
   bool inside(std::size_t i) const;  // height known
   std::size_t area_cells() const;
 };

@@ -6,7 +6,7 @@
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "crs/crs.hpp"
-#include "products/gdal_util.hpp"
+#include "exporters/raster/gdal_util.hpp"
 
 #include <fmt/format.h>
 #include <ogrsf_frmts.h>
@@ -396,7 +396,7 @@ void write_section_gpkg(const fs::path& path, const SectionProfile& p, const Eig
   if (ds->CommitTransaction() != OGRERR_NONE) fail("cannot commit the features: " + std::string(CPLGetLastErrorMsg()));
   CPLErrorReset();
   GDALClose(GDALDataset::ToHandle(ds));
-  if (products_detail::gdal_failed()) {
+  if (gdal_detail::gdal_failed()) {
     const std::string why = CPLGetLastErrorMsg();
     fs::remove(tmp, ec);
     throw IoError(fmt::format("{}: {}: {}", kStage, path.string(), why));

@@ -152,162 +152,186 @@ double StableGround::factor(double stated_sigma_m, double coverage) const {
   return std::isfinite(coverage) ? f * by_coverage(coverage, 1.0) : f;
 }
 
+namespace {
+
+// The cells that may judge: stable, with a difference and a stated sigma; in grid order.
+std::vector<std::size_t> judging_cells(const std::vector<double>& difference, const std::vector<double>& sigma,
+                                       const std::vector<std::uint8_t>& stable) {
+  std::vector<std::size_t> cells;
+  for (std::size_t c = 0; c < stable.size(); ++c)
+    if (stable[c] && std::isfinite(difference[c]) && sigma[c] > 0) cells.push_back(c);
+  return cells;
+}
+
+// How much the offset varies around the unit: the standard deviation of the
+// medians of the four quadrants about the judging cells' centroid. A warp or tilt
+// of one surface against the other shows as a spread of these; the unit inside
+// may see any of them. 0 when fewer than two quadrants hold enough cells.
+double offset_spread(const std::vector<std::size_t>& cells, const std::vector<double>& difference, const SiteGrid& grid,
+                     std::size_t min_cells) {
+  const auto x = [&](std::size_t c) { return grid.x(int(c % std::size_t(grid.nx))); };
+  const auto y = [&](std::size_t c) { return grid.y(int(c / std::size_t(grid.nx))); };
+  double cx = 0, cy = 0;
+  for (std::size_t c : cells) {
+    cx += x(c);
+    cy += y(c);
+  }
+  cx /= double(cells.size());
+  cy /= double(cells.size());
+  std::vector<double> quadrant[4];
+  for (std::size_t c : cells) quadrant[(x(c) > cx ? 1 : 0) + (y(c) > cy ? 2 : 0)].push_back(difference[c]);
+  std::vector<double> medians;
+  for (auto& q : quadrant)
+    if (q.size() >= std::max<std::size_t>(min_cells / 4, 2)) medians.push_back(median(q));
+  if (medians.size() < 2) return 0;
+  double mean = 0, var = 0;
+  for (double m : medians) mean += m / double(medians.size());
+  for (double m : medians) var += (m - mean) * (m - mean) / double(medians.size() - 1);
+  return std::sqrt(var);
+}
+
+// The factor per bin of stated sigma: each bin's median stated sigma and the NMAD
+// of its differences about the bias over that median.
+FactorBins factor_by_sigma(const std::vector<std::size_t>& cells, const std::vector<double>& difference,
+                           const std::vector<double>& sigma, double bias_m) {
+  std::vector<std::pair<double, double>> by_sigma;  // (stated sigma, difference - bias)
+  for (std::size_t c : cells) by_sigma.emplace_back(sigma[c], difference[c] - bias_m);
+  // By stated sigma only: within equal sigmas the cells keep their grid order
+  // (sorting by the difference too would split a bin's spread between bins).
+  std::stable_sort(by_sigma.begin(), by_sigma.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  FactorBins bins_out;
+  const std::size_t bins = std::min<std::size_t>(kSigmaBins, by_sigma.size() / kMinCellsPerBin);
+  std::size_t hi = 0;
+  for (std::size_t b = 0; b < bins && hi < by_sigma.size(); ++b) {
+    // A bin never splits equal sigmas (with one stated sigma everywhere, bins of
+    // equal count would be bands of rows, the first one's factor taken for all).
+    const std::size_t lo = hi;
+    hi = std::max(lo + 1, (b + 1) * by_sigma.size() / bins);
+    while (hi < by_sigma.size() && by_sigma[hi].first == by_sigma[hi - 1].first) ++hi;
+    std::vector<double> stated, dev;
+    for (std::size_t k = lo; k < hi; ++k) {
+      stated.push_back(by_sigma[k].first);
+      dev.push_back(by_sigma[k].second);
+    }
+    const double median_sigma = median(stated);
+    bins_out.at.push_back(median_sigma);
+    bins_out.factor.push_back(nmad_of(dev, 0.0) / median_sigma);
+  }
+  return bins_out;
+}
+
+// Of the differences standardised by the sigma bins, the factor per bin of
+// coverage (fixed edges, kCoverageEdges); none when it says nothing the sigma
+// bins did not (one bin, or a bin without spread).
+FactorBins factor_by_coverage(const std::vector<std::size_t>& cells, const std::vector<double>& difference,
+                              const std::vector<double>& sigma, const std::vector<double>& coverage,
+                              const StableGround& s) {
+  constexpr std::size_t kBins = std::size(kCoverageEdges) + 1;
+  std::vector<double> cov[kBins], dev[kBins];
+  for (std::size_t c : cells) {
+    if (!std::isfinite(coverage[c])) continue;
+    const double scaled = s.by_sigma(sigma[c], s.scale) * sigma[c];
+    if (!(scaled > 0)) continue;  // noise-free surfaces (synthetic truth): nothing to judge
+    const std::size_t b = std::size_t(std::upper_bound(std::begin(kCoverageEdges), std::end(kCoverageEdges),
+                                                       coverage[c]) - std::begin(kCoverageEdges));
+    cov[b].push_back(coverage[c]);
+    dev[b].push_back((difference[c] - s.bias_m) / scaled);
+  }
+  FactorBins bins;
+  for (std::size_t b = 0; b < kBins; ++b) {
+    if (cov[b].size() < kMinCellsPerBin && b + 1 < kBins) {  // too few: into the next bin
+      cov[b + 1].insert(cov[b + 1].end(), cov[b].begin(), cov[b].end());
+      dev[b + 1].insert(dev[b + 1].end(), dev[b].begin(), dev[b].end());
+      continue;
+    }
+    if (cov[b].size() < kMinCellsPerBin) continue;
+    bins.at.push_back(median(cov[b]));
+    bins.factor.push_back(nmad_of(dev[b], 0.0));
+  }
+  const bool spread =
+      std::all_of(bins.factor.begin(), bins.factor.end(), [](double f) { return std::isfinite(f) && f > 0; });
+  if (bins.at.size() < 2 || !spread) return {};
+  return bins;
+}
+
+// Correlation of the standardised differences `u` (NaN off the judging cells),
+// scaled to unit spread by the ground's factors and clipped, along rows and
+// columns at growing lags: rho(h) = 1 - gamma(h) / variance; the correlation
+// distance L is where rho falls to 1/e. `fallback_m` when it cannot be read.
+double correlation_length(std::vector<double> u, const StableGround& s, const std::vector<double>& sigma,
+                          const std::vector<double>& coverage, const SiteGrid& grid, double fallback_m) {
+  const std::size_t n = grid.size();
+  double var = 0;
+  std::size_t count = 0;
+  for (std::size_t c = 0; c < n; ++c)
+    if (double& x = u[c]; std::isfinite(x)) {
+      const double f = s.factor(sigma[c], coverage.size() == n ? coverage[c] : std::nan(""));
+      x = f > 0 ? std::clamp(x / f, -kClip, kClip) : 0.0;
+      var += x * x;
+      ++count;
+    }
+  var /= double(count);
+  const int lags[] = {1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256};
+  double prev_h = 0, prev_rho = 1;
+  for (int h : lags) {
+    if (h >= std::max(grid.nx, grid.ny)) break;
+    double sum = 0;
+    std::size_t pairs = 0;
+    for (int j = 0; j < grid.ny; ++j)
+      for (int i = 0; i < grid.nx; ++i) {
+        const double a = u[std::size_t(j) * grid.nx + i];
+        if (!std::isfinite(a)) continue;
+        if (i + h < grid.nx) {
+          const double b = u[std::size_t(j) * grid.nx + i + h];
+          if (std::isfinite(b)) sum += (a - b) * (a - b), ++pairs;
+        }
+        if (j + h < grid.ny) {
+          const double b = u[std::size_t(j + h) * grid.nx + i];
+          if (std::isfinite(b)) sum += (a - b) * (a - b), ++pairs;
+        }
+      }
+    if (pairs < 100 || !(var > 0)) break;
+    const double rho = 1 - 0.5 * sum / double(pairs) / var;
+    if (rho < std::exp(-1.0)) {
+      const double t = (prev_rho - std::exp(-1.0)) / std::max(prev_rho - rho, 1e-12);
+      return (prev_h + t * (h - prev_h)) * grid.cell;
+    }
+    prev_h = h;
+    prev_rho = rho;
+  }
+  return prev_h > 0 ? prev_h * grid.cell : fallback_m;  // correlated beyond the longest lag read
+}
+
+}  // namespace
+
 StableGround judge_stable_ground(const std::vector<double>& difference, const std::vector<double>& sigma,
                                  const std::vector<std::uint8_t>& stable, const std::vector<double>& coverage,
                                  const SiteGrid& grid, std::size_t min_cells, double fallback_correlation_m) {
   StableGround s;
   s.correlation_m = fallback_correlation_m;
   const std::size_t n = grid.size();
-  std::vector<double> d, z;
-  for (std::size_t c = 0; c < n; ++c)
-    if (stable[c] && std::isfinite(difference[c]) && sigma[c] > 0) d.push_back(difference[c]);
-  s.cells = d.size();
+  const std::vector<std::size_t> cells = judging_cells(difference, sigma, stable);
+  std::vector<double> d;
+  for (std::size_t c : cells) d.push_back(difference[c]);
+  s.cells = cells.size();
   s.area_m2 = double(s.cells) * grid.cell * grid.cell;
   if (s.cells < std::max<std::size_t>(min_cells, 2)) return s;
   s.used = true;
   s.bias_m = median(d);
   s.nmad_m = nmad_of(d, s.bias_m);
-  // How much the offset varies around the unit: the medians of the four
-  // quadrants about the stable cells' centroid. A warp or tilt of one surface
-  // against the other shows as a spread of these; the unit inside may see any
-  // of them.
-  {
-    double cx = 0, cy = 0;
-    for (std::size_t c = 0; c < n; ++c)
-      if (stable[c] && std::isfinite(difference[c]) && sigma[c] > 0) {
-        cx += grid.x(int(c % std::size_t(grid.nx)));
-        cy += grid.y(int(c / std::size_t(grid.nx)));
-      }
-    cx /= double(s.cells);
-    cy /= double(s.cells);
-    std::vector<double> quadrant[4];
-    for (std::size_t c = 0; c < n; ++c)
-      if (stable[c] && std::isfinite(difference[c]) && sigma[c] > 0) {
-        const bool east = grid.x(int(c % std::size_t(grid.nx))) > cx, north = grid.y(int(c / std::size_t(grid.nx))) > cy;
-        quadrant[(east ? 1 : 0) + (north ? 2 : 0)].push_back(difference[c]);
-      }
-    std::vector<double> medians;
-    for (auto& q : quadrant)
-      if (q.size() >= std::max<std::size_t>(min_cells / 4, 2)) medians.push_back(median(q));
-    if (medians.size() >= 2) {
-      double mean = 0, var = 0;
-      for (double m : medians) mean += m / double(medians.size());
-      for (double m : medians) var += (m - mean) * (m - mean) / double(medians.size() - 1);
-      s.offset_spread_m = std::sqrt(var);
-    }
-  }
+  s.offset_spread_m = offset_spread(cells, difference, grid, min_cells);
   // Standardised differences: the stated sigmas' judge.
-  std::vector<double> u(n, std::numeric_limits<double>::quiet_NaN());
-  for (std::size_t c = 0; c < n; ++c)
-    if (stable[c] && std::isfinite(difference[c]) && sigma[c] > 0) {
-      u[c] = (difference[c] - s.bias_m) / sigma[c];
-      z.push_back(u[c]);
-    }
+  std::vector<double> u(n, std::numeric_limits<double>::quiet_NaN()), z;
+  for (std::size_t c : cells) {
+    u[c] = (difference[c] - s.bias_m) / sigma[c];
+    z.push_back(u[c]);
+  }
   s.scale = nmad_of(z, 0.0);
   if (!(s.scale > 0)) s.scale = 0;  // noise-free surfaces (synthetic truth)
-  // The factor per bin of stated sigma.
-  {
-    std::vector<std::pair<double, double>> by_sigma;  // (stated sigma, difference - bias)
-    for (std::size_t c = 0; c < n; ++c)
-      if (stable[c] && std::isfinite(difference[c]) && sigma[c] > 0) by_sigma.emplace_back(sigma[c], difference[c] - s.bias_m);
-    // By stated sigma only: within equal sigmas the cells keep their grid order
-    // (sorting by the difference too would split a bin's spread between bins).
-    std::stable_sort(by_sigma.begin(), by_sigma.end(),
-                     [](const auto& a, const auto& b) { return a.first < b.first; });
-    const std::size_t bins = std::min<std::size_t>(kSigmaBins, by_sigma.size() / kMinCellsPerBin);
-    std::size_t hi = 0;
-    for (std::size_t b = 0; b < bins && hi < by_sigma.size(); ++b) {
-      // A bin never splits equal sigmas (with one stated sigma everywhere, bins of
-      // equal count would be bands of rows, the first one's factor taken for all).
-      const std::size_t lo = hi;
-      hi = std::max(lo + 1, (b + 1) * by_sigma.size() / bins);
-      while (hi < by_sigma.size() && by_sigma[hi].first == by_sigma[hi - 1].first) ++hi;
-      std::vector<double> stated, dev;
-      for (std::size_t k = lo; k < hi; ++k) {
-        stated.push_back(by_sigma[k].first);
-        dev.push_back(by_sigma[k].second);
-      }
-      const double median_sigma = median(stated);
-      s.by_sigma.at.push_back(median_sigma);
-      s.by_sigma.factor.push_back(nmad_of(dev, 0.0) / median_sigma);
-    }
-  }
-  // Then, of the differences so standardised, the factor per bin of coverage.
-  if (coverage.size() == n && !s.by_sigma.at.empty()) {
-    constexpr std::size_t kBins = std::size(kCoverageEdges) + 1;
-    std::vector<double> cov[kBins], dev[kBins];
-    for (std::size_t c = 0; c < n; ++c) {
-      if (!(stable[c] && std::isfinite(difference[c]) && sigma[c] > 0 && std::isfinite(coverage[c]))) continue;
-      const double scaled = s.by_sigma(sigma[c], s.scale) * sigma[c];
-      if (!(scaled > 0)) continue;  // noise-free surfaces (synthetic truth): nothing to judge
-      const std::size_t b = std::size_t(std::upper_bound(std::begin(kCoverageEdges), std::end(kCoverageEdges),
-                                                         coverage[c]) - std::begin(kCoverageEdges));
-      cov[b].push_back(coverage[c]);
-      dev[b].push_back((difference[c] - s.bias_m) / scaled);
-    }
-    for (std::size_t b = 0; b < kBins; ++b) {
-      if (cov[b].size() < kMinCellsPerBin && b + 1 < kBins) {  // too few: into the next bin
-        cov[b + 1].insert(cov[b + 1].end(), cov[b].begin(), cov[b].end());
-        dev[b + 1].insert(dev[b + 1].end(), dev[b].begin(), dev[b].end());
-        continue;
-      }
-      if (cov[b].size() < kMinCellsPerBin) continue;
-      s.by_coverage.at.push_back(median(cov[b]));
-      s.by_coverage.factor.push_back(nmad_of(dev[b], 0.0));
-    }
-    // Only one bin, or a bin without spread: the coverage says nothing the sigma
-    // bins did not.
-    const bool spread = std::all_of(s.by_coverage.factor.begin(), s.by_coverage.factor.end(),
-                                    [](double f) { return std::isfinite(f) && f > 0; });
-    if (s.by_coverage.at.size() < 2 || !spread) s.by_coverage = {};
-  }
-  // Correlation of the standardised differences (scaled to unit spread, clipped)
-  // along rows and columns at growing lags: rho(h) = 1 - gamma(h) / variance;
-  // the correlation distance L is where rho falls to 1/e.
-  if (s.scale > 0) {
-    double var = 0;
-    std::size_t count = 0;
-    for (std::size_t c = 0; c < n; ++c)
-      if (double& x = u[c]; std::isfinite(x)) {
-        const double f = s.factor(sigma[c], coverage.size() == n ? coverage[c] : std::nan(""));
-        x = f > 0 ? std::clamp(x / f, -kClip, kClip) : 0.0;
-        var += x * x;
-        ++count;
-      }
-    var /= double(count);
-    const int lags[] = {1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256};
-    double prev_h = 0, prev_rho = 1;
-    bool found = false;
-    for (int h : lags) {
-      if (h >= std::max(grid.nx, grid.ny)) break;
-      double sum = 0;
-      std::size_t pairs = 0;
-      for (int j = 0; j < grid.ny; ++j)
-        for (int i = 0; i < grid.nx; ++i) {
-          const double a = u[std::size_t(j) * grid.nx + i];
-          if (!std::isfinite(a)) continue;
-          if (i + h < grid.nx) {
-            const double b = u[std::size_t(j) * grid.nx + i + h];
-            if (std::isfinite(b)) sum += (a - b) * (a - b), ++pairs;
-          }
-          if (j + h < grid.ny) {
-            const double b = u[std::size_t(j + h) * grid.nx + i];
-            if (std::isfinite(b)) sum += (a - b) * (a - b), ++pairs;
-          }
-        }
-      if (pairs < 100 || !(var > 0)) break;
-      const double rho = 1 - 0.5 * sum / double(pairs) / var;
-      if (rho < std::exp(-1.0)) {
-        const double t = (prev_rho - std::exp(-1.0)) / std::max(prev_rho - rho, 1e-12);
-        s.correlation_m = (prev_h + t * (h - prev_h)) * grid.cell;
-        found = true;
-        break;
-      }
-      prev_h = h;
-      prev_rho = rho;
-    }
-    if (!found && prev_h > 0) s.correlation_m = prev_h * grid.cell;  // correlated beyond the longest lag read
-  }
+  s.by_sigma = factor_by_sigma(cells, difference, sigma, s.bias_m);
+  if (coverage.size() == n && !s.by_sigma.at.empty())
+    s.by_coverage = factor_by_coverage(cells, difference, sigma, coverage, s);
+  if (s.scale > 0) s.correlation_m = correlation_length(std::move(u), s, sigma, coverage, grid, s.correlation_m);
   const double corr_area = std::max(grid.cell * grid.cell, correlation_area_m2(s.correlation_m));
   s.bias_se_m = s.nmad_m * std::sqrt(std::min(1.0, corr_area / s.area_m2));
   return s;

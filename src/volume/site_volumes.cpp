@@ -5,13 +5,13 @@
 #include "core/error.hpp"
 #include "core/log.hpp"
 #include "core/staged_files.hpp"
+#include "crs/crs.hpp"
 #include "dense/dense.hpp"
-
-#include <fstream>
+#include "exporters/raster/geotiff.hpp"
+#include "importers/raster/geotiff.hpp"
 #include "products/dtm.hpp"
 #include "products/site_plan.hpp"
 #include "project/gpkg.hpp"
-#include "volume/raster_io.hpp"
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -140,19 +140,16 @@ std::vector<Eigen::Vector2d> read_footprint(const fs::path& path, const Eigen::V
   return ring;
 }
 
-SiteModel load_site_model(Project& project, const SiteVolumeOptions& options) {
-  options.validate();
-  Database& db = project.db();
-  SiteModel model;
-  model.site = project.site();
-  model.units = list_units(db);
-  model.relations = list_relations(db);
-  const Eigen::Vector3d& origin = model.site.origin;
+namespace {
 
+// Where each layer's surface comes from (a GeoTIFF the user gave, else the
+// layer's fused surface, else its DTM) and its extent, in capture order; layers
+// without one are left out with a warning.
+std::vector<SurfaceSource> surface_sources(Project& project, const SiteVolumeOptions& options,
+                                           const Eigen::Vector3d& origin) {
+  Database& db = project.db();
   for (const auto& [layer, path] : options.surface_files)
     if (!find_layer(db, layer)) throw InputError(fmt::format("volume: --surface names layer '{}', which does not exist", layer));
-
-  // 1. Where each surface comes from and its extent.
   std::vector<SurfaceSource> sources;
   for (const auto& layer : capture_order(list_layers(db))) {
     SurfaceSource s;
@@ -176,7 +173,7 @@ SiteModel load_site_model(Project& project, const SiteVolumeOptions& options) {
       continue;
     }
     if (s.raster) {
-      s.field = read_height_raster(s.path, origin);
+      s.field = height_field(read_height_geotiff(s.path, origin));
       const auto& f = *s.field;
       s.xmin = f.x0 - 0.5 * f.cell;
       s.ymin = f.y0 - 0.5 * f.cell;
@@ -194,11 +191,14 @@ SiteModel load_site_model(Project& project, const SiteVolumeOptions& options) {
   if (sources.size() < 2)
     throw InputError(fmt::format("volume: {} layer(s) have a surface; at least two are needed for a volume",
                                  sources.size()));
+  return sources;
+}
 
-  // 2. The common grid: the union of the extents, aligned to the first raster's
-  // pixel centres when its pixel is the cell (no resampling of DTMs), else to
-  // multiples of the cell.
-  double cell = options.cell_m;
+// The common grid: the union of the extents, aligned to the first raster's pixel
+// centres when its pixel is the cell (no resampling of DTMs), else to multiples of
+// the cell.
+SiteGrid common_grid(const std::vector<SurfaceSource>& sources, double cell_m) {
+  double cell = cell_m;
   const SurfaceSource* first_raster = nullptr;
   for (const auto& s : sources)
     if (s.raster) {
@@ -232,8 +232,14 @@ SiteModel load_site_model(Project& project, const SiteVolumeOptions& options) {
     throw InputError(fmt::format("volume: a {} m grid over {:.1f} x {:.1f} m has too many cells; choose a larger --cell",
                                  cell, xmax - xmin, ymax - ymin));
   log::info("volume: common grid {} x {} cells of {} mm", grid.nx, grid.ny, 1000 * cell);
+  return grid;
+}
 
-  // 3. Sample every surface on it.
+// Every surface sampled on the common grid, with its uncertainty figures.
+std::vector<LayerSurface> sample_surfaces(Database& db, const std::vector<SurfaceSource>& sources,
+                                          const SiteGrid& grid, const SiteVolumeOptions& options,
+                                          const Eigen::Vector3d& origin) {
+  std::vector<LayerSurface> layers;
   for (const auto& s : sources) {
     LayerSurface l;
     l.layer = s.layer.name;
@@ -242,39 +248,61 @@ SiteModel load_site_model(Project& project, const SiteVolumeOptions& options) {
     l.z = s.raster ? resample(*s.field, grid) : sample_top_surface(s.path, grid.x0, grid.y0, grid.cell, grid.nx, grid.ny);
     if (!s.sigma_path.empty()) {
       const Eigen::Vector3d plane(origin.x(), origin.y(), 0);  // metres of uncertainty, no height offset
-      l.z.sigma = resample(read_height_raster(s.sigma_path, plane), grid).z;
+      l.z.sigma = resample(height_field(read_height_geotiff(s.sigma_path, plane)), grid).z;
     }
     l.noise_m = surface_noise(db, s.layer.id, options.default_noise_m);
     l.vertical_rmse_m = vertical_rmse(db, s.layer.id);
     // A DTM from elsewhere: its smoothing is not known.
     if (!options.surface_files.count(s.layer.name)) l.smoothing_m = surface_smoothing(db, s.layer.id);
-    model.layers.push_back(std::move(l));
+    layers.push_back(std::move(l));
   }
+  return layers;
+}
 
+// Keeps a trench outline given on the command line as a GeoJSON polygon in the
+// project (CRS coordinates), for the reports and exports that recompute volumes.
+void keep_trench_outline(const fs::path& kept, const std::vector<Eigen::Vector2d>& ring, const SiteInfo& site) {
+  std::string coords;
+  const bool closed = ring.front() == ring.back();
+  for (std::size_t k = 0; k < ring.size() + (closed ? 0 : 1); ++k) {
+    const Eigen::Vector2d& p = ring[k % ring.size()];
+    coords += fmt::format("{}[{:.4f}, {:.4f}]", k ? ", " : "", p.x() + site.origin.x(), p.y() + site.origin.y());
+  }
+  write_bytes_atomically(kept, "volume", fmt::format("{{\"type\": \"FeatureCollection\", \"features\": [{{\"type\": \"Feature\", "
+                       "\"properties\": {{\"name\": \"trench outline ({})\"}}, \"geometry\": {{\"type\": "
+                       "\"Polygon\", \"coordinates\": [[{}]]}}}}]}}\n",
+                       site.crs, coords));
+  log::info("volume: trench outline kept as {}", kept.string());
+}
+
+// The volume options with the unit footprints and the trench outline read: given
+// now, the outline is kept with the project; else the kept one, if any.
+VolumeOptions options_with_polygons(const Project& project, const SiteVolumeOptions& options, const SiteInfo& site) {
   VolumeOptions vo = options.volume;
-  for (const auto& [unit, path] : options.footprint_files) vo.footprints[unit] = read_footprint(path, origin);
-  // The trench outline: given now, it is kept with the project (so reports and
-  // exports that recompute the volumes use it too); else the kept one, if any.
+  for (const auto& [unit, path] : options.footprint_files) vo.footprints[unit] = read_footprint(path, site.origin);
   const fs::path kept = project.dir() / kTrenchOutlineFile;
   if (!options.outline_file.empty()) {
-    vo.fill.outline = read_footprint(options.outline_file, origin);
-    if (fs::absolute(options.outline_file) != fs::absolute(kept)) {
-      std::string coords;
-      const auto& ring = vo.fill.outline;
-      const bool closed = ring.front() == ring.back();
-      for (std::size_t k = 0; k < ring.size() + (closed ? 0 : 1); ++k) {
-        const Eigen::Vector2d& p = ring[k % ring.size()];
-        coords += fmt::format("{}[{:.4f}, {:.4f}]", k ? ", " : "", p.x() + origin.x(), p.y() + origin.y());
-      }
-      write_bytes_atomically(kept, "volume", fmt::format("{{\"type\": \"FeatureCollection\", \"features\": [{{\"type\": \"Feature\", "
-                           "\"properties\": {{\"name\": \"trench outline ({})\"}}, \"geometry\": {{\"type\": "
-                           "\"Polygon\", \"coordinates\": [[{}]]}}}}]}}\n",
-                           model.site.crs, coords));
-      log::info("volume: trench outline kept as {}", kept.string());
-    }
+    vo.fill.outline = read_footprint(options.outline_file, site.origin);
+    if (fs::absolute(options.outline_file) != fs::absolute(kept)) keep_trench_outline(kept, vo.fill.outline, site);
   } else if (fs::exists(kept)) {
-    vo.fill.outline = read_footprint(kept, origin);
+    vo.fill.outline = read_footprint(kept, site.origin);
   }
+  return vo;
+}
+
+}  // namespace
+
+SiteModel load_site_model(Project& project, const SiteVolumeOptions& options) {
+  options.validate();
+  Database& db = project.db();
+  SiteModel model;
+  model.site = project.site();
+  model.units = list_units(db);
+  model.relations = list_relations(db);
+  const std::vector<SurfaceSource> sources = surface_sources(project, options, model.site.origin);
+  const SiteGrid grid = common_grid(sources, options.cell_m);
+  model.layers = sample_surfaces(db, sources, grid, options, model.site.origin);
+  const VolumeOptions vo = options_with_polygons(project, options, model.site);
   model.fill = fill_surface_gaps(model.layers, vo);
   model.solids = build_unit_solids(model.layers, vo);
   std::map<std::string, fs::path> level_sets;  // the fused layers' voxel models
@@ -282,6 +310,26 @@ SiteModel load_site_model(Project& project, const SiteVolumeOptions& options) {
     if (!src.raster) level_sets[src.layer.name] = src.path;
   check_folds(model.solids, model.layers, level_sets, vo);
   return model;
+}
+
+namespace {
+
+// The thickness of a solid, metres, where it was dug (NaN elsewhere), north-up as
+// its GeoTIFF holds it.
+Dtm thickness_raster(const UnitSolid& solid) {
+  HeightField t = solid.top;
+  for (std::size_t c = 0; c < t.z.size(); ++c)
+    if (solid.dug(c)) t.z[c] = solid.thickness(c);
+  return dtm_from_height_field(t);
+}
+
+}  // namespace
+
+void write_thickness_geotiff(const fs::path& path, const UnitSolid& solid, const SiteInfo& site) {
+  // Tiled GTiff, not COG: a thickness raster is read whole, into a GIS or a report.
+  write_float_geotiff(path, thickness_raster(solid), {describe_crs(site.crs).wkt, site.origin},
+                      {.description = fmt::format("thickness of unit {} (m)", solid.unit), .unit = "m", .value_offset = 0},
+                      {.cog = false, .compression = "DEFLATE"});
 }
 
 nlohmann::ordered_json unit_measures_json(const UnitSolid& s) {
@@ -365,12 +413,8 @@ VoxelSummary store_site_volumes(Project& project, const SiteModel& model, const 
   StagedFiles staged("volume");
   const VoxelSummary voxels = write_unit_voxels(staged.add(dir / "units.vdb"), model.solids, labels, options.voxels,
                                                 model.site.origin, model.site.crs);
-  for (const auto& s : model.solids) {
-    HeightField t = s.top;
-    for (std::size_t c = 0; c < t.z.size(); ++c) t.z[c] = s.dug(c) ? s.thickness(c) : t.z[c];
-    write_field_geotiff(staged.add(dir / fmt::format("thickness_{}.tif", s.unit)), t, model.site.origin,
-                        model.site.crs, 0, fmt::format("thickness of unit {} (m)", s.unit));
-  }
+  for (const auto& s : model.solids)
+    write_thickness_geotiff(staged.add(dir / fmt::format("thickness_{}.tif", s.unit)), s, model.site);
 
   Database& db = project.db();
   {

@@ -66,6 +66,10 @@ SiteModel load_site_model(Project& project, const SiteVolumeOptions& options);
 // products, and replaces the unit_volumes rows, in one transaction.
 VoxelSummary store_site_volumes(Project& project, const SiteModel& model, const SiteVolumeOptions& options);
 
+// Float32 GeoTIFF of a solid's thickness (metres, nodata where not dug) in the
+// site CRS: products/volume/thickness_<unit>.tif and `strata export thickness`.
+void write_thickness_geotiff(const std::filesystem::path& path, const UnitSolid& solid, const SiteInfo& site);
+
 // The Harris matrix of the project's units and relations.
 HarrisMatrix site_matrix(const SiteModel& model);
 

@@ -154,7 +154,34 @@ void add_unmeasured_holes(std::vector<std::uint8_t>& dug, const std::vector<doub
 // region must be, with a core: chance cells of noise are not flagged): an
 // excavation's surfaces only go down. Empty for the first layer, and for all
 // when options.surfaces_only_go_down is off.
-template <typename CellSigma>
+// A layer's height sigma per cell, metres: the fused surface's where it has one,
+// else the layer's noise; an interpolated cell adds slope_error x its distance to
+// measured data to its layer's median sigma.
+class CellSigma {
+ public:
+  CellSigma(const std::vector<LayerSurface>& layers, double slope_error)
+      : layers_(layers), slope_error_(slope_error), base_(layers.size()) {
+    for (std::size_t k = 0; k < layers.size(); ++k) {
+      std::vector<double> v;
+      if (layers[k].z.has_sigma())
+        for (std::size_t c = 0; c < layers[k].z.z.size(); ++c)
+          if (finite(layers[k].z.sigma[c]) && !layers[k].filled(c)) v.push_back(layers[k].z.sigma[c]);
+      base_[k] = v.empty() ? layers[k].noise_m : quantile(v, 0.5);
+    }
+  }
+  double operator()(std::size_t k, std::size_t c) const {
+    const LayerSurface& l = layers_[k];
+    if (l.filled(c)) return std::hypot(base_[k], slope_error_ * l.filled_distance_m[c]);
+    if (l.z.has_sigma() && finite(l.z.sigma[c])) return l.z.sigma[c];
+    return l.noise_m;
+  }
+
+ private:
+  const std::vector<LayerSurface>& layers_;
+  double slope_error_;
+  std::vector<double> base_;  // per layer: median stated sigma of its measured cells
+};
+
 std::vector<std::vector<std::uint8_t>> risen_cells(const std::vector<LayerSurface>& layers, const SiteGrid& grid,
                                                    const CellSigma& cell_sigma, const VolumeOptions& options) {
   std::vector<std::vector<std::uint8_t>> risen(layers.size());
@@ -297,6 +324,16 @@ HeightField resample(const HeightField& f, const SiteGrid& grid) {
   return out;
 }
 
+HeightField height_field(const HeightRaster<double>& raster) {
+  const RasterGrid& g = raster.grid;
+  SiteGrid grid{g.x_centre(0), g.y_centre(g.height - 1), g.cell, g.width, g.height};
+  HeightField f = grid.empty_field();
+  // HeightField rows run south to north, raster rows north to south.
+  for (int j = 0; j < g.height; ++j)
+    for (int i = 0; i < g.width; ++i) f.z[std::size_t(j) * g.width + i] = raster.at(i, g.height - 1 - j);
+  return f;
+}
+
 void VolumeOptions::validate() const {
   if (!(noise_threshold_m >= 0 && noise_threshold_m <= 0.5))
     throw InputError(fmt::format("volume options: noise_threshold_m = {} is not in 0..0.5 m", noise_threshold_m));
@@ -342,6 +379,429 @@ void VolumeOptions::validate() const {
                                    unit, poly.size()));
 }
 
+namespace {
+
+using Polygon = std::vector<Eigen::Vector2d>;
+
+// The layers a unit's solid lies between, as indices into the layers: its own
+// (the first is its top) and the later layers of other units.
+struct UnitLayers {
+  std::vector<std::size_t> own, later;
+};
+
+UnitLayers unit_layers(const std::vector<LayerSurface>& layers, const std::string& unit) {
+  UnitLayers u;
+  std::size_t first = layers.size();
+  for (std::size_t k = 0; k < layers.size(); ++k) {
+    if (layers[k].unit == unit) {
+      u.own.push_back(k);
+      first = std::min(first, k);
+    } else if (first < layers.size()) {
+      u.later.push_back(k);
+    }
+  }
+  return u;
+}
+
+// Per cell, a unit's top and bottom surface and what their difference is worth.
+struct UnitDifference {
+  std::vector<std::size_t> later;       // indices into the layers: the later layers of other units
+  std::vector<int> top_of, bottom_of;   // per cell: index into the layers; into `later` for the bottom; -1 none
+  std::vector<double> t;                // thickness, metres (NaN where a surface is missing)
+  std::vector<double> sigma_d;          // stated one-sigma of top - bottom, random part, metres
+  std::vector<std::uint8_t> measured;   // both surfaces measured (not interpolated)
+  // The thickness where the extent may be decided from the data alone: both
+  // surfaces measured, or interpolated no further than reliable_fill_m from
+  // measured data (a fill across the trench edge mixes the trench floor into the
+  // ground around it), and the top did not rise above an earlier surface.
+  std::vector<double> eligible_t;
+  std::vector<std::uint8_t> trusted;    // measured, and the top did not rise above an earlier surface
+  bool per_cell = true;                 // every top and bottom had per-cell sigmas
+
+  std::size_t top_layer(std::size_t c) const { return std::size_t(top_of[c]); }
+  std::size_t bottom_layer(std::size_t c) const { return later[std::size_t(bottom_of[c])]; }
+};
+
+// Per cell, the top (first own layer with a height) and the bottom (first later
+// layer of another unit with a height), and the thickness between them.
+UnitDifference pair_surfaces(const std::vector<LayerSurface>& layers, const UnitLayers& u, std::size_t n) {
+  UnitDifference d;
+  d.later = u.later;
+  d.top_of.assign(n, -1);
+  d.bottom_of.assign(n, -1);
+  d.t.assign(n, kNaN);
+  for (std::size_t c = 0; c < n; ++c) {
+    for (std::size_t k : u.own)
+      if (finite(layers[k].z.z[c])) {
+        d.top_of[c] = int(k);
+        break;
+      }
+    if (d.top_of[c] < 0) continue;
+    for (std::size_t q = 0; q < u.later.size(); ++q)
+      if (finite(layers[u.later[q]].z.z[c])) {
+        d.bottom_of[c] = int(q);
+        break;
+      }
+    if (d.bottom_of[c] >= 0) d.t[c] = layers[d.top_layer(c)].z.z[c] - layers[d.bottom_layer(c)].z.z[c];
+  }
+  return d;
+}
+
+// The stated sigma of each cell's difference, which cells were measured, and
+// which may decide the extent (see UnitDifference).
+void judge_cells(UnitDifference& d, const std::vector<LayerSurface>& layers, const CellSigma& cell_sigma,
+                 const std::vector<std::vector<std::uint8_t>>& risen, const VolumeOptions& options) {
+  const std::size_t n = d.t.size();
+  d.sigma_d.assign(n, kNaN);
+  d.measured.assign(n, 0);
+  for (std::size_t c = 0; c < n; ++c) {
+    if (!finite(d.t[c])) continue;
+    const LayerSurface& top = layers[d.top_layer(c)];
+    const LayerSurface& bottom = layers[d.bottom_layer(c)];
+    d.per_cell = d.per_cell && top.z.has_sigma() && bottom.z.has_sigma();
+    d.sigma_d[c] = std::hypot(cell_sigma(d.top_layer(c), c), cell_sigma(d.bottom_layer(c), c));
+    d.measured[c] = !top.filled(c) && !bottom.filled(c);
+  }
+  d.eligible_t = d.t;
+  for (std::size_t c = 0; c < n; ++c) {
+    if (d.measured[c] || !finite(d.t[c])) continue;
+    const LayerSurface& top = layers[d.top_layer(c)];
+    const LayerSurface& bottom = layers[d.bottom_layer(c)];
+    const double dist = std::max(top.filled(c) ? double(top.filled_distance_m[c]) : 0.0,
+                                 bottom.filled(c) ? double(bottom.filled_distance_m[c]) : 0.0);
+    if (dist > options.reliable_fill_m) d.eligible_t[c] = kNaN;
+  }
+  d.trusted = d.measured;
+  for (std::size_t c = 0; c < n; ++c)
+    if (const auto& r = risen[std::size_t(std::max(d.top_of[c], 0))]; d.top_of[c] >= 0 && !r.empty() && r[c]) {
+      d.trusted[c] = 0;
+      d.eligible_t[c] = kNaN;
+    }
+}
+
+// The squared relative vertical offset of the surfaces from the georeference
+// (check-marker RMSE z: a shift of each surface), averaged over the cells with a
+// thickness; m2.
+double georeference_offset2(const UnitDifference& d, const std::vector<LayerSurface>& layers) {
+  double g_top2 = 0, g_bot2 = 0;
+  std::size_t k = 0;
+  for (std::size_t c = 0; c < d.t.size(); ++c)
+    if (finite(d.t[c])) {
+      g_top2 += std::pow(layers[d.top_layer(c)].vertical_rmse_m, 2);
+      g_bot2 += std::pow(layers[d.bottom_layer(c)].vertical_rmse_m, 2);
+      ++k;
+    }
+  return k > 0 ? (g_top2 + g_bot2) / double(k) : 0.0;
+}
+
+// Where a unit was dug and the figures that decided it.
+struct Extent {
+  std::vector<double> factor;     // per cell, on the stated sigma (from the stable ground once judged)
+  double offset2 = 0;             // squared relative offset of the surfaces, m2
+  std::vector<double> lod;        // level of detection per cell, metres
+  std::vector<std::uint8_t> dug;  // per cell
+  StableGround ground;
+};
+
+// The level of detection per cell: z x sigma of the difference (the two surfaces'
+// per-cell sigmas, scaled, and their relative offset), at least the threshold.
+std::vector<double> detection_levels(const UnitDifference& d, const Extent& e, const VolumeOptions& options) {
+  const double z = two_sided_normal_quantile(options.confidence);
+  std::vector<double> lod(d.t.size(), kNaN);
+  for (std::size_t c = 0; c < lod.size(); ++c)
+    if (finite(d.sigma_d[c]))
+      lod[c] = std::max(options.noise_threshold_m, z * std::sqrt(std::pow(e.factor[c] * d.sigma_d[c], 2) + e.offset2));
+  return lod;
+}
+
+// The cells dug at these levels of detection: inside the footprint when there is
+// one; else the significant cells, within the trench outline when there is one.
+std::vector<std::uint8_t> where_dug(const UnitDifference& d, const std::vector<double>& lod, const Polygon* footprint,
+                                    const SiteGrid& grid, const VolumeOptions& options) {
+  const std::size_t n = d.t.size();
+  const auto inside = [&](const Polygon& poly, std::size_t c) {
+    return inside_polygon(poly, grid.x(int(c % grid.nx)), grid.y(int(c / grid.nx)));
+  };
+  std::vector<std::uint8_t> dug(n, 0);
+  if (footprint) {
+    for (std::size_t c = 0; c < n; ++c) dug[c] = finite(d.t[c]) && inside(*footprint, c);
+    return dug;
+  }
+  if (!options.fill.outline.empty()) {
+    dug = dug_cells(d.t, lod, grid, options);
+    // Nothing was dug outside the limit of excavation: noise or clutter on the
+    // ground around the trench is not a deposit.
+    for (std::size_t c = 0; c < n; ++c)
+      if (dug[c] && !inside(options.fill.outline, c)) dug[c] = 0;
+    return dug;
+  }
+  // Without the limit, the extent is what the measurements show: cells where both
+  // surfaces were measured or reliably filled (near measured data), then the holes
+  // it encloses that hold no measurement (a gap in the middle).
+  dug = dug_cells(d.eligible_t, lod, grid, options, true);
+  // Interpolated cells beyond that distance join where they are significant
+  // inside the morphological closing of that extent (a gap straddling the unit's
+  // edge closes as the edge runs on), or in a hole it encloses.
+  const int r = int(std::ceil(options.fill.closing_m / grid.cell - 1e-9));
+  std::vector<std::uint8_t> closed = dilate(dug, grid.nx, grid.ny, r);
+  for (auto& x : closed) x = !x;
+  closed = dilate(closed, grid.nx, grid.ny, r);
+  for (std::size_t c = 0; c < n; ++c)
+    if (!closed[c] && !dug[c] && !d.measured[c] && d.t[c] > lod[c]) dug[c] = 1;
+  add_unmeasured_holes(dug, d.t, d.trusted, grid);
+  return dug;
+}
+
+// The share of cells within coverage_radius_m where both surfaces were measured:
+// low at the ragged edge of a layer's photo coverage. Empty when not asked for.
+std::vector<double> measured_coverage(const UnitDifference& d, const SiteGrid& grid, const VolumeOptions& options) {
+  if (!(options.coverage_radius_m > 0)) return {};
+  std::vector<double> ones(d.measured.size());
+  for (std::size_t c = 0; c < ones.size(); ++c) ones[c] = d.measured[c] ? 1.0 : 0.0;
+  return volume_detail::box_mean(ones, grid.nx, grid.ny,
+                                 std::max(1, int(std::lround(options.coverage_radius_m / grid.cell))));
+}
+
+void log_stable_ground(const std::string& unit, const StableGround& ground) {
+  std::string bins, coverage_bins;
+  for (std::size_t b = 0; b < ground.by_sigma.at.size(); ++b)
+    bins += fmt::format(" {:.1f} mm x {:.2f}", 1000 * ground.by_sigma.at[b], ground.by_sigma.factor[b]);
+  for (std::size_t b = 0; b < ground.by_coverage.at.size(); ++b)
+    coverage_bins += fmt::format(" {:.0f} % x {:.2f}", 100 * ground.by_coverage.at[b], ground.by_coverage.factor[b]);
+  log::debug("volume: unit {}: stable ground {:.2f} m2, offset {:+.2f} mm (quadrants +/- {:.2f}), NMAD {:.2f} "
+             "mm, L {:.1f} mm; stated sigma -> factor:{}; coverage -> factor:{}",
+             unit, ground.area_m2, 1000 * ground.bias_m, 1000 * ground.offset_spread_m, 1000 * ground.nmad_m,
+             1000 * ground.correlation_m, bins, coverage_bins.empty() ? " (one bin)" : coverage_bins);
+}
+
+// The stable ground (measured, away from the dug area) judges the stated sigmas,
+// the offset and the correlation; the extent is found again with what it says,
+// twice (the dug area moves the stable ground).
+void judge_by_stable_ground(Extent& e, const UnitDifference& d, const Polygon* footprint, const SiteGrid& grid,
+                            const VolumeOptions& options, const std::string& unit) {
+  const std::size_t n = d.t.size();
+  const int buffer = int(std::ceil(options.stable_buffer_m / grid.cell - 1e-9));
+  const std::vector<double> coverage = measured_coverage(d, grid, options);
+  const std::size_t min_cells = std::size_t(std::ceil(options.min_stable_area_m2 / (grid.cell * grid.cell)));
+  for (int pass = 0; pass < 2; ++pass) {
+    const std::vector<std::uint8_t> near = dilate(e.dug, grid.nx, grid.ny, buffer);
+    std::vector<std::uint8_t> stable(n, 0);
+    // (Risen cells stay: leaving out cells chosen by their difference would bias
+    // the judge of that very difference.)
+    for (std::size_t c = 0; c < n; ++c) stable[c] = d.measured[c] && !near[c];
+    e.ground = volume_detail::judge_stable_ground(d.t, d.sigma_d, stable, coverage, grid, min_cells,
+                                                  options.noise_correlation_m);
+    if (!e.ground.used) break;
+    // Never believe the surfaces more than four times as good as they state: the
+    // stable ground lies around the trench, not in it.
+    for (std::size_t c = 0; c < n; ++c)
+      if (finite(d.sigma_d[c]))
+        e.factor[c] = std::max(e.ground.factor(d.sigma_d[c], coverage.empty() ? kNaN : coverage[c]), kMinNoiseScale);
+    log_stable_ground(unit, e.ground);
+    const StableGround& g = e.ground;
+    e.offset2 = g.bias_m * g.bias_m + g.bias_se_m * g.bias_se_m + g.offset_spread_m * g.offset_spread_m;
+    e.lod = detection_levels(d, e, options);
+    e.dug = where_dug(d, e.lod, footprint, grid, options);
+  }
+}
+
+// Where the unit was dug: first at the levels the georeference figures give, then
+// as the stable ground judges them.
+Extent find_extent(const UnitDifference& d, const std::vector<LayerSurface>& layers, const Polygon* footprint,
+                   const SiteGrid& grid, const VolumeOptions& options, const std::string& unit) {
+  Extent e;
+  e.factor.assign(d.t.size(), 1.0);
+  e.offset2 = georeference_offset2(d, layers);
+  e.lod = detection_levels(d, e, options);
+  e.dug = where_dug(d, e.lod, footprint, grid, options);
+  e.ground.correlation_m = options.noise_correlation_m;
+  if (options.use_stable_ground) judge_by_stable_ground(e, d, footprint, grid, options, unit);
+  return e;
+}
+
+// The slope of the mid-surface of the dug cells (half-way between top and
+// bottom), along the grid over up to `reach` dug cells either side: the normal at
+// the scale of normal_scale_m, not of one noisy cell.
+class MidSurface {
+ public:
+  MidSurface(const UnitDifference& d, const Extent& e, const std::vector<LayerSurface>& layers, const SiteGrid& grid,
+             double normal_scale_m)
+      : d_(d), e_(e), layers_(layers), grid_(grid),
+        reach_(std::max(1, int(std::lround(0.5 * normal_scale_m / grid.cell)))) {}
+
+  // cos of the mid-surface's slope at dug cell c.
+  double cos_slope(std::size_t c) const {
+    const int i = int(c % grid_.nx), j = int(c / grid_.nx);
+    const double gx = slope(i, j, 1, 0), gy = slope(i, j, 0, 1);
+    return 1 / std::sqrt(1 + gx * gx + gy * gy);
+  }
+
+ private:
+  double at(int i, int j) const {  // NaN off the dug cells
+    if (i < 0 || j < 0 || i >= grid_.nx || j >= grid_.ny) return kNaN;
+    const std::size_t c = std::size_t(j) * grid_.nx + i;
+    return e_.dug[c] ? 0.5 * (layers_[d_.top_layer(c)].z.z[c] + layers_[d_.bottom_layer(c)].z.z[c]) : kNaN;
+  }
+  double slope(int i, int j, int di, int dj) const {
+    int a = 0, b = 0;
+    while (a < reach_ && finite(at(i + (a + 1) * di, j + (a + 1) * dj))) ++a;
+    while (b < reach_ && finite(at(i - (b + 1) * di, j - (b + 1) * dj))) ++b;
+    if (a + b == 0) return 0.0;
+    return (at(i + a * di, j + a * dj) - at(i - b * di, j - b * dj)) / ((a + b) * grid_.cell);
+  }
+
+  const UnitDifference& d_;
+  const Extent& e_;
+  const std::vector<LayerSurface>& layers_;
+  const SiteGrid& grid_;
+  int reach_;
+};
+
+// Sums over a unit's dug cells, for its measures.
+struct DugSums {
+  std::vector<std::size_t> bottom_count;  // per later layer: the cells it is the bottom of
+  double fill_error = 0;     // m3: sum over filled cells of slope_error x distance x cell area
+  double random2 = 0;        // sum over dug cells of cell area x (scaled sigma of the difference)^2
+  double normal_sum = 0;     // m3: sum of thickness x cos(slope) x cell area
+  double smoothing_sum = 0;  // m3: sum of the change of thickness under one more smoothing x cell area
+  std::size_t filled_cells = 0;
+  std::vector<double> thickness, normal_thickness, lods, factors;  // of every dug cell
+};
+
+// The solid's heights on its dug cells, its volume, count and thickness range,
+// and the sums the rest of its measures come from.
+DugSums sum_dug_cells(UnitSolid& s, const UnitDifference& d, const Extent& e, const std::vector<LayerSurface>& layers,
+                      const std::vector<std::vector<double>>& smoothing, const SiteGrid& grid,
+                      const VolumeOptions& options) {
+  const double cell_area = grid.cell * grid.cell;
+  const MidSurface mid(d, e, layers, grid, options.normal_scale_m);
+  DugSums sums;
+  sums.bottom_count.assign(d.later.size(), 0);
+  UnitMeasures& m = s.measures;
+  m.min_thickness_m = std::numeric_limits<double>::infinity();
+  m.max_thickness_raw_m = -std::numeric_limits<double>::infinity();
+  for (std::size_t c = 0; c < d.t.size(); ++c) {
+    if (!e.dug[c]) continue;
+    const LayerSurface& top = layers[d.top_layer(c)];
+    const LayerSurface& bottom = layers[d.bottom_layer(c)];
+    const double t = d.t[c];
+    s.top.z[c] = top.z.z[c];
+    s.bottom.z[c] = bottom.z.z[c];
+    ++sums.bottom_count[std::size_t(d.bottom_of[c])];
+    ++m.cells;
+    m.volume_m3 += t * cell_area;
+    (d.measured[c] ? m.measured_volume_m3 : m.filled_volume_m3) += t * cell_area;
+    m.min_thickness_m = std::min(m.min_thickness_m, t);
+    m.max_thickness_raw_m = std::max(m.max_thickness_raw_m, t);
+    sums.thickness.push_back(t);
+    sums.lods.push_back(e.lod[c]);
+    sums.random2 += cell_area * std::pow(e.factor[c] * d.sigma_d[c], 2);
+    sums.factors.push_back(e.factor[c]);
+    const double cos_slope = mid.cos_slope(c);
+    sums.normal_sum += t * cos_slope * cell_area;
+    sums.normal_thickness.push_back(t * cos_slope);
+    const auto& st = smoothing[d.top_layer(c)];
+    const auto& sb = smoothing[d.bottom_layer(c)];
+    if (!st.empty() && !sb.empty() && finite(st[c]) && finite(sb[c])) sums.smoothing_sum += (st[c] - sb[c]) * cell_area;
+    if (top.filled(c) || bottom.filled(c)) {
+      ++sums.filled_cells;
+      const double dt = top.filled(c) ? top.filled_distance_m[c] : 0.0;
+      const double db = bottom.filled(c) ? bottom.filled_distance_m[c] : 0.0;
+      sums.fill_error += options.fill.slope_error * std::hypot(dt, db) * cell_area;
+    }
+  }
+  return sums;
+}
+
+// Where the edge lies: the volume found with the level halved and doubled spans
+// the choice; one sigma of a uniform error over that span, m3.
+double extent_sigma(const UnitDifference& d, const Extent& e, const SiteGrid& grid, const VolumeOptions& options) {
+  const double cell_area = grid.cell * grid.cell;
+  auto volume_at = [&](double factor) {
+    std::vector<double> l = e.lod;
+    for (double& x : l) x *= factor;
+    const std::vector<std::uint8_t> dug = where_dug(d, l, nullptr, grid, options);
+    double v = 0;
+    for (std::size_t c = 0; c < dug.size(); ++c)
+      if (dug[c]) v += d.t[c] * cell_area;
+    return v;
+  };
+  return std::abs(volume_at(0.5) - volume_at(2.0)) / (2 * std::sqrt(3.0));
+}
+
+// The measures of a solid whose dug cells are summed: area, thicknesses, and the
+// parts of its volume's uncertainty.
+void settle_measures(UnitSolid& s, DugSums& sums, const UnitDifference& d, const Extent& e, const Polygon* footprint,
+                     const SiteGrid& grid, const VolumeOptions& options) {
+  const double cell_area = grid.cell * grid.cell;
+  UnitMeasures& m = s.measures;
+  m.confidence = options.confidence;
+  m.extent_method = footprint                     ? "footprint"
+                    : options.fill.outline.empty() ? "significance"
+                                                   : "significance within the outline";
+  m.per_cell_sigma = d.per_cell;
+  m.noise_scale = sums.factors.empty() ? 1.0 : quantile(sums.factors, 0.5);
+  m.correlation_m = e.ground.correlation_m;
+  if (e.ground.used) {
+    m.stable_area_m2 = e.ground.area_m2;
+    m.stable_bias_m = e.ground.bias_m;
+    m.stable_nmad_m = e.ground.nmad_m;
+    m.stable_offset_spread_m = e.ground.offset_spread_m;
+  }
+  if (m.cells == 0) {
+    m.min_thickness_m = m.max_thickness_raw_m = 0;
+    log::warn("volume: unit {}: no cell differs significantly ({:.0f} %) between {} and the later surfaces", s.unit,
+              100 * options.confidence, s.top_layer);
+    return;
+  }
+  const double nc = double(m.cells);
+  m.area_m2 = nc * cell_area;
+  m.mean_thickness_m = m.volume_m3 / m.area_m2;
+  m.max_thickness_m = quantile(sums.thickness, options.max_thickness_quantile);
+  m.mean_normal_thickness_m = sums.normal_sum / m.area_m2;
+  m.max_normal_thickness_m = quantile(sums.normal_thickness, options.max_thickness_quantile);
+  m.median_lod_m = quantile(sums.lods, 0.5);
+  m.filled_area_m2 = double(sums.filled_cells) * cell_area;
+  m.filled_fraction = m.filled_area_m2 / m.area_m2;
+  m.fill_sigma_m3 = sums.fill_error;
+  // Random errors are correlated over about pi L^2 (Gaussian model), at least one
+  // cell, at most the unit.
+  const double corr_area = std::clamp(volume_detail::correlation_area_m2(m.correlation_m), cell_area, m.area_m2);
+  m.random_sigma_m3 = std::sqrt(corr_area * sums.random2);
+  m.systematic_sigma_m3 = m.area_m2 * std::sqrt(e.offset2);
+  if (!footprint) m.extent_sigma_m3 = extent_sigma(d, e, grid, options);
+  m.smoothing_sigma_m3 = std::abs(sums.smoothing_sum);
+  settle_interval(m);
+  if (m.filled_fraction > options.fill.warn_fraction)
+    log::warn("volume: unit {}: {:.0f} % of its area ({:.3f} of {:.3f} m2) has an interpolated top or bottom "
+              "(gaps in the dense surfaces); its volume is uncertain by +/- {:.4f} m3",
+              s.unit, 100 * m.filled_fraction, m.filled_area_m2, m.area_m2, m.volume_sigma_m3);
+}
+
+// The solid of one unit that has later surfaces.
+UnitSolid unit_solid(const std::string& unit, const UnitLayers& u, const std::vector<LayerSurface>& layers,
+                     const CellSigma& cell_sigma, const std::vector<std::vector<std::uint8_t>>& risen,
+                     const std::vector<std::vector<double>>& smoothing, const SiteGrid& grid,
+                     const VolumeOptions& options) {
+  const auto it = options.footprints.find(unit);
+  const Polygon* footprint = it != options.footprints.end() ? &it->second : nullptr;
+  UnitSolid s;
+  s.unit = unit;
+  s.top_layer = layers[u.own.front()].layer;
+  s.top = grid.empty_field();
+  s.bottom = grid.empty_field();
+  UnitDifference d = pair_surfaces(layers, u, grid.size());
+  judge_cells(d, layers, cell_sigma, risen, options);
+  const Extent e = find_extent(d, layers, footprint, grid, options, unit);
+  DugSums sums = sum_dug_cells(s, d, e, layers, smoothing, grid, options);
+  for (std::size_t q = 0; q < d.later.size(); ++q)
+    if (sums.bottom_count[q] > 0) s.bottom_layers.push_back(layers[d.later[q]].layer);
+  settle_measures(s, sums, d, e, footprint, grid, options);
+  return s;
+}
+
+}  // namespace
+
 std::vector<UnitSolid> build_unit_solids(const std::vector<LayerSurface>& layers, const VolumeOptions& options) {
   options.validate();
   if (layers.empty()) return {};
@@ -350,31 +810,11 @@ std::vector<UnitSolid> build_unit_solids(const std::vector<LayerSurface>& layers
     STRATA_CHECK(l.z.nx == grid.nx && l.z.ny == grid.ny && l.z.cell == grid.cell && l.z.x0 == grid.x0 &&
                      l.z.y0 == grid.y0,
                  "layer {} is not on the common grid", l.layer);
-
   // Units in the order of their first layer.
   std::vector<std::string> units;
   for (const auto& l : layers)
     if (std::find(units.begin(), units.end(), l.unit) == units.end()) units.push_back(l.unit);
-
-  std::vector<UnitSolid> solids;
-  const double cell_area = grid.cell * grid.cell;
-  // A layer's height sigma per cell: the fused surface's where it has one, else
-  // the layer's noise; an interpolated cell adds slope_error x its distance to
-  // measured data to its layer's median sigma.
-  std::vector<double> base_sigma(layers.size());
-  for (std::size_t k = 0; k < layers.size(); ++k) {
-    std::vector<double> v;
-    if (layers[k].z.has_sigma())
-      for (std::size_t c = 0; c < layers[k].z.z.size(); ++c)
-        if (finite(layers[k].z.sigma[c]) && !layers[k].filled(c)) v.push_back(layers[k].z.sigma[c]);
-    base_sigma[k] = v.empty() ? layers[k].noise_m : quantile(v, 0.5);
-  }
-  auto cell_sigma = [&](std::size_t k, std::size_t c) {
-    const LayerSurface& l = layers[k];
-    if (l.filled(c)) return std::hypot(base_sigma[k], options.fill.slope_error * l.filled_distance_m[c]);
-    if (l.z.has_sigma() && finite(l.z.sigma[c])) return l.z.sigma[c];
-    return l.noise_m;
-  };
+  const CellSigma cell_sigma(layers, options.fill.slope_error);
   // Each layer's change under one more smoothing at its own scale (the shape part
   // of the interval); empty where the scale is unknown.
   std::vector<std::vector<double>> smoothing(layers.size());
@@ -386,299 +826,14 @@ std::vector<UnitSolid> build_unit_solids(const std::vector<LayerSurface>& layers
   // photos) or shows something put down since (spoil, a bucket, a board). Such a
   // cell may not decide the extent of the unit whose top it is, nor fill a hole of it.
   const std::vector<std::vector<std::uint8_t>> risen = risen_cells(layers, grid, cell_sigma, options);
+  std::vector<UnitSolid> solids;
   for (const auto& unit : units) {
-    std::vector<std::size_t> own, later;  // indices into layers
-    std::size_t first = layers.size();
-    for (std::size_t k = 0; k < layers.size(); ++k) {
-      if (layers[k].unit == unit) {
-        own.push_back(k);
-        first = std::min(first, k);
-      } else if (first < layers.size()) {
-        later.push_back(k);
-      }
-    }
-    if (later.empty()) {
+    const UnitLayers u = unit_layers(layers, unit);
+    if (u.later.empty()) {
       log::debug("volume: unit {} has no later surface (not dug yet): no solid", unit);
       continue;
     }
-    const auto footprint = options.footprints.find(unit);
-    UnitSolid s;
-    s.unit = unit;
-    s.top_layer = layers[own.front()].layer;
-    s.top = grid.empty_field();
-    s.bottom = grid.empty_field();
-    // 1. Per cell, the top (first own layer with a height) and the bottom (first
-    // later layer of another unit with a height).
-    const std::size_t n = grid.size();
-    std::vector<int> top_of(n, -1), bottom_of(n, -1);  // index into layers; into `later` for the bottom
-    std::vector<double> t(n, kNaN);                    // thickness, metres
-    for (std::size_t c = 0; c < n; ++c) {
-      for (std::size_t k : own)
-        if (finite(layers[k].z.z[c])) {
-          top_of[c] = int(k);
-          break;
-        }
-      if (top_of[c] < 0) continue;
-      for (std::size_t q = 0; q < later.size(); ++q)
-        if (finite(layers[later[q]].z.z[c])) {
-          bottom_of[c] = int(q);
-          break;
-        }
-      if (bottom_of[c] >= 0) t[c] = layers[top_of[c]].z.z[c] - layers[later[bottom_of[c]]].z.z[c];
-    }
-    // 2. The level of detection per cell: z x sigma of the difference (the two
-    // surfaces' per-cell sigmas and their relative offset), at least the threshold.
-    std::vector<double> sigma_d(n, kNaN);   // stated one-sigma of top - bottom, random part
-    std::vector<std::uint8_t> measured(n, 0);  // both surfaces measured (not interpolated)
-    bool per_cell = true;
-    double g_top2 = 0, g_bot2 = 0;  // georeference vertical error, area-weighted below
-    for (std::size_t c = 0; c < n; ++c) {
-      if (!finite(t[c])) continue;
-      const LayerSurface& top = layers[std::size_t(top_of[c])];
-      const LayerSurface& bottom = layers[later[std::size_t(bottom_of[c])]];
-      per_cell = per_cell && top.z.has_sigma() && bottom.z.has_sigma();
-      sigma_d[c] = std::hypot(cell_sigma(std::size_t(top_of[c]), c), cell_sigma(later[std::size_t(bottom_of[c])], c));
-      measured[c] = !top.filled(c) && !bottom.filled(c);
-    }
-    // The thickness where the extent may be decided from the data alone: both
-    // surfaces measured, or interpolated no further than reliable_fill_m from
-    // measured data (a fill across the trench edge mixes the trench floor into
-    // the ground around it).
-    std::vector<double> eligible_t = t;
-    for (std::size_t c = 0; c < n; ++c) {
-      if (measured[c] || !finite(t[c])) continue;
-      const LayerSurface& top = layers[std::size_t(top_of[c])];
-      const LayerSurface& bottom = layers[later[std::size_t(bottom_of[c])]];
-      const double d = std::max(top.filled(c) ? double(top.filled_distance_m[c]) : 0.0,
-                                bottom.filled(c) ? double(bottom.filled_distance_m[c]) : 0.0);
-      if (d > options.reliable_fill_m) eligible_t[c] = kNaN;
-    }
-    // Measured, and the top did not rise above an earlier surface there.
-    std::vector<std::uint8_t> trusted = measured;
-    for (std::size_t c = 0; c < n; ++c)
-      if (const auto& r = risen[std::size_t(std::max(top_of[c], 0))]; top_of[c] >= 0 && !r.empty() && r[c]) {
-        trusted[c] = 0;
-        eligible_t[c] = kNaN;
-      }
-    const double z = two_sided_normal_quantile(options.confidence);
-    // Per cell, the factor on the stated sigma (from the stable ground once judged)
-    // and the squared relative offset of the surfaces.
-    std::vector<double> factor(n, 1.0);
-    double offset2 = 0;
-    auto levels = [&] {
-      std::vector<double> lod(n, kNaN);
-      for (std::size_t c = 0; c < n; ++c)
-        if (finite(sigma_d[c]))
-          lod[c] = std::max(options.noise_threshold_m,
-                            z * std::sqrt(std::pow(factor[c] * sigma_d[c], 2) + offset2));
-      return lod;
-    };
-    auto in_outline = [&](std::size_t c) {
-      return options.fill.outline.empty() ||
-             inside_polygon(options.fill.outline, grid.x(int(c % grid.nx)), grid.y(int(c / grid.nx)));
-    };
-    auto where_dug = [&](const std::vector<double>& lod) {
-      std::vector<std::uint8_t> d(n, 0);
-      if (footprint != options.footprints.end()) {
-        for (std::size_t c = 0; c < n; ++c)
-          d[c] = finite(t[c]) && inside_polygon(footprint->second, grid.x(int(c % grid.nx)), grid.y(int(c / grid.nx)));
-        return d;
-      }
-      if (!options.fill.outline.empty()) {
-        d = dug_cells(t, lod, grid, options);
-        // Nothing was dug outside the limit of excavation: noise or clutter on the
-        // ground around the trench is not a deposit.
-        for (std::size_t c = 0; c < n; ++c)
-          if (d[c] && !in_outline(c)) d[c] = 0;
-        return d;
-      }
-      // Without the limit, the extent is what the measurements show: cells where
-      // both surfaces were measured or reliably filled (near measured data), then
-      // the holes it encloses that hold no measurement (a gap in the middle).
-      d = dug_cells(eligible_t, lod, grid, options, true);
-      // Interpolated cells beyond that distance join where they are significant
-      // inside the morphological closing of that extent (a gap straddling the
-      // unit's edge closes as the edge runs on), or in a hole it encloses.
-      const int r = int(std::ceil(options.fill.closing_m / grid.cell - 1e-9));
-      std::vector<std::uint8_t> closed = dilate(d, grid.nx, grid.ny, r);
-      for (auto& x : closed) x = !x;
-      closed = dilate(closed, grid.nx, grid.ny, r);
-      for (std::size_t c = 0; c < n; ++c)
-        if (!closed[c] && !d[c] && !measured[c] && t[c] > lod[c]) d[c] = 1;
-      add_unmeasured_holes(d, t, trusted, grid);
-      return d;
-    };
-    // Georeference figures first (check-marker RMSE z: a shift of each surface).
-    {
-      std::size_t k = 0;
-      for (std::size_t c = 0; c < n; ++c)
-        if (finite(t[c])) {
-          g_top2 += std::pow(layers[std::size_t(top_of[c])].vertical_rmse_m, 2);
-          g_bot2 += std::pow(layers[later[std::size_t(bottom_of[c])]].vertical_rmse_m, 2);
-          ++k;
-        }
-      if (k > 0) offset2 = (g_top2 + g_bot2) / double(k);
-    }
-    std::vector<double> lod = levels();
-    std::vector<std::uint8_t> dug = where_dug(lod);
-    // 3. The stable ground judges the stated sigmas, the offset and the correlation.
-    StableGround ground;
-    ground.correlation_m = options.noise_correlation_m;
-    if (options.use_stable_ground) {
-      const int buffer = int(std::ceil(options.stable_buffer_m / grid.cell - 1e-9));
-      // The share of cells within coverage_radius_m where both surfaces were
-      // measured: low at the ragged edge of a layer's photo coverage.
-      std::vector<double> coverage;
-      if (options.coverage_radius_m > 0) {
-        std::vector<double> ones(n);
-        for (std::size_t c = 0; c < n; ++c) ones[c] = measured[c] ? 1.0 : 0.0;
-        coverage = volume_detail::box_mean(ones, grid.nx, grid.ny, std::max(1, int(std::lround(options.coverage_radius_m / grid.cell))));
-      }
-      for (int pass = 0; pass < 2; ++pass) {
-        const std::vector<std::uint8_t> near = dilate(dug, grid.nx, grid.ny, buffer);
-        std::vector<std::uint8_t> stable(n, 0);
-        // (Risen cells stay: leaving out cells chosen by their difference would
-        // bias the judge of that very difference.)
-        for (std::size_t c = 0; c < n; ++c) stable[c] = measured[c] && !near[c];
-        const std::size_t min_cells = std::size_t(std::ceil(options.min_stable_area_m2 / cell_area));
-        ground = volume_detail::judge_stable_ground(t, sigma_d, stable, coverage, grid, min_cells,
-                                                    options.noise_correlation_m);
-        if (!ground.used) break;
-        // Never believe the surfaces more than four times as good as they state: the
-        // stable ground lies around the trench, not in it.
-        for (std::size_t c = 0; c < n; ++c)
-          if (finite(sigma_d[c]))
-            factor[c] = std::max(ground.factor(sigma_d[c], coverage.empty() ? kNaN : coverage[c]), kMinNoiseScale);
-        std::string bins, coverage_bins;
-        for (std::size_t b = 0; b < ground.by_sigma.at.size(); ++b)
-          bins += fmt::format(" {:.1f} mm x {:.2f}", 1000 * ground.by_sigma.at[b], ground.by_sigma.factor[b]);
-        for (std::size_t b = 0; b < ground.by_coverage.at.size(); ++b)
-          coverage_bins += fmt::format(" {:.0f} % x {:.2f}", 100 * ground.by_coverage.at[b], ground.by_coverage.factor[b]);
-        log::debug("volume: unit {}: stable ground {:.2f} m2, offset {:+.2f} mm (quadrants +/- {:.2f}), NMAD {:.2f} "
-                   "mm, L {:.1f} mm; stated sigma -> factor:{}; coverage -> factor:{}",
-                   unit, ground.area_m2, 1000 * ground.bias_m, 1000 * ground.offset_spread_m, 1000 * ground.nmad_m,
-                   1000 * ground.correlation_m, bins, coverage_bins.empty() ? " (one bin)" : coverage_bins);
-        offset2 = ground.bias_m * ground.bias_m + ground.bias_se_m * ground.bias_se_m +
-                  ground.offset_spread_m * ground.offset_spread_m;
-        lod = levels();
-        dug = where_dug(lod);
-      }
-    }
-    // 4. Measures.
-    std::vector<std::size_t> bottom_count(later.size(), 0);
-    double fill_error = 0;  // m3: sum over filled cells of slope_error x distance x cell area
-    double random2 = 0;     // sum over dug cells of cell area x (scaled sigma of the difference)^2
-    std::size_t filled_cells = 0;
-    UnitMeasures& m = s.measures;
-    m.min_thickness_m = std::numeric_limits<double>::infinity();
-    m.max_thickness_raw_m = -std::numeric_limits<double>::infinity();
-    std::vector<double> thickness, normal_thickness, lods, factors;  // of every dug cell
-    auto mid = [&](int i, int j) {  // mid-surface height of a dug cell, NaN elsewhere
-      if (i < 0 || j < 0 || i >= grid.nx || j >= grid.ny) return kNaN;
-      const std::size_t c = std::size_t(j) * grid.nx + i;
-      return dug[c] ? 0.5 * (layers[std::size_t(top_of[c])].z.z[c] + layers[later[std::size_t(bottom_of[c])]].z.z[c])
-                    : kNaN;
-    };
-    // Slope of the mid-surface along (di, dj) over up to `reach` dug cells either
-    // side (the normal at the scale of normal_scale_m, not of one noisy cell).
-    const int reach = std::max(1, int(std::lround(0.5 * options.normal_scale_m / grid.cell)));
-    auto slope = [&](int i, int j, int di, int dj) {
-      int a = 0, b = 0;
-      while (a < reach && finite(mid(i + (a + 1) * di, j + (a + 1) * dj))) ++a;
-      while (b < reach && finite(mid(i - (b + 1) * di, j - (b + 1) * dj))) ++b;
-      if (a + b == 0) return 0.0;
-      return (mid(i + a * di, j + a * dj) - mid(i - b * di, j - b * dj)) / ((a + b) * grid.cell);
-    };
-    double normal_sum = 0;  // m3: sum of thickness x cos(slope) x cell area
-    double smoothing_sum = 0;  // m3: sum of the change of thickness under one more smoothing x cell area
-    for (std::size_t c = 0; c < n; ++c) {
-      if (!dug[c]) continue;
-      const LayerSurface& top = layers[std::size_t(top_of[c])];
-      const LayerSurface& bottom = layers[later[std::size_t(bottom_of[c])]];
-      s.top.z[c] = top.z.z[c];
-      s.bottom.z[c] = bottom.z.z[c];
-      ++bottom_count[std::size_t(bottom_of[c])];
-      ++m.cells;
-      m.volume_m3 += t[c] * cell_area;
-      (measured[c] ? m.measured_volume_m3 : m.filled_volume_m3) += t[c] * cell_area;
-      m.min_thickness_m = std::min(m.min_thickness_m, t[c]);
-      m.max_thickness_raw_m = std::max(m.max_thickness_raw_m, t[c]);
-      thickness.push_back(t[c]);
-      lods.push_back(lod[c]);
-      random2 += cell_area * std::pow(factor[c] * sigma_d[c], 2);
-      factors.push_back(factor[c]);
-      const int i = int(c % grid.nx), j = int(c / grid.nx);
-      const double gx = slope(i, j, 1, 0), gy = slope(i, j, 0, 1);
-      const double cos_slope = 1 / std::sqrt(1 + gx * gx + gy * gy);
-      normal_sum += t[c] * cos_slope * cell_area;
-      normal_thickness.push_back(t[c] * cos_slope);
-      const auto& st = smoothing[std::size_t(top_of[c])];
-      const auto& sb = smoothing[later[std::size_t(bottom_of[c])]];
-      if (!st.empty() && !sb.empty() && finite(st[c]) && finite(sb[c])) smoothing_sum += (st[c] - sb[c]) * cell_area;
-      if (top.filled(c) || bottom.filled(c)) {
-        ++filled_cells;
-        const double dt = top.filled(c) ? top.filled_distance_m[c] : 0.0;
-        const double db = bottom.filled(c) ? bottom.filled_distance_m[c] : 0.0;
-        fill_error += options.fill.slope_error * std::hypot(dt, db) * cell_area;
-      }
-    }
-    for (std::size_t q = 0; q < later.size(); ++q)
-      if (bottom_count[q] > 0) s.bottom_layers.push_back(layers[later[q]].layer);
-    m.confidence = options.confidence;
-    m.extent_method = footprint != options.footprints.end() ? "footprint"
-                      : options.fill.outline.empty()        ? "significance"
-                                                            : "significance within the outline";
-    m.per_cell_sigma = per_cell;
-    m.noise_scale = factors.empty() ? 1.0 : quantile(factors, 0.5);
-    m.correlation_m = ground.correlation_m;
-    if (ground.used) {
-      m.stable_area_m2 = ground.area_m2;
-      m.stable_bias_m = ground.bias_m;
-      m.stable_nmad_m = ground.nmad_m;
-      m.stable_offset_spread_m = ground.offset_spread_m;
-    }
-    if (m.cells == 0) {
-      m.min_thickness_m = m.max_thickness_raw_m = 0;
-      log::warn("volume: unit {}: no cell differs significantly ({:.0f} %) between {} and the later surfaces", unit,
-                100 * options.confidence, s.top_layer);
-    } else {
-      const double nc = double(m.cells);
-      m.area_m2 = nc * cell_area;
-      m.mean_thickness_m = m.volume_m3 / m.area_m2;
-      m.max_thickness_m = quantile(thickness, options.max_thickness_quantile);
-      m.mean_normal_thickness_m = normal_sum / m.area_m2;
-      m.max_normal_thickness_m = quantile(normal_thickness, options.max_thickness_quantile);
-      m.median_lod_m = quantile(lods, 0.5);
-      m.filled_area_m2 = double(filled_cells) * cell_area;
-      m.filled_fraction = m.filled_area_m2 / m.area_m2;
-      m.fill_sigma_m3 = fill_error;
-      // Random errors are correlated over about pi L^2 (Gaussian model), at least
-      // one cell, at most the unit.
-      const double corr_area = std::clamp(volume_detail::correlation_area_m2(m.correlation_m), cell_area, m.area_m2);
-      m.random_sigma_m3 = std::sqrt(corr_area * random2);
-      m.systematic_sigma_m3 = m.area_m2 * std::sqrt(offset2);
-      // Where the edge lies: the volume found with the level halved and doubled
-      // spans the choice; a uniform error over that span.
-      if (footprint == options.footprints.end()) {
-        auto volume_at = [&](double factor) {
-          std::vector<double> l = lod;
-          for (double& x : l) x *= factor;
-          const std::vector<std::uint8_t> d = where_dug(l);
-          double v = 0;
-          for (std::size_t c = 0; c < n; ++c)
-            if (d[c]) v += t[c] * cell_area;
-          return v;
-        };
-        m.extent_sigma_m3 = std::abs(volume_at(0.5) - volume_at(2.0)) / (2 * std::sqrt(3.0));
-      }
-      m.smoothing_sigma_m3 = std::abs(smoothing_sum);
-      settle_interval(m);
-      if (m.filled_fraction > options.fill.warn_fraction)
-        log::warn("volume: unit {}: {:.0f} % of its area ({:.3f} of {:.3f} m2) has an interpolated top or bottom "
-                  "(gaps in the dense surfaces); its volume is uncertain by +/- {:.4f} m3",
-                  unit, 100 * m.filled_fraction, m.filled_area_m2, m.area_m2, m.volume_sigma_m3);
-    }
-    solids.push_back(std::move(s));
+    solids.push_back(unit_solid(unit, u, layers, cell_sigma, risen, smoothing, grid, options));
   }
   return solids;
 }

@@ -13,8 +13,9 @@
 // inside a footprint polygon given by the user.
 //
 // Standard library, Eigen and the plain structs of dense/ only: OpenVDB lives in
-// voxels.cpp, GDAL in raster_io.cpp and section.cpp.
+// voxels.cpp, GDAL in section.cpp and the raster importer and exporter.
 #include "dense/dense.hpp"  // HeightField, DenseMesh
+#include "geometry/raster.hpp"
 
 #include <Eigen/Core>
 
@@ -53,6 +54,8 @@ bool inside_polygon(const std::vector<Eigen::Vector2d>& poly, double x, double y
 double sample_height(const HeightField& f, double x, double y);
 // The field resampled onto another grid with sample_height.
 HeightField resample(const HeightField& f, const SiteGrid& grid);
+// A north-up raster (a DTM read from its file) as a HeightField on its cell centres.
+HeightField height_field(const HeightRaster<double>& raster);
 
 // One recorded surface state on the common grid.
 struct LayerSurface {

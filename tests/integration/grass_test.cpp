@@ -4,7 +4,7 @@
 #include "crs/crs.hpp"
 #include "products/dtm.hpp"
 #include "products/grass_export.hpp"
-#include "products/raster_io.hpp"
+#include "exporters/raster/geotiff.hpp"
 #include "project/project.hpp"
 #include "project/records.hpp"
 #include "support/test_support.hpp"

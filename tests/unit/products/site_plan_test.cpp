@@ -1,7 +1,7 @@
 // Contours and footprint from analytic DTMs; their rows and the raster tables in
 // a real project.gpkg, read back through GDAL/OGR as QGIS would.
 #include "crs/crs.hpp"
-#include "products/raster_io.hpp"
+#include "exporters/raster/geotiff.hpp"
 #include "products/site_plan.hpp"
 #include "project/project.hpp"
 #include "project/records.hpp"

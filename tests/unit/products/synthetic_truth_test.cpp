@@ -6,7 +6,8 @@
 #include "crs/crs.hpp"
 #include "products/ortho_markers.hpp"
 #include "products/orthophoto.hpp"
-#include "products/raster_io.hpp"
+#include "exporters/raster/geotiff.hpp"
+#include "importers/raster/geotiff.hpp"
 #include "support/test_support.hpp"
 #include "synthetic/synthetic.hpp"
 
@@ -123,7 +124,7 @@ TEST_F(SyntheticTruth, MarkersLandWithinTwoPixels) {
   const RasterGeoreference geo{describe_crs("EPSG:32636").wkt, kOrigin};
   int checked = 0;
   for (const std::string layer : {"L1", "L2"}) {
-    const Dtm truth_dtm = read_dtm_geotiff(data / "truth" / layer / "surface.tif", kOrigin);
+    const Dtm truth_dtm = convert_raster<float>(read_height_geotiff(data / "truth" / layer / "surface.tif", kOrigin));
     const Dtm dtm = resample(truth_dtm, kOrthoCell, 0.5, plane, markers);
     std::vector<OrthoView> views;
     for (const auto& row : read_csv(data / "truth" / layer / "cameras.csv")) {

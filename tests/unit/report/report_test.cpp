@@ -4,15 +4,15 @@
 // the products writers, a thickness raster and a volume row; no heavy pipeline.
 #include "core/error.hpp"
 #include "crs/crs.hpp"
+#include "exporters/raster/geotiff.hpp"
 #include "pipeline/alignment_store.hpp"
 #include "pipeline/stage_json.hpp"
-#include "products/raster_io.hpp"
+#include "products/dtm.hpp"
 #include "project/project.hpp"
 #include "project/records.hpp"
 #include "report/report.hpp"
 #include "support/shared_scene.hpp"
 #include "support/test_support.hpp"
-#include "volume/raster_io.hpp"
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>
@@ -241,7 +241,9 @@ void add_volumes(Project& p) {
     }
   }
   fs::create_directories(p.dir() / "products/volume");
-  write_field_geotiff(p.dir() / "products/volume/thickness_101.tif", t, kOrigin, "EPSG:32636", 0, "thickness of 101");
+  write_float_geotiff(p.dir() / "products/volume/thickness_101.tif", dtm_from_height_field(t),
+                      {describe_crs("EPSG:32636").wkt, kOrigin}, {.description = "thickness of 101", .unit = "m"},
+                      {.cog = false});
   Transaction tx(db);
   ProductRecord r;
   r.unit_id = u.id;

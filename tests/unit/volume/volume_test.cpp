@@ -3,6 +3,7 @@
 // its exports, sections, and the Harris-matrix check.
 #include "core/error.hpp"
 #include "dense/dense_mesh.hpp"
+#include "importers/raster/geotiff.hpp"
 #include "project/project.hpp"
 #include "project/records.hpp"
 #include "stratigraphy/harris_matrix.hpp"
@@ -10,7 +11,6 @@
 #include "support/test_support.hpp"
 #include "synthetic/synthetic.hpp"
 #include "volume/connected_components.hpp"
-#include "volume/raster_io.hpp"
 #include "volume/section.hpp"
 #include "volume/site_volumes.hpp"
 #include "volume/voxels.hpp"
@@ -414,7 +414,7 @@ TEST(VolumeOptions, RefusesInvalidValues) {
   VoxelOptions v;
   v.voxel_size_m = 0;
   EXPECT_THROW(v.validate(), InputError);
-  EXPECT_THROW(read_height_raster("/nonexistent/dtm.tif", Eigen::Vector3d::Zero()), IoError);
+  EXPECT_THROW(read_height_geotiff("/nonexistent/dtm.tif", Eigen::Vector3d::Zero()), IoError);
 }
 
 // ---- the synthetic excavation -------------------------------------------------------
@@ -466,7 +466,7 @@ class SyntheticVolumes : public ::testing::Test {
       LayerSurface l;
       l.layer = fmt::format("L{}", k);
       l.unit = std::to_string(100 + k);
-      l.z = read_height_raster(synth() / "truth" / l.layer / "surface.tif", origin());
+      l.z = height_field(read_height_geotiff(synth() / "truth" / l.layer / "surface.tif", origin()));
       out.push_back(std::move(l));
     }
     return out;

@@ -1,57 +1,30 @@
-#include "products/raster_io.hpp"
+#include "exporters/raster/geotiff.hpp"
 
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/fault.hpp"
-#include "core/log.hpp"
+#include "exporters/raster/gdal_util.hpp"
 
 #include <cpl_conv.h>
 #include <cpl_string.h>
 #include <gdal_priv.h>
-
-#include "products/gdal_util.hpp"
 
 #include <fmt/format.h>
 
 #include <cerrno>
 #include <cmath>
 #include <memory>
-#include <mutex>
 
 namespace fs = std::filesystem;
 
 namespace strata {
-namespace products_detail {
-
-std::string last_gdal_error() {
-  const char* m = CPLGetLastErrorMsg();
-  return m && *m ? m : "unknown GDAL error";
-}
-
-// Why writing `tmp` failed. GDAL reports a full disk as whatever libtiff met first
-// ("TIFFAppendToStrip: Seek error"), so a file system left with almost no room, or
-// errno ENOSPC, is named as such.
-std::string write_failure(const fs::path& tmp) {
-  const int saved_errno = errno;
-  std::error_code ec;
-  const auto space = fs::space(tmp.parent_path(), ec);
-  constexpr std::uintmax_t kNearlyFull = 1u << 20;
-  if (saved_errno == ENOSPC || (!ec && space.available < kNearlyFull)) {
-    return fmt::format("No space left on device ({} KiB free on the file system of {}; GDAL said: {})",
-                       ec ? 0 : space.available / 1024, tmp.parent_path().string(), last_gdal_error());
-  }
-  return last_gdal_error();
-}
-
-}  // namespace products_detail
-
 namespace {
 
-using products_detail::DatasetPtr;
-using products_detail::gdal_failed;
-using products_detail::init_gdal;
-using products_detail::last_gdal_error;
-using products_detail::write_failure;
+using gdal_detail::DatasetPtr;
+using gdal_detail::gdal_failed;
+using gdal_detail::init_gdal;
+using gdal_detail::last_gdal_error;
+using gdal_detail::write_failure;
 
 // Owned list of "KEY=VALUE" creation options.
 class Options {
@@ -123,25 +96,31 @@ bool table_exists(Database& db, const std::string& name) {
 
 }  // namespace
 
-void write_dtm_geotiff(const fs::path& path, const Dtm& dtm, const RasterGeoreference& geo,
-                       const GeoTiffOptions& options) {
-  const RasterGrid& g = dtm.grid;
-  if (g.width <= 0 || g.height <= 0) throw ProcessingError(fmt::format("writer.geotiff: {}: empty DTM", path.string()));
+void write_float_geotiff(const fs::path& path, const Dtm& raster, const RasterGeoreference& geo,
+                         const FloatBand& band, const GeoTiffOptions& options) {
+  const RasterGrid& g = raster.grid;
+  if (g.width <= 0 || g.height <= 0) throw ProcessingError(fmt::format("writer.geotiff: {}: empty raster", path.string()));
   DatasetPtr ds = make_mem(g, 1, GDT_Float32, geo);
-  std::vector<float> v(dtm.z.size());
+  std::vector<float> v(raster.z.size());
   for (std::size_t i = 0; i < v.size(); ++i) {
     // Absolute height in double, then Float32: about 0.1 mm resolution at 1,500 m.
-    v[i] = std::isfinite(dtm.z[i]) ? float(double(dtm.z[i]) + geo.origin.z()) : float(kDtmNoData);
+    v[i] = std::isfinite(raster.z[i]) ? float(double(raster.z[i]) + band.value_offset) : float(kDtmNoData);
   }
   GDALRasterBand* b = ds->GetRasterBand(1);
   b->SetNoDataValue(kDtmNoData);
-  b->SetDescription("height");
+  b->SetDescription(band.description.c_str());
+  if (!band.unit.empty()) b->SetUnitType(band.unit.c_str());
   if (b->RasterIO(GF_Write, 0, 0, g.width, g.height, v.data(), g.width, g.height, GDT_Float32, 0, 0, nullptr) !=
       CE_None) {
     throw IoError(fmt::format("writer.geotiff: {}: {}", path.string(), last_gdal_error()));
   }
   ds->SetMetadataItem("AREA_OR_POINT", "Area");
   write_copy(ds.get(), path, options, true);
+}
+
+void write_dtm_geotiff(const fs::path& path, const Dtm& dtm, const RasterGeoreference& geo,
+                       const GeoTiffOptions& options) {
+  write_float_geotiff(path, dtm, geo, {.description = "height", .unit = {}, .value_offset = geo.origin.z()}, options);
 }
 
 void write_rgba_geotiff(const fs::path& path, const RgbaRaster& image, const RasterGeoreference& geo,
@@ -159,38 +138,6 @@ void write_rgba_geotiff(const fs::path& path, const RgbaRaster& image, const Ras
   const GDALColorInterp ci[4] = {GCI_RedBand, GCI_GreenBand, GCI_BlueBand, GCI_AlphaBand};
   for (int k = 0; k < 4; ++k) ds->GetRasterBand(k + 1)->SetColorInterpretation(ci[k]);
   write_copy(ds.get(), path, options, false);
-}
-
-Dtm read_dtm_geotiff(const fs::path& path, const Eigen::Vector3d& origin) {
-  init_gdal();
-  DatasetPtr ds(GDALDataset::FromHandle(GDALOpen(path.string().c_str(), GA_ReadOnly)));
-  if (!ds) throw IoError(fmt::format("reader.geotiff: {}: {}", path.string(), last_gdal_error()));
-  double gt[6];
-  if (ds->GetGeoTransform(gt) != CE_None || gt[2] != 0 || gt[4] != 0 || std::abs(gt[1] + gt[5]) > 1e-12) {
-    throw InputError(fmt::format("reader.geotiff: {}: not a north-up raster with square cells", path.string()));
-  }
-  Dtm d;
-  d.grid.cell = gt[1];
-  d.grid.x_min = gt[0] - origin.x();
-  d.grid.y_max = gt[3] - origin.y();
-  d.grid.width = ds->GetRasterXSize();
-  d.grid.height = ds->GetRasterYSize();
-  d.z.resize(d.grid.cells());
-  GDALRasterBand* b = ds->GetRasterBand(1);
-  if (b->RasterIO(GF_Read, 0, 0, d.grid.width, d.grid.height, d.z.data(), d.grid.width, d.grid.height,
-                  GDT_Float32, 0, 0, nullptr) != CE_None) {
-    throw IoError(fmt::format("reader.geotiff: {}: {}", path.string(), last_gdal_error()));
-  }
-  int has_nodata = 0;
-  const double nodata = b->GetNoDataValue(&has_nodata);
-  for (float& z : d.z) {
-    if (!std::isfinite(z) || (has_nodata && double(z) == double(float(nodata)))) {
-      z = std::numeric_limits<float>::quiet_NaN();
-    } else {
-      z = float(double(z) - origin.z());
-    }
-  }
-  return d;
 }
 
 std::string raster_table_name(const std::string& prefix, const std::string& layer) {

@@ -1,6 +1,6 @@
 #pragma once
-// GDAL plumbing shared by the products module's .cpp files (internal header:
-// it includes GDAL, so it stays out of the public headers).
+// GDAL plumbing shared by the .cpp files that write through GDAL (an internal
+// header: it includes GDAL, so it stays out of the public headers).
 #include <gdal_priv.h>
 
 #include <filesystem>
@@ -8,7 +8,7 @@
 #include <mutex>
 #include <string>
 
-namespace strata::products_detail {
+namespace strata::gdal_detail {
 
 // Registers GDAL's drivers once per process.
 inline void init_gdal() {
@@ -35,4 +35,4 @@ std::string last_gdal_error();
 // Call with errno and GDAL's error state as the failed write left them.
 std::string write_failure(const std::filesystem::path& tmp);
 
-}  // namespace strata::products_detail
+}  // namespace strata::gdal_detail

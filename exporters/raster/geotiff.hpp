@@ -1,50 +1,37 @@
 #pragma once
-// Raster writers of the products (writer.geotiff, writer.gpkg_raster): GeoTIFF /
-// Cloud-Optimized GeoTIFF in the site CRS, and raster tables inside project.gpkg.
-// GDAL stays in raster_io.cpp.
-#include "products/dtm.hpp"
+// Raster writers (writer.geotiff, writer.gpkg_raster): GeoTIFF / Cloud-Optimized
+// GeoTIFF in the site CRS, and raster tables inside project.gpkg. GDAL stays in
+// geotiff.cpp.
+#include "geometry/raster.hpp"
 #include "project/database.hpp"
 
-#include <Eigen/Core>
-
-#include <cstdint>
 #include <filesystem>
 #include <string>
-#include <vector>
 
 namespace strata {
-
-// Where a site-frame grid sits in the real world.
-struct RasterGeoreference {
-  std::string crs_wkt;                               // WKT of the site CRS (describe_crs().wkt)
-  Eigen::Vector3d origin = Eigen::Vector3d::Zero();  // site origin E, N, Z (metres)
-};
 
 struct GeoTiffOptions {
   bool cog = true;                     // Cloud-Optimized GeoTIFF (GDAL COG driver) or plain tiled GTiff
   std::string compression = "DEFLATE"; // DEFLATE, LZW, ZSTD or NONE
 };
 
-// No-data value of DTM files: a finite number, because some GIS tools (and GRASS
-// r.in.gdal) treat NaN inconsistently.
-constexpr double kDtmNoData = -9999.0;
-
-// RGBA image on a site-frame grid; alpha 0 where nothing was seen.
-struct RgbaRaster {
-  RasterGrid grid;
-  std::vector<std::uint8_t> rgba;  // row-major north-up, 4 bytes per cell
+// What the band of a Float32 raster holds.
+struct FloatBand {
+  std::string description = "height";
+  std::string unit;         // "m", or empty when not stated
+  double value_offset = 0;  // metres added to every value: origin Z for heights, 0 for thicknesses
 };
 
-// Float32 single band of absolute heights (z + origin.z), nodata kDtmNoData.
-// Written to a temporary file and renamed. Throws IoError("writer.geotiff: ...").
+// Float32 single band (raster.z + band.value_offset), nodata kDtmNoData. Written to
+// a temporary file and renamed. Throws IoError("writer.geotiff: ...").
+void write_float_geotiff(const std::filesystem::path& path, const Dtm& raster, const RasterGeoreference& geo,
+                         const FloatBand& band, const GeoTiffOptions& options = {});
+// Absolute heights (z + origin Z), band "height".
 void write_dtm_geotiff(const std::filesystem::path& path, const Dtm& dtm, const RasterGeoreference& geo,
                        const GeoTiffOptions& options = {});
 // 4-band Byte RGBA (alpha band flagged as such).
 void write_rgba_geotiff(const std::filesystem::path& path, const RgbaRaster& image,
                         const RasterGeoreference& geo, const GeoTiffOptions& options = {});
-
-// Reads a DTM GeoTIFF back into the site frame (for exports and tests).
-Dtm read_dtm_geotiff(const std::filesystem::path& path, const Eigen::Vector3d& origin);
 
 // Raster table name for a layer: prefix + "_" + the layer name with anything but
 // [A-Za-z0-9_] replaced by '_' (SQLite identifiers that QGIS and GDAL accept).
