@@ -1,4 +1,4 @@
-#include "products/zip_writer.hpp"
+#include "exporters/zip/zip_writer.hpp"
 
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"

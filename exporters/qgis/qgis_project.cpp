@@ -1,11 +1,11 @@
-#include "products/qgis_project.hpp"
+#include "exporters/qgis/qgis_project.hpp"
 
 #include "core/text.hpp"
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/fault.hpp"
 #include "crs/crs.hpp"
-#include "products/zip_writer.hpp"
+#include "exporters/zip/zip_writer.hpp"
 #include "project/records.hpp"
 
 #include <fmt/format.h>
