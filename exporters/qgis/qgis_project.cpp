@@ -325,7 +325,7 @@ void write_qgis_project(const QgisProjectInput& in, const fs::path& out) {
   fs::create_directories(dir);
   const std::string xml = qgis_project_xml(in, dir);
   if (ext == ".qgz") {
-    write_zip(out, {{out.stem().string() + ".qgs", xml}});
+    write_zip(out, {{out.stem().string() + ".qgs", xml}}, "export.qgz.temp_written");
     return;
   }
   write_bytes_atomically(out, "exporter.qgis", xml, "export.qgis.temp_written");
