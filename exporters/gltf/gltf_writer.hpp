@@ -22,7 +22,7 @@
 // A scene (GltfScene) adds nodes without meshes: markers and cameras, placed at
 // `translation` = their own position (origin + local, in the JSON's double precision),
 // and glTF perspective cameras. The local origin then covers their positions too.
-#include "dense/dense_mesh.hpp"
+#include "geometry/mesh.hpp"
 #include "geometry/camera.hpp"
 
 #include <Eigen/Core>

@@ -3,9 +3,9 @@
 #include "core/error.hpp"
 #include "core/log.hpp"
 #include "crs/crs.hpp"
+#include "exporters/grass/grass_export.hpp"
+#include "exporters/qgis/qgis_project.hpp"
 #include "pipeline/products_layer.hpp"
-#include "products/grass_export.hpp"
-#include "products/qgis_project.hpp"
 #include "project/project.hpp"
 #include "project/records.hpp"
 

@@ -4,6 +4,8 @@
 #include "core/error.hpp"
 #include "core/fault.hpp"
 #include "core/log.hpp"
+#include "exporters/section/section_writers.hpp"
+#include "exporters/voxels/voxel_export.hpp"
 #include "project/project.hpp"
 #include "volume/section.hpp"
 #include "volume/site_volumes.hpp"

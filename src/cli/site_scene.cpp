@@ -3,6 +3,7 @@
 #include "core/error.hpp"
 #include "core/hash.hpp"
 #include "core/log.hpp"
+#include "dense/dense_mesh.hpp"
 #include "pipeline/alignment_store.hpp"
 #include "project/records.hpp"
 #include "volume/site_volumes.hpp"

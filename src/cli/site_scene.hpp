@@ -1,8 +1,9 @@
 #pragma once
 // The site model as a glTF scene: what `export model` writes and `export viewer`
 // embeds, built once here so the two cannot drift apart.
-#include "dense/dense_mesh.hpp"
 #include "exporters/gltf/gltf_writer.hpp"
+#include "geometry/mesh.hpp"
+#include "importers/mesh/ply_mesh.hpp"
 #include "project/project.hpp"
 #include "project/records.hpp"
 

@@ -14,6 +14,7 @@
 #include "core/resources.hpp"
 #include "dense/dense.hpp"
 #include "dense/internal.hpp"
+#include "exporters/mesh/mesh_writers.hpp"
 
 #include <fmt/format.h>
 

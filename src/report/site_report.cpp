@@ -1,9 +1,10 @@
 // The site report: the Harris matrix, unit volumes, thickness maps, a section
 // along the excavation's long axis, and every layer's verdict and findings.
-#include "core/text.hpp"
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/log.hpp"
+#include "core/text.hpp"
+#include "exporters/section/section_writers.hpp"
 #include "report/html_util.hpp"
 #include "report/report_internal.hpp"
 #include "stratigraphy/graphviz.hpp"

@@ -1,26 +1,22 @@
-// The voxel model in OpenVDB: per-unit fog volumes and the label grid. The only
-// translation unit of strata_volume that includes OpenVDB.
+// The voxel model: per-unit fog volumes and the label grid, voxelized here and
+// written by exporters/voxels (writer.vdb); its readers. The only translation unit of
+// strata_volume that includes OpenVDB.
 #include "volume/voxels.hpp"
 
-#include "core/atomic_file.hpp"
 #include "core/error.hpp"
-#include "core/vdb_uuid.hpp"
-#include "core/log.hpp"
+#include "exporters/voxels/vdb_writer.hpp"
 
 #include <fmt/format.h>
 #include <openvdb/openvdb.h>
-#include <openvdb/tools/Prune.h>
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
+#include <utility>
 
 namespace strata {
 namespace fs = std::filesystem;
 namespace {
-
-constexpr const char* kLabelGrid = "labels";
-// Fractions this close to 1 are stored as 1 so that interior blocks prune to tiles.
-constexpr float kPruneTolerance = 1e-6f;
 
 void init_vdb() {
   static const bool done = [] {
@@ -28,6 +24,66 @@ void init_vdb() {
     return true;
   }();
   (void)done;
+}
+
+// The offsets of the voxel grid from the site frame's origin put voxel faces on cell
+// faces of the measurement grid, so that no cell centre lies on a voxel face (where
+// rounding would pick a column at random). None without solids.
+std::optional<Eigen::Vector2d> voxel_offset(const std::vector<UnitSolid>& solids, double h) {
+  if (solids.empty()) return std::nullopt;
+  const HeightField& g = solids.front().top;
+  return Eigen::Vector2d(std::fmod(g.x0 - 0.5 * g.cell + 0.5 * h, h), std::fmod(g.y0 - 0.5 * g.cell + 0.5 * h, h));
+}
+
+// A dug cell of the measurement grid in the voxel column its centre falls in.
+struct CellColumn {
+  int I, J;
+  double t, b;  // top and bottom, site frame, metres
+};
+
+// The solid's dug cells, by voxel column (J, then I).
+std::vector<CellColumn> dug_cells(const UnitSolid& solid, const VdbWriter& vdb) {
+  const HeightField& top = solid.top;
+  const HeightField& bottom = solid.bottom;
+  std::vector<CellColumn> cells;
+  for (int j = 0; j < top.ny; ++j)
+    for (int i = 0; i < top.nx; ++i) {
+      const double t = top.at(i, j), b = bottom.at(i, j);
+      if (!std::isfinite(t) || !(t > b)) continue;  // a negative thickness (footprint mode) adds no voxels
+      const Eigen::Vector3d idx = vdb.index_of(Eigen::Vector3d(top.x0 + i * top.cell, top.y0 + j * top.cell, 0));
+      cells.push_back({int(std::floor(idx.x() + 0.5)), int(std::floor(idx.y() + 0.5)), t, b});
+    }
+  std::sort(cells.begin(), cells.end(), [](const auto& p, const auto& q) { return p.J != q.J ? p.J < q.J : p.I < q.I; });
+  return cells;
+}
+
+// Every dug cell goes to the voxel column its centre falls in; a voxel's fraction is
+// the solid's volume inside it (sum over the column's cells of overlap x cell area)
+// over the voxel's volume, so the fog conserves the raster volume exactly whatever
+// the ratio of voxel to cell. A voxel more than half inside is labelled.
+void voxelize_solid(const UnitSolid& solid, double h, VdbWriter& vdb) {
+  const std::vector<CellColumn> cells = dug_cells(solid, vdb);
+  const double cell_area_over_voxel = solid.top.cell * solid.top.cell / (h * h * h);
+  for (std::size_t c0 = 0; c0 < cells.size();) {
+    std::size_t c1 = c0;
+    double zmin = 1e300, zmax = -1e300;
+    while (c1 < cells.size() && cells[c1].I == cells[c0].I && cells[c1].J == cells[c0].J) {
+      zmin = std::min(zmin, cells[c1].b);
+      zmax = std::max(zmax, cells[c1].t);
+      ++c1;
+    }
+    const int I = cells[c0].I, J = cells[c0].J;
+    const int K0 = int(std::floor(zmin / h + 0.5)), K1 = int(std::floor(zmax / h + 0.5));
+    for (int K = K0; K <= K1; ++K) {
+      const double lo = (K - 0.5) * h, hi = (K + 0.5) * h;
+      double overlap = 0;  // metres, summed over the column's cells
+      for (std::size_t c = c0; c < c1; ++c) overlap += std::max(0.0, std::min(cells[c].t, hi) - std::max(cells[c].b, lo));
+      const double fraction = overlap * cell_area_over_voxel;
+      if (fraction <= 0) continue;
+      vdb.add_voxel({I, J, K}, fraction, fraction > 0.5);
+    }
+    c0 = c1;
+  }
 }
 
 }  // namespace
@@ -41,126 +97,31 @@ VoxelSummary write_unit_voxels(const fs::path& path, const std::vector<UnitSolid
                                const std::map<std::string, std::int32_t>& labels, const VoxelOptions& options,
                                const Eigen::Vector3d& site_origin, const std::string& crs) {
   options.validate();
-  init_vdb();
   const double h = options.voxel_size_m;
-  // Site frame: voxel (i, j, k) centred at (i, j, k) * h.
-  // Site frame: voxel (i, j, k) centred at (ox + i*h, oy + j*h, k*h). The offsets put
-  // voxel faces on cell faces of the measurement grid, so that no cell centre lies
-  // on a voxel face (where rounding would pick a column at random).
-  openvdb::math::Transform::Ptr transform = openvdb::math::Transform::createLinearTransform(h);
-  if (!solids.empty()) {
-    const HeightField& g = solids.front().top;
-    const double ox = std::fmod(g.x0 - 0.5 * g.cell + 0.5 * h, h), oy = std::fmod(g.y0 - 0.5 * g.cell + 0.5 * h, h);
-    transform->postTranslate(openvdb::Vec3d(ox, oy, 0));
-  }
-  auto label_grid = openvdb::Int32Grid::create(0);
-  label_grid->setName(kLabelGrid);
-  label_grid->setTransform(transform);
-  label_grid->setGridClass(openvdb::GRID_UNKNOWN);
-  label_grid->insertMeta("description", openvdb::StringMetadata("unit label (unit id) per voxel, 0 = none"));
-  auto label_acc = label_grid->getAccessor();
-
+  VdbWriter vdb(h, voxel_offset(solids, h));
   VoxelSummary summary;
   summary.voxel_size_m = h;
-  openvdb::GridPtrVec grids;
+  std::vector<std::pair<std::int32_t, std::string>> unit_labels;
   std::int32_t next_label = 1;
   for (const auto& solid : solids) {
     VoxelUnit vu;
     vu.unit = solid.unit;
     const auto it = labels.find(solid.unit);
     vu.label = it != labels.end() ? it->second : next_label++;
-    auto grid = openvdb::FloatGrid::create(0.0f);
-    grid->setName(solid.unit);
-    grid->setTransform(transform);
-    grid->setGridClass(openvdb::GRID_FOG_VOLUME);
-    grid->insertMeta("unit", openvdb::StringMetadata(solid.unit));
-    grid->insertMeta("unit_label", openvdb::Int32Metadata(vu.label));
-    grid->insertMeta("top_layer", openvdb::StringMetadata(solid.top_layer));
-    auto acc = grid->getAccessor();
-
-    // Every dug cell goes to the voxel column its centre falls in; a voxel's
-    // fraction is the solid's volume inside it (sum over the column's cells of
-    // overlap x cell area) over the voxel's volume, so the fog conserves the
-    // raster volume exactly whatever the ratio of voxel to cell.
-    const HeightField& top = solid.top;
-    const HeightField& bottom = solid.bottom;
-    struct CellColumn {
-      int I, J;
-      double t, b;
-    };
-    std::vector<CellColumn> cells;
-    for (int j = 0; j < top.ny; ++j)
-      for (int i = 0; i < top.nx; ++i) {
-        const double t = top.at(i, j), b = bottom.at(i, j);
-        if (!std::isfinite(t) || !(t > b)) continue;  // a negative thickness (footprint mode) adds no voxels
-        const openvdb::Vec3d idx = transform->worldToIndex(openvdb::Vec3d(top.x0 + i * top.cell, top.y0 + j * top.cell, 0));
-        cells.push_back({int(std::floor(idx.x() + 0.5)), int(std::floor(idx.y() + 0.5)), t, b});
-      }
-    std::sort(cells.begin(), cells.end(), [](const auto& p, const auto& q) { return p.J != q.J ? p.J < q.J : p.I < q.I; });
-    const double cell_area_over_voxel = top.cell * top.cell / (h * h * h);
-    for (std::size_t c0 = 0; c0 < cells.size();) {
-      std::size_t c1 = c0;
-      double zmin = 1e300, zmax = -1e300;
-      while (c1 < cells.size() && cells[c1].I == cells[c0].I && cells[c1].J == cells[c0].J) {
-        zmin = std::min(zmin, cells[c1].b);
-        zmax = std::max(zmax, cells[c1].t);
-        ++c1;
-      }
-      const int I = cells[c0].I, J = cells[c0].J;
-      const int K0 = int(std::floor(zmin / h + 0.5)), K1 = int(std::floor(zmax / h + 0.5));
-      for (int K = K0; K <= K1; ++K) {
-        const double lo = (K - 0.5) * h, hi = (K + 0.5) * h;
-        double overlap = 0;  // metres, summed over the column's cells
-        for (std::size_t c = c0; c < c1; ++c) overlap += std::max(0.0, std::min(cells[c].t, hi) - std::max(cells[c].b, lo));
-        double fraction = overlap * cell_area_over_voxel;
-        if (fraction <= 0) continue;
-        if (std::abs(fraction - 1) < kPruneTolerance) fraction = 1;
-        acc.setValue(openvdb::Coord(I, J, K), float(fraction));
-        if (fraction > 0.5) label_acc.setValue(openvdb::Coord(I, J, K), vu.label);
-      }
-      c0 = c1;
-    }
-    openvdb::tools::prune(grid->tree(), kPruneTolerance);
-    double sum = 0;
-    for (auto v = grid->cbeginValueOn(); v; ++v) {
-      sum += double(*v) * double(v.getVoxelCount());
-      vu.active_voxels += v.getVoxelCount();
-    }
-    vu.fog_volume_m3 = sum * h * h * h;
-    grids.push_back(grid);
+    vdb.begin_unit(solid.unit, vu.label, solid.top_layer);
+    voxelize_solid(solid, h, vdb);
+    const VdbUnitGrid grid = vdb.end_unit();
+    vu.fog_volume_m3 = grid.fog_volume_m3;
+    vu.active_voxels = grid.active_voxels;
     summary.units.push_back(vu);
+    unit_labels.emplace_back(vu.label, vu.unit);
   }
-  // Labelled voxels per unit, after every unit has been written (a later unit
-  // may take a voxel an earlier one claimed where solids overlap).
-  std::map<std::int32_t, std::size_t> counts;
-  for (auto v = label_grid->cbeginValueOn(); v; ++v) counts[*v] += v.getVoxelCount();
+  const std::map<std::int32_t, std::size_t> counts = vdb.write(path, site_origin, crs, unit_labels);
   for (auto& vu : summary.units) {
-    vu.labelled_voxels = counts[vu.label];
+    const auto c = counts.find(vu.label);
+    vu.labelled_voxels = c != counts.end() ? c->second : 0;
     vu.label_volume_m3 = double(vu.labelled_voxels) * h * h * h;
   }
-  openvdb::tools::prune(label_grid->tree());
-  grids.push_back(label_grid);
-
-  openvdb::MetaMap meta;
-  meta.insertMeta("site_origin_e", openvdb::DoubleMetadata(site_origin.x()));
-  meta.insertMeta("site_origin_n", openvdb::DoubleMetadata(site_origin.y()));
-  meta.insertMeta("site_origin_z", openvdb::DoubleMetadata(site_origin.z()));
-  meta.insertMeta("crs", openvdb::StringMetadata(crs));
-  meta.insertMeta("voxel_size_m", openvdb::DoubleMetadata(h));
-  meta.insertMeta("frame", openvdb::StringMetadata("site frame: CRS coordinates minus site_origin, metres"));
-  for (const auto& vu : summary.units)
-    meta.insertMeta(fmt::format("label_{}", vu.label), openvdb::StringMetadata(vu.unit));
-
-  write_atomically(path, "writer.vdb", [&](const fs::path& tmp) {
-    try {
-      openvdb::io::File file(tmp.string());
-      file.write(grids, meta);
-      file.close();
-      make_vdb_uuid_from_content(tmp);
-    } catch (const openvdb::Exception& e) {
-      throw IoError(fmt::format("writer.vdb: {}: {}", path.string(), e.what()));
-    }
-  });
   return summary;
 }
 
@@ -205,8 +166,8 @@ LabelVolume read_label_volume(const fs::path& path) {
   const OpenedVdb f = open_vdb(path);
   openvdb::Int32Grid::Ptr grid;
   for (const auto& base : *f.grids)
-    if (base->getName() == kLabelGrid) grid = openvdb::gridPtrCast<openvdb::Int32Grid>(base);
-  if (!grid) throw IoError(fmt::format("reader.vdb: {}: no Int32 grid named '{}'", path.string(), kLabelGrid));
+    if (base->getName() == kVdbLabelGrid) grid = openvdb::gridPtrCast<openvdb::Int32Grid>(base);
+  if (!grid) throw IoError(fmt::format("reader.vdb: {}: no Int32 grid named '{}'", path.string(), kVdbLabelGrid));
   LabelVolume out;
   out.voxel_size_m = grid->voxelSize().x();
   auto get_double = [&](const char* key) {

@@ -1,6 +1,7 @@
 #pragma once
-// The voxel model of the excavated volume (OpenVDB stays in voxels.cpp) and its
-// exports for GRASS (r3.in.ascii) and ParaView (VTK image data).
+// The voxel model of the excavated volume (OpenVDB stays in voxels.cpp). Its
+// exports for GRASS (r3.in.ascii) and ParaView (VTK image data) are in
+// exporters/voxels.
 //
 // One .vdb file holds, in the site frame (the grids' linear transform: voxel
 // (i, j, k) centred at (ox + i*h, oy + j*h, k*h), metres, with 0 <= ox, oy < h
@@ -70,17 +71,5 @@ struct LabelVolume {
   }
 };
 LabelVolume read_label_volume(const std::filesystem::path& path);
-
-// ---- exports of the label volume (no OpenVDB) --------------------------------------
-
-// GRASS ASCII 3D raster for r3.in.ascii (header version grass7, order nsbt,
-// real CRS bounds; null voxels "*") plus `<stem>.sh`, a script that imports it
-// and sets the 3D region, and `<stem>_units.csv` (label,unit). Returns the
-// script's path.
-std::filesystem::path write_grass_ascii(const std::filesystem::path& path, const LabelVolume& volume);
-
-// VTK XML ImageData (.vti) with cell data "unit" (Int32, raw appended). The
-// origin is in real CRS coordinates; field data "site_origin" and "unit_codes".
-void write_vti(const std::filesystem::path& path, const LabelVolume& volume);
 
 }  // namespace strata

@@ -1,9 +1,9 @@
 // reader.ply: a binary PLY such as `strata export mesh` writes, or another program's.
 // An accepted mesh must be consistent: every face index names a vertex, colours and
 // normals (when present) one per vertex; what reads it next relies on that.
-#include "dense/dense_mesh.hpp"
 #include "fuzz/fuzz_support.hpp"
 #include "fuzz/targets.hpp"
+#include "importers/mesh/ply_mesh.hpp"
 
 namespace strata::fuzz {
 

@@ -3,7 +3,7 @@
 // strata's own statistics. Skipped when GRASS is not installed.
 #include "crs/crs.hpp"
 #include "products/dtm.hpp"
-#include "products/grass_export.hpp"
+#include "exporters/grass/grass_export.hpp"
 #include "exporters/raster/geotiff.hpp"
 #include "project/project.hpp"
 #include "project/records.hpp"

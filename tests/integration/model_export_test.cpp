@@ -2,7 +2,7 @@
 // here, as the dense stage writes it: double site CRS coordinates): the refusals, and
 // the .glb's frame checked against the mesh's known coordinates. The container
 // itself is checked in tests/unit/exporters/gltf_test.cpp.
-#include "dense/dense_mesh.hpp"
+#include "exporters/mesh/mesh_writers.hpp"
 #include "project/project.hpp"
 #include "project/records.hpp"
 #include "support/test_support.hpp"

@@ -2,8 +2,10 @@
 // truth in tests"): a gently curved ground with a raised block, a solid procedural
 // texture, 8 views rendered by ray casting through the strata camera model (with
 // radial distortion). Depth maps + fusion must recover the heights.
+#include "core/error.hpp"
 #include "dense/dense.hpp"
 #include "dense/internal.hpp"
+#include "importers/mesh/ply_mesh.hpp"
 #include "support/test_support.hpp"
 
 #include <fmt/format.h>
@@ -637,6 +639,21 @@ TEST(Dense, FusedHeightsCarryTheUncertaintyOfTheirDepthMaps) {
   EXPECT_LT(noisy, 2.0 * expected);
   EXPECT_GT(noisy, 2.0 * quiet) << "four times the disagreement should show";
   EXPECT_GT(few, noisy) << "three views know the height less well than eight";
+}
+
+TEST(DenseOptions, ValidationNamesTheField) {
+  DenseOptions o;
+  EXPECT_NO_THROW(o.validate());
+  o.patch_match.scale = 0.3;
+  try {
+    o.validate();
+    FAIL() << "expected InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("patch_match.scale"), std::string::npos);
+  }
+  o = DenseOptions();
+  o.fusion.truncation_voxels = 1;
+  EXPECT_THROW(o.validate(), InputError);
 }
 
 }  // namespace

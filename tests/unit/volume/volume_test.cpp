@@ -3,6 +3,8 @@
 // its exports, sections, and the Harris-matrix check.
 #include "core/error.hpp"
 #include "dense/dense_mesh.hpp"
+#include "exporters/section/section_writers.hpp"
+#include "exporters/voxels/voxel_export.hpp"
 #include "importers/raster/geotiff.hpp"
 #include "project/project.hpp"
 #include "project/records.hpp"

@@ -1,4 +1,4 @@
-#include "products/zip_writer.hpp"
+#include "exporters/zip/zip_writer.hpp"
 
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
@@ -11,7 +11,8 @@
 
 namespace strata {
 
-void write_zip(const std::filesystem::path& path, const std::vector<ZipEntry>& entries) {
+void write_zip(const std::filesystem::path& path, const std::vector<ZipEntry>& entries,
+               std::string_view fault_point) {
   write_atomically(path, "writer.zip", [&](const std::filesystem::path& tmp) {
     auto fail = [&](const std::string& what) {
       return IoError(fmt::format("writer.zip: {}: {}: {}", path.string(), what, CPLGetLastErrorMsg()));
@@ -38,7 +39,7 @@ void write_zip(const std::filesystem::path& path, const std::vector<ZipEntry>& e
     const bool closed = CPLCloseZip(zip) == CE_None;
     if (!ok) throw fail(failed);
     if (!closed) throw fail("cannot finish the archive");
-  });
+  }, fault_point);
 }
 
 }  // namespace strata

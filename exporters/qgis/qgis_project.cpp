@@ -1,11 +1,11 @@
-#include "products/qgis_project.hpp"
+#include "exporters/qgis/qgis_project.hpp"
 
 #include "core/text.hpp"
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/fault.hpp"
 #include "crs/crs.hpp"
-#include "products/zip_writer.hpp"
+#include "exporters/zip/zip_writer.hpp"
 #include "project/records.hpp"
 
 #include <fmt/format.h>
@@ -325,7 +325,7 @@ void write_qgis_project(const QgisProjectInput& in, const fs::path& out) {
   fs::create_directories(dir);
   const std::string xml = qgis_project_xml(in, dir);
   if (ext == ".qgz") {
-    write_zip(out, {{out.stem().string() + ".qgs", xml}});
+    write_zip(out, {{out.stem().string() + ".qgs", xml}}, "export.qgz.temp_written");
     return;
   }
   write_bytes_atomically(out, "exporter.qgis", xml, "export.qgis.temp_written");

@@ -1,7 +1,7 @@
 // QGIS project: layer groups in stratigraphic order, relative sources that resolve,
 // .qgz a valid zip holding the .qgs.
 #include "core/error.hpp"
-#include "products/qgis_project.hpp"
+#include "exporters/qgis/qgis_project.hpp"
 #include "support/test_support.hpp"
 
 #include <gtest/gtest.h>

@@ -1,7 +1,8 @@
 // writer.ply / writer.obj round trips: header, counts, and full precision of
 // site-CRS coordinates with a large (UTM-sized) offset.
 #include "core/error.hpp"
-#include "dense/dense.hpp"
+#include "exporters/mesh/mesh_writers.hpp"
+#include "importers/mesh/ply_mesh.hpp"
 #include "support/test_support.hpp"
 
 #include <gtest/gtest.h>
@@ -122,21 +123,6 @@ TEST(DenseMeshIo, ObjHasVerticesFacesAndOffset) {
   const std::string text = test::read_text(dir / "mesh.obj");
   EXPECT_NE(text.find("v 512345.678901 4123456.789012 234.500000 1.0000 0.0000 0.0000\n"), std::string::npos);
   EXPECT_NE(text.find("f 1 3 4\n"), std::string::npos);
-}
-
-TEST(DenseOptions, ValidationNamesTheField) {
-  DenseOptions o;
-  EXPECT_NO_THROW(o.validate());
-  o.patch_match.scale = 0.3;
-  try {
-    o.validate();
-    FAIL() << "expected InputError";
-  } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("patch_match.scale"), std::string::npos);
-  }
-  o = DenseOptions();
-  o.fusion.truncation_voxels = 1;
-  EXPECT_THROW(o.validate(), InputError);
 }
 
 }  // namespace

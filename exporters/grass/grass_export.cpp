@@ -1,4 +1,4 @@
-#include "products/grass_export.hpp"
+#include "exporters/grass/grass_export.hpp"
 
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
@@ -15,6 +15,7 @@
 #include <algorithm>
 #include <cctype>
 #include <fstream>
+#include <memory>
 
 namespace fs = std::filesystem;
 
@@ -40,29 +41,21 @@ void write_vectors(const fs::path& gpkg, const fs::path& out, const std::vector<
   std::vector<char*> argv;
   for (auto& a : args) argv.push_back(a.data());
   argv.push_back(nullptr);
-  GDALVectorTranslateOptions* opt = GDALVectorTranslateOptionsNew(argv.data(), nullptr);
+  const std::unique_ptr<GDALVectorTranslateOptions, decltype(&GDALVectorTranslateOptionsFree)> opt(
+      GDALVectorTranslateOptionsNew(argv.data(), nullptr), &GDALVectorTranslateOptionsFree);
+  const std::unique_ptr<void, decltype(&GDALClose)> source(src, &GDALClose);
   // Through a temporary name: a folder never holds a half-written site_plan.gpkg.
-  const fs::path tmp = out.string() + ".tmp.gpkg";
-  fs::remove(tmp);
-  int usage_error = 0;
-  GDALDatasetH dst = GDALVectorTranslate(tmp.string().c_str(), nullptr, 1, &src, opt, &usage_error);
-  GDALVectorTranslateOptionsFree(opt);
-  GDALClose(src);
-  if (!dst) {
-    std::error_code ec;
-    fs::remove(tmp, ec);
-    throw IoError(fmt::format("exporter.grass: {}: {}", out.string(), CPLGetLastErrorMsg()));
-  }
-  CPLErrorReset();
-  GDALClose(dst);  // GPKG commits here; a full disk shows in GDAL's error state
-  std::error_code ec;
-  if (gdal_detail::gdal_failed()) {
-    const std::string why = CPLGetLastErrorMsg();
-    fs::remove(tmp, ec);
-    throw IoError(fmt::format("exporter.grass: {}: {}", out.string(), why));
-  }
-  fs::rename(tmp, out, ec);
-  if (ec) throw IoError(fmt::format("exporter.grass: {}: {}", out.string(), ec.message()));
+  write_atomically(out, "exporter.grass", [&](const fs::path& tmp) {
+    fs::remove(tmp);
+    int usage_error = 0;
+    GDALDatasetH dst = GDALVectorTranslate(tmp.string().c_str(), nullptr, 1, &src, opt.get(), &usage_error);
+    if (!dst) throw IoError(fmt::format("exporter.grass: {}: {}", out.string(), CPLGetLastErrorMsg()));
+    CPLErrorReset();
+    GDALClose(dst);  // GPKG commits here; a full disk shows in GDAL's error state
+    if (gdal_detail::gdal_failed()) {
+      throw IoError(fmt::format("exporter.grass: {}: {}", out.string(), CPLGetLastErrorMsg()));
+    }
+  });
 }
 
 }  // namespace

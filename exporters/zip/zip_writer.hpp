@@ -3,6 +3,7 @@
 // holding the .qgs.
 #include <filesystem>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace strata {
@@ -12,7 +13,9 @@ struct ZipEntry {
   std::string data;
 };
 
-// Writes the archive through a temporary file and a rename. Throws IoError.
-void write_zip(const std::filesystem::path& path, const std::vector<ZipEntry>& entries);
+// Writes the archive through a temporary file and a rename; `fault_point` as in
+// write_atomically. Throws IoError.
+void write_zip(const std::filesystem::path& path, const std::vector<ZipEntry>& entries,
+               std::string_view fault_point = {});
 
 }  // namespace strata
