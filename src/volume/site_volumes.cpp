@@ -9,6 +9,7 @@
 #include "dense/dense.hpp"
 #include "exporters/raster/geotiff.hpp"
 #include "importers/raster/geotiff.hpp"
+#include "pipeline/stage_json.hpp"
 #include "products/dtm.hpp"
 #include "products/site_plan.hpp"
 #include "project/gpkg.hpp"
@@ -38,44 +39,29 @@ struct SurfaceSource {
   double xmin = 0, ymin = 0, xmax = 0, ymax = 0;  // site frame extent
 };
 
-std::optional<nlohmann::json> quality_json(Database& db, std::int64_t layer_id, const char* stage) {
-  auto st = db.prepare("SELECT quality_json FROM reconstructions WHERE layer_id = ? AND stage = ?");
-  st.bind_all(layer_id, stage);
-  if (!st.step()) return std::nullopt;
-  try {
-    return nlohmann::json::parse(st.get_text(0));
-  } catch (const nlohmann::json::exception&) {
-    return std::nullopt;
-  }
-}
-
 // Vertical georeference error of a layer: check-marker RMSE z when check points
 // exist (independent), else control RMSE z; 0 when not georeferenced by markers.
 double vertical_rmse(Database& db, std::int64_t layer_id) {
-  const auto q = quality_json(db, layer_id, "sparse");
-  if (!q) return 0;
-  for (const char* key : {"check_rmse", "control_rmse"}) {
-    const auto it = q->find(key);
-    if (it != q->end() && it->is_object() && it->value("markers", 0) > 0) return it->value("z_m", 0.0);
-  }
-  return 0;
+  const auto q = stored_alignment_quality(db, layer_id);
+  const AxisRmse* rmse = q ? q->quoted_rmse() : nullptr;
+  return rmse ? rmse->z : 0.0;
 }
 
 // The scale over which the layer's dense stage averaged the ground (its matching
 // window on the ground); projects fused before it was recorded have the depth
 // maps' GSD, and the window is the default one.
 double surface_smoothing(Database& db, std::int64_t layer_id) {
-  const auto q = quality_json(db, layer_id, "dense");
+  const auto q = stored_dense_quality(db, layer_id);
   if (!q) return 0;
-  if (const double s = q->value("smoothing_m", 0.0); s > 0) return s;
-  const double gsd = q->value("gsd_m", 0.0);
+  if (q->figures.smoothing_m > 0) return q->figures.smoothing_m;
+  const double gsd = q->figures.gsd_m;
   return gsd > 0 ? PatchMatchOptions{}.smoothing_m(gsd) : 0.0;
 }
 
 double surface_noise(Database& db, std::int64_t layer_id, double fallback) {
-  const auto q = quality_json(db, layer_id, "dense");
+  const auto q = stored_dense_quality(db, layer_id);
   if (!q) return fallback;
-  const double median = q->value("median_distance_sparse_m", 0.0);
+  const double median = q->figures.median_distance_sparse_m;
   return median > 0 ? kMadToSigma * median : fallback;
 }
 
