@@ -3,6 +3,7 @@
 // chunks to the volume (fusion.cpp, the only file that includes OpenVDB).
 #include "core/error.hpp"
 #include "core/progress.hpp"
+#include "core/statistics.hpp"
 #include "dense/internal.hpp"
 
 #include <fmt/format.h>
@@ -54,8 +55,7 @@ double scan_point_spacing(const std::vector<RangeScanInput>& scans) {
   std::vector<double> spacing;
   spacing.reserve(cells.size());
   for (const auto& [key, count] : cells) spacing.push_back(kSpacingCell / std::sqrt(double(count)));
-  std::nth_element(spacing.begin(), spacing.begin() + std::ptrdiff_t(spacing.size() / 2), spacing.end());
-  return spacing[spacing.size() / 2];
+  return median_in_place(spacing);
 }
 
 ScanFusionFigures fuse_scans(TsdfVolume& volume, const std::vector<RangeScanInput>& scans, double unit_sigma_m) {

@@ -1,6 +1,7 @@
 #include "georef/marker_rays.hpp"
 
 #include "core/error.hpp"
+#include "core/statistics.hpp"
 
 #include <fmt/format.h>
 
@@ -82,8 +83,7 @@ double order_score(const std::vector<View>& views, const Eigen::Vector3d& X, std
   std::vector<double> m;
   m.reserve(views.size());
   for (const auto& v : views) m.push_back(miss(v, X));
-  std::nth_element(m.begin(), m.begin() + std::ptrdiff_t(h - 1), m.end());
-  return m[h - 1];
+  return kth_smallest(m, h - 1);
 }
 
 std::optional<Eigen::Vector3d> robust_start(const std::vector<View>& views, double min_angle_deg) {
@@ -195,12 +195,11 @@ MarkerRayFit fit_marker_rays(const std::vector<Camera>& cameras, const std::vect
   const std::size_t h = std::max<std::size_t>(2, (n + 1) / 2);
   std::vector<double> misses;
   for (const auto& v : views) misses.push_back(miss(v, X));
-  std::nth_element(misses.begin(), misses.begin() + std::ptrdiff_t(h - 1), misses.end());
   // With few rays the chosen order statistic is biased low (the start was picked to
   // make it small): Rousseeuw & Leroy's (1987) small-sample factor 1 + 5 / (n - p), with
   // p = 3 unknowns, widens it (3.5 x for 5 rays, 1.2 x for 30), capped for n <= 4.
   const double small_sample = n > 4 ? 1.0 + 5.0 / double(n - 3) : 6.0;
-  double s = small_sample * misses[h - 1] / 1.1774;
+  double s = small_sample * kth_smallest(misses, h - 1) / 1.1774;
   std::vector<char> agrees(n, 0), previous;
   for (int round = 0; round < kMaxRounds; ++round) {
     std::vector<double> weight(n, 0.0);

@@ -5,6 +5,7 @@
 #include "core/hash.hpp"
 #include "core/log.hpp"
 #include "core/progress.hpp"
+#include "core/statistics.hpp"
 #include "pipeline/alignment_store.hpp"
 #include "pipeline/layer_scans.hpp"
 #include "pipeline/stage_json.hpp"
@@ -28,11 +29,7 @@ std::vector<Eigen::Vector2d> sparse_area(const Reconstruction& rec) {
     ys.push_back(p.X.y());
   }
   if (xs.size() < 10) return {};
-  auto q = [](std::vector<double>& v, double f) {
-    const auto k = std::size_t(f * double(v.size() - 1));
-    std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(k), v.end());
-    return v[k];
-  };
+  auto q = [](std::vector<double>& v, double f) { return kth_smallest(v, std::size_t(f * double(v.size() - 1))); };
   const double x0 = q(xs, 0.05), x1 = q(xs, 0.95), y0 = q(ys, 0.05), y1 = q(ys, 0.95);
   return {{x0, y0}, {x1, y0}, {x1, y1}, {x0, y1}};
 }

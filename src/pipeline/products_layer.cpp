@@ -7,6 +7,7 @@
 #include "core/log.hpp"
 #include "core/progress.hpp"
 #include "core/resources.hpp"
+#include "core/statistics.hpp"
 #include "crs/crs.hpp"
 #include "pipeline/alignment_store.hpp"
 #include "pipeline/dense_layer.hpp"
@@ -82,8 +83,7 @@ std::pair<double, std::size_t> median_sparse_distance(const Dtm& dtm, const Reco
     d.push_back(std::abs(double(dtm.at(c, r)) - p.X.z()));
   }
   if (d.empty()) return {0.0, 0};
-  std::nth_element(d.begin(), d.begin() + std::ptrdiff_t(d.size() / 2), d.end());
-  return {d[d.size() / 2], d.size()};
+  return {median_in_place(d), d.size()};
 }
 
 // The surveyed markers in the site frame.
@@ -174,9 +174,9 @@ Dtm make_dtm(const ProductsRun& run, StagedFiles& staged, ProductsQuality& q) {
     for (float x : dtm.sigma)
       if (std::isfinite(x)) v.push_back(x);
     if (!v.empty()) {
-      std::sort(v.begin(), v.end());
-      q.dtm.sigma = DtmSigmaFigures{run.rel_dir + "/dtm_sigma.tif", v[v.size() / 2],
-                                    v[std::min(v.size() - 1, std::size_t(0.95 * double(v.size())))]};
+      const float p50 = median_in_place(v);
+      const float p95 = kth_smallest(v, std::min(v.size() - 1, std::size_t(0.95 * double(v.size()))));
+      q.dtm.sigma = DtmSigmaFigures{run.rel_dir + "/dtm_sigma.tif", p50, p95};
     }
   }
   q.steps.dtm = step_figures(w);

@@ -2,6 +2,7 @@
 
 #include "core/error.hpp"
 #include "core/resources.hpp"
+#include "core/statistics.hpp"
 
 #include <fmt/format.h>
 #include <opencv2/core.hpp>
@@ -200,11 +201,7 @@ OrthoMarkerOffset judge_marker(const SurveyedMarker& m, const TargetsByName& by_
       if (source_pixel_m && std::isfinite((*source_pixel_m)[i])) pixel_sizes.push_back((*source_pixel_m)[i]);
     }
   }
-  if (!pixel_sizes.empty()) {
-    const auto mid = pixel_sizes.begin() + std::ptrdiff_t(pixel_sizes.size() / 2);
-    std::nth_element(pixel_sizes.begin(), mid, pixel_sizes.end());
-    o.source_pixel_m = *mid;
-  }
+  if (!pixel_sizes.empty()) o.source_pixel_m = median_in_place(pixel_sizes);
   if (const auto it = by_name.find(m.name); it != by_name.end()) {
     o.status = OrthoMarkerStatus::detected;
     o.detections = int(it->second.size());

@@ -5,6 +5,7 @@
 #include "core/log.hpp"
 #include "core/progress.hpp"
 #include "core/resources.hpp"
+#include "core/statistics.hpp"
 #include "products/photo_sampling.hpp"
 
 #include <Eigen/Cholesky>
@@ -80,8 +81,7 @@ std::vector<ViewSample> sample_view(const Dtm& dtm, const std::vector<Eigen::Vec
     }
   }
   if (depths.empty()) return {};
-  std::nth_element(depths.begin(), depths.begin() + std::ptrdiff_t(depths.size() / 2), depths.end());
-  const double median_depth = depths[depths.size() / 2];
+  const double median_depth = median_in_place(depths);
 
   // z-buffer resolution: automatic = one buffer pixel per DTM cell at the median
   // depth (finer buys nothing, the DTM has no more detail).
@@ -326,9 +326,7 @@ Dtm median_heights(const Dtm& dtm, int radius) {
           if (std::isfinite(z)) window.push_back(z);
         }
       }
-      const auto mid = window.begin() + std::ptrdiff_t(window.size() / 2);
-      std::nth_element(window.begin(), mid, window.end());
-      out.z[g.index(c, r)] = *mid;
+      out.z[g.index(c, r)] = median_in_place(window);
     }
   }
   return out;

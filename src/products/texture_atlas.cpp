@@ -2,6 +2,7 @@
 
 #include "core/error.hpp"
 #include "core/resources.hpp"
+#include "core/statistics.hpp"
 #include "products/photo_sampling.hpp"
 
 #include <opencv2/imgcodecs.hpp>
@@ -521,10 +522,7 @@ TextureSummary texture_summary(const DenseMesh& m, const std::vector<OrthoView>&
     }
   }
   for (std::size_t n : s.faces_per_view) s.views_used += n > 0 ? 1 : 0;
-  if (!texel_m.empty()) {
-    std::nth_element(texel_m.begin(), texel_m.begin() + std::ptrdiff_t(texel_m.size() / 2), texel_m.end());
-    s.median_texel_m = texel_m[texel_m.size() / 2];
-  }
+  if (!texel_m.empty()) s.median_texel_m = median_in_place(texel_m);
   s.seam_fraction = interior ? double(seams) / interior : 0;
   return s;
 }

@@ -4,6 +4,7 @@
 #include "core/log.hpp"
 #include "core/progress.hpp"
 #include "core/resources.hpp"
+#include "core/statistics.hpp"
 #include "sfm/bundle_problem.hpp"
 #include "sfm/quality.hpp"
 #include "sfm/tracks.hpp"
@@ -307,8 +308,7 @@ TwoViewGeometry IncrementalMapper::two_view(const PairMatches& pair) const {
     angles.push_back(max_triangulation_angle_deg(X, centres));
   }
   if (angles.empty()) return g;
-  std::nth_element(angles.begin(), angles.begin() + angles.size() / 2, angles.end());
-  g.median_angle_deg = angles[angles.size() / 2];
+  g.median_angle_deg = median_in_place(angles);
   g.ok = true;
   return g;
 }

@@ -2,6 +2,7 @@
 // measures, closed meshes, and the Harris-matrix check.
 #include "core/error.hpp"
 #include "core/log.hpp"
+#include "core/statistics.hpp"
 #include "stratigraphy/harris_matrix.hpp"
 #include "volume/connected_components.hpp"
 #include "volume/significance.hpp"
@@ -32,16 +33,6 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kMinNoiseScale = 0.25;
 
 bool finite(double v) { return std::isfinite(v); }
-
-// The q-quantile of `values` by nearest rank: the smallest value with at least a
-// fraction q of them at or below it. Reorders `values`; NaN when empty.
-double quantile(std::vector<double>& values, double q) {
-  if (values.empty()) return kNaN;
-  const auto rank = std::max<std::size_t>(1, std::size_t(std::ceil(q * double(values.size()) - 1e-9)));
-  const auto k = std::ptrdiff_t(std::min(rank, values.size()) - 1);
-  std::nth_element(values.begin(), values.begin() + k, values.end());
-  return values[std::size_t(k)];
-}
 
 // The regions of cells where `sign` x thickness exceeds the level, in
 // 8-connected regions of at least min_dug_area_m2 that hold a core (hysteresis,
@@ -166,7 +157,7 @@ class CellSigma {
       if (layers[k].z.has_sigma())
         for (std::size_t c = 0; c < layers[k].z.z.size(); ++c)
           if (finite(layers[k].z.sigma[c]) && !layers[k].filled(c)) v.push_back(layers[k].z.sigma[c]);
-      base_[k] = v.empty() ? layers[k].noise_m : quantile(v, 0.5);
+      base_[k] = v.empty() ? layers[k].noise_m : nearest_rank_quantile(v, 0.5);
     }
   }
   double operator()(std::size_t k, std::size_t c) const {
@@ -740,7 +731,7 @@ void settle_measures(UnitSolid& s, DugSums& sums, const UnitDifference& d, const
                     : options.fill.outline.empty() ? "significance"
                                                    : "significance within the outline";
   m.per_cell_sigma = d.per_cell;
-  m.noise_scale = sums.factors.empty() ? 1.0 : quantile(sums.factors, 0.5);
+  m.noise_scale = sums.factors.empty() ? 1.0 : nearest_rank_quantile(sums.factors, 0.5);
   m.correlation_m = e.ground.correlation_m;
   if (e.ground.used) {
     m.stable_area_m2 = e.ground.area_m2;
@@ -757,10 +748,10 @@ void settle_measures(UnitSolid& s, DugSums& sums, const UnitDifference& d, const
   const double nc = double(m.cells);
   m.area_m2 = nc * cell_area;
   m.mean_thickness_m = m.volume_m3 / m.area_m2;
-  m.max_thickness_m = quantile(sums.thickness, options.max_thickness_quantile);
+  m.max_thickness_m = nearest_rank_quantile(sums.thickness, options.max_thickness_quantile);
   m.mean_normal_thickness_m = sums.normal_sum / m.area_m2;
-  m.max_normal_thickness_m = quantile(sums.normal_thickness, options.max_thickness_quantile);
-  m.median_lod_m = quantile(sums.lods, 0.5);
+  m.max_normal_thickness_m = nearest_rank_quantile(sums.normal_thickness, options.max_thickness_quantile);
+  m.median_lod_m = nearest_rank_quantile(sums.lods, 0.5);
   m.filled_area_m2 = double(sums.filled_cells) * cell_area;
   m.filled_fraction = m.filled_area_m2 / m.area_m2;
   m.fill_sigma_m3 = sums.fill_error;
@@ -1037,7 +1028,7 @@ StratigraphicCheck check_stratigraphy(const HarrisMatrix& matrix, const std::vec
           c.ignored_max_amount_m = std::max(c.ignored_max_amount_m, depth[deepest]);
           continue;
         }
-        const double robust = quantile(values, options.depth_quantile);
+        const double robust = nearest_rank_quantile(values, options.depth_quantile);
         log::debug("check: {} below {}: region of {:.4f} m2, {:.0f}th percentile {:.3f} m, deepest {:.3f} m", a.unit,
                    b.unit, area, 100 * options.depth_quantile, robust, depth[deepest]);
         ++c.regions;
