@@ -3,13 +3,12 @@
 #include "importers/mesh/ply_mesh.hpp"
 
 #include "core/error.hpp"
-#include "importers/ply/ply_types.hpp"
+#include "importers/ply/ply_header.hpp"
 
 #include <fmt/format.h>
 
 #include <algorithm>
 #include <array>
-#include <charconv>
 #include <cmath>
 #include <cstdint>
 #include <fstream>
@@ -26,17 +25,11 @@ std::uint8_t colour_channel(double v) {
   return v >= 255 ? 255 : static_cast<std::uint8_t>(v);
 }
 
-struct PlyProperty {
-  std::string name;
-  ply::Type type = ply::Type::float32;
-};
-
 // What the header declares, besides what PlyContents keeps of it.
 struct PlyLayout {
-  std::vector<PlyProperty> vertex_props;
+  std::vector<ply::Property> vertex_props;
   std::size_t n_vertices = 0, n_faces = 0;
   std::optional<ply::Type> face_count_type, face_index_type;  // of the face list
-  bool binary_le = false;
   // Of the vertex properties: any one colour channel makes room for all three (a
   // file may lack "red" but have "green"); the same for normals.
   bool has_colour = false, has_normal = false;
@@ -66,87 +59,64 @@ class PlyFile {
  private:
   static constexpr const char* kStage = "reader.ply";
 
-  void read_property(std::istringstream& ls, const std::string& element, int line_no, PlyLayout& layout) const;
-  ply::Type require_type(const std::string& t, int line_no) const {
-    const auto type = ply::parse_type(t);
-    if (!type) throw fail(fmt::format("line {}: unsupported type '{}'", line_no, t));
-    return *type;
-  }
   double read_as_double(ply::Type t);
 
   std::filesystem::path path_;
   std::ifstream f_;
 };
 
-void PlyFile::read_property(std::istringstream& ls, const std::string& element, int line_no,
-                            PlyLayout& layout) const {
-  std::string type;
-  ls >> type;
-  if (type == "list" && element == "face") {
-    std::string count_type, index_type, name;
-    ls >> count_type >> index_type >> name;
-    layout.face_count_type = require_type(count_type, line_no);
-    layout.face_index_type = require_type(index_type, line_no);
-  } else if (type != "list" && element == "vertex") {
-    PlyProperty p;
-    ls >> p.name;
-    p.type = require_type(type, line_no);
-    layout.vertex_props.push_back(p);
-  } else if (element == "vertex" || element == "face") {
-    throw fail(fmt::format("line {}: unsupported property", line_no));
-  }
-}
-
+// The header's grammar is ply::read_header's; what this reader adds is what it can
+// read: binary little-endian, a vertex element and then a face element with one
+// vertex index list.
 PlyLayout PlyFile::read_header(PlyContents& out) {
-  PlyLayout layout;
-  std::string current;
-  std::string line;
-  int line_no = 0;
-  bool header_ended = false;
-  while (std::getline(f_, line)) {
-    ++line_no;
-    out.header.push_back(line);
-    std::istringstream ls(line);
-    std::string key;
-    ls >> key;
-    if (key == "end_header") {
-      header_ended = true;
-      break;
-    }
-    if (key == "format") {
-      std::string fmt_name;
-      ls >> fmt_name;
-      layout.binary_le = fmt_name == "binary_little_endian";
-    } else if (key == "comment") {
-      std::string what;
-      ls >> what;
-      if (what == "strata_offset") {
-        ls >> out.offset.x() >> out.offset.y() >> out.offset.z();
-        out.has_offset_comment = true;
-      } else if (what == "crs") {
-        ls >> out.crs;
-      }
-    } else if (key == "element") {
-      std::string count_text;
-      ls >> current >> count_text;
-      std::size_t count = 0;
-      const auto [end, ec] = std::from_chars(count_text.data(), count_text.data() + count_text.size(), count);
-      if (ec != std::errc() || end != count_text.data() + count_text.size()) {
-        throw fail(fmt::format("line {}: element count '{}' is not a number", line_no, count_text));
-      }
-      if (current == "vertex") {
-        layout.n_vertices = count;
-      } else if (current == "face") {
-        layout.n_faces = count;
-      } else if (count > 0) {
-        throw fail(fmt::format("line {}: element '{}' is not supported (vertex and face only)", line_no, current));
-      }
-    } else if (key == "property") {
-      read_property(ls, current, line_no, layout);
+  ply::Header h;
+  try {
+    h = ply::read_header(f_, kStage, path_);
+  } catch (const InputError& e) {
+    throw IoError(e.what());  // every refusal of this reader is an IoError
+  }
+  out.header = h.lines;
+  for (const std::string& comment : h.comments) {
+    std::istringstream ls(comment);
+    std::string what;
+    ls >> what;
+    if (what == "strata_offset") {
+      ls >> out.offset.x() >> out.offset.y() >> out.offset.z();
+      out.has_offset_comment = true;
+    } else if (what == "crs") {
+      ls >> out.crs;
     }
   }
-  if (!header_ended) throw fail("no end_header line: not a PLY file, or cut short");
-  if (!layout.binary_le) throw fail("only binary_little_endian PLY is supported");
+  PlyLayout layout;
+  bool seen_vertex = false, seen_face = false;
+  for (const ply::Element& e : h.elements) {
+    const bool vertex = e.name == "vertex", face = e.name == "face";
+    if (!vertex && !face) {
+      if (e.count > 0) {
+        throw fail(fmt::format("line {}: element '{}' is not supported (vertex and face only)", e.line, e.name));
+      }
+      continue;
+    }
+    if ((vertex && (seen_vertex || seen_face)) || (face && seen_face)) {
+      throw fail(fmt::format("line {}: element '{}' is not supported here (one vertex element, then one face "
+                             "element)", e.line, e.name));
+    }
+    seen_vertex |= vertex;
+    seen_face |= face;
+    (vertex ? layout.n_vertices : layout.n_faces) = e.count;
+    for (const ply::Property& p : e.properties) {
+      if (p.list != face || (face && layout.face_count_type)) {
+        throw fail(fmt::format("line {}: unsupported property", p.line));
+      }
+      if (vertex) {
+        layout.vertex_props.push_back(p);
+      } else {
+        layout.face_count_type = p.count_type;
+        layout.face_index_type = p.type;
+      }
+    }
+  }
+  if (h.format != ply::Format::binary_little_endian) throw fail("only binary_little_endian PLY is supported");
   return layout;
 }
 

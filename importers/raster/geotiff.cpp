@@ -5,6 +5,8 @@
 #include <fmt/format.h>
 #include <gdal_priv.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <memory>
@@ -18,11 +20,15 @@ struct DatasetCloser {
   void operator()(GDALDataset* d) const { GDALClose(GDALDataset::ToHandle(d)); }
 };
 
+void register_gdal() {
+  static std::once_flag registered;
+  std::call_once(registered, [] { GDALAllRegister(); });
+}
+
 }  // namespace
 
 HeightRaster<double> read_height_geotiff(const fs::path& path, const Eigen::Vector3d& site_origin) {
-  static std::once_flag registered;
-  std::call_once(registered, [] { GDALAllRegister(); });
+  register_gdal();
   std::unique_ptr<GDALDataset, DatasetCloser> ds(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
   if (!ds) throw IoError(fmt::format("reader.dtm: {}: cannot open as a raster", path.string()));
   if (ds->GetRasterCount() < 1) throw InputError(fmt::format("reader.dtm: {}: no raster band", path.string()));
@@ -51,6 +57,48 @@ HeightRaster<double> read_height_geotiff(const fs::path& path, const Eigen::Vect
     v = (has_nodata && v == nodata) || !std::isfinite(v) ? std::numeric_limits<double>::quiet_NaN()
                                                           : v - site_origin.z();
   return r;
+}
+
+RasterThumbnail read_raster_thumbnail(const fs::path& path, int max_px, bool average) {
+  register_gdal();
+  std::unique_ptr<GDALDataset, DatasetCloser> ds(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
+  if (!ds) throw IoError(fmt::format("reader.raster: {}: cannot read the raster", path.string()));
+  const int w = ds->GetRasterXSize(), h = ds->GetRasterYSize();
+  std::array<double, 6> gt{};
+  if (ds->GetGeoTransform(gt.data()) != CE_None || gt[2] != 0 || gt[4] != 0 || w <= 0 || h <= 0) {
+    throw IoError(fmt::format("reader.raster: {}: not a north-up georeferenced raster", path.string()));
+  }
+  const double f = std::max(1.0, double(std::max(w, h)) / std::max(1, max_px));
+  RasterThumbnail t;
+  t.width = std::max(1, int(std::lround(w / f)));
+  t.height = std::max(1, int(std::lround(h / f)));
+  t.bands = ds->GetRasterCount();
+  t.west = gt[0];
+  t.south = gt[3] + h * gt[5];
+  t.east = gt[0] + w * gt[1];
+  t.north = gt[3];
+  GDALRasterIOExtraArg extra;
+  INIT_RASTERIO_EXTRA_ARG(extra);
+  extra.eResampleAlg = average ? GRIORA_Average : GRIORA_NearestNeighbour;
+  t.band.resize(std::size_t(t.bands));
+  for (int b = 0; b < t.bands; ++b) {
+    auto& v = t.band[std::size_t(b)];
+    v.resize(std::size_t(t.width) * std::size_t(t.height));
+    if (ds->GetRasterBand(b + 1)->RasterIO(GF_Read, 0, 0, w, h, v.data(), t.width, t.height, GDT_Float32, 0, 0,
+                                           &extra) != CE_None) {
+      throw IoError(fmt::format("reader.raster: {}: cannot read band {}", path.string(), b + 1));
+    }
+  }
+  int has_nodata = 0;
+  const double nodata = t.bands ? ds->GetRasterBand(1)->GetNoDataValue(&has_nodata) : 0;
+  t.valid.assign(std::size_t(t.width) * std::size_t(t.height), 1);
+  if (t.bands) {
+    for (std::size_t i = 0; i < t.valid.size(); ++i) {
+      const float v = t.band[0][i];
+      if (!std::isfinite(v) || (has_nodata && std::abs(double(v) - nodata) < 1e-3)) t.valid[i] = 0;
+    }
+  }
+  return t;
 }
 
 }  // namespace strata

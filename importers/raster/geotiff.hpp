@@ -1,11 +1,14 @@
 #pragma once
-// GeoTIFF height rasters in (reader.dtm): a DTM, a DTM's sigma, the synthetic
-// truth surface. GDAL stays in geotiff.cpp.
+// GeoTIFF rasters in: height rasters (reader.dtm: a DTM, a DTM's sigma, the
+// synthetic truth surface) and reduced copies of any north-up raster for display
+// (reader.raster). GDAL stays in geotiff.cpp.
 #include "geometry/raster.hpp"
 
 #include <Eigen/Core>
 
+#include <cstdint>
 #include <filesystem>
+#include <vector>
 
 namespace strata {
 
@@ -14,5 +17,19 @@ namespace strata {
 // rounding beyond the file's). Nodata -> NaN. Pixels must be square. Throws
 // IoError / InputError naming the file.
 HeightRaster<double> read_height_geotiff(const std::filesystem::path& path, const Eigen::Vector3d& site_origin);
+
+// A raster product read at reduced size (GDAL RasterIO with resampling), every band
+// as float, for drawing it.
+struct RasterThumbnail {
+  int width = 0, height = 0, bands = 0;
+  std::vector<std::vector<float>> band;  // row-major north-up
+  std::vector<std::uint8_t> valid;       // 1 where band 1 is finite and not nodata
+  // The outer edges in CRS coordinates (not the site frame), metres.
+  double west = 0, south = 0, east = 0, north = 0;
+};
+// Reads at most `max_px` pixels along the longer side, averaging the pixels each
+// thumbnail pixel covers when `average` (else the nearest). Throws IoError naming
+// the file.
+RasterThumbnail read_raster_thumbnail(const std::filesystem::path& path, int max_px, bool average);
 
 }  // namespace strata

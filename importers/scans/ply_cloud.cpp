@@ -3,12 +3,11 @@
 // byte order. Read: x, y, z (any numeric type), red/green/blue, intensity or
 // scalar_intensity, nx/ny/nz; other vertex properties are skipped by their declared
 // type; elements before the vertices are skipped, the ones after (faces) not read.
-#include "importers/ply/ply_types.hpp"
+#include "importers/ply/ply_header.hpp"
 #include "importers/scans/scan_formats.hpp"
 
 #include <algorithm>
 #include <bit>
-#include <charconv>
 #include <cmath>
 #include <cstring>
 #include <istream>
@@ -17,104 +16,11 @@
 namespace strata::scan_formats {
 namespace {
 
-enum class Encoding { ascii, little_endian, big_endian };
+using ply::Element;
 using ply::is_float;
-using ply::parse_type;
+using ply::Property;
 using ply::size_of;
 using ply::Type;
-
-// A header longer than this is not a PLY header (a binary file with "ply" in front).
-constexpr std::uint64_t kMaxHeaderLines = 100000;
-
-struct Property {
-  std::string name;
-  Type type = Type::float32;
-  bool list = false;
-  Type count_type = Type::uint8;  // of a list
-};
-
-struct Element {
-  std::string name;
-  std::uint64_t count = 0;
-  std::uint64_t line = 0;  // of its "element" line
-  std::vector<Property> properties;
-};
-
-struct Header {
-  Encoding encoding = Encoding::ascii;
-  std::vector<Element> elements;
-  std::uint64_t lines = 0;  // header lines, end_header included
-};
-
-std::vector<std::string_view> words(std::string_view s) {
-  std::vector<std::string_view> out;
-  std::size_t i = 0;
-  while (i < s.size()) {
-    while (i < s.size() && (s[i] == ' ' || s[i] == '\t')) ++i;
-    const std::size_t start = i;
-    while (i < s.size() && s[i] != ' ' && s[i] != '\t') ++i;
-    if (i > start) out.push_back(s.substr(start, i - start));
-  }
-  return out;
-}
-
-Header read_header(std::istream& in, const ChunkBuilder& out) {
-  Header h;
-  bool have_format = false;
-  std::string line;
-  auto at = [&] { return FilePosition::line(h.lines); };
-  while (h.lines < kMaxHeaderLines && std::getline(in, line)) {
-    ++h.lines;
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    const auto w = words(line);
-    if (h.lines == 1) {
-      if (line != "ply") throw out.error(at(), "not a PLY file: it must start with a line 'ply'");
-      continue;
-    }
-    if (w.empty() || w[0] == "comment" || w[0] == "obj_info") continue;
-    if (w[0] == "end_header") {
-      if (!have_format) throw out.error(at(), "the header has no 'format' line");
-      return h;
-    }
-    if (w[0] == "format") {
-      if (w.size() < 2) throw out.error(at(), "'format' without an encoding");
-      if (w[1] == "ascii") h.encoding = Encoding::ascii;
-      else if (w[1] == "binary_little_endian") h.encoding = Encoding::little_endian;
-      else if (w[1] == "binary_big_endian") h.encoding = Encoding::big_endian;
-      else throw out.error(at(), fmt::format("unknown encoding '{}' (ascii, binary_little_endian or "
-                                             "binary_big_endian)", w[1]));
-      have_format = true;
-    } else if (w[0] == "element") {
-      Element e;
-      e.line = h.lines;
-      const auto [end, ec] = w.size() == 3 ? std::from_chars(w[2].data(), w[2].data() + w[2].size(), e.count)
-                                           : std::from_chars_result{nullptr, std::errc::invalid_argument};
-      if (ec != std::errc() || end != w[2].data() + w[2].size()) {
-        throw out.error(at(), "expected 'element NAME COUNT' with a whole number COUNT");
-      }
-      e.name = std::string(w[1]);
-      h.elements.push_back(std::move(e));
-    } else if (w[0] == "property") {
-      if (h.elements.empty()) throw out.error(at(), "a property before any element");
-      Property p;
-      const bool list = w.size() == 5 && w[1] == "list";
-      if (!list && w.size() != 3) throw out.error(at(), "expected 'property TYPE NAME' or 'property list TYPE TYPE NAME'");
-      const auto type = parse_type(list ? w[3] : w[1]);
-      const auto count_type = list ? parse_type(w[2]) : Type::uint8;
-      if (!type || !count_type || is_float(*count_type)) {
-        throw out.error(at(), fmt::format("unknown property type in '{}'", line));
-      }
-      p.list = list;
-      p.type = *type;
-      p.count_type = *count_type;
-      p.name = std::string(w.back());
-      h.elements.back().properties.push_back(std::move(p));
-    } else {
-      throw out.error(at(), fmt::format("unknown header line '{}'", line));
-    }
-  }
-  throw out.error("the header has no 'end_header' line: not a PLY file, or cut short");
-}
 
 // Where each attribute is among the vertex properties (-1: absent).
 struct VertexLayout {
@@ -281,7 +187,7 @@ class AsciiBody {
 
 // Reads the elements up to and including the vertices.
 template <typename Body>
-void read_vertices(Body& body, const Header& h, ChunkBuilder& out) {
+void read_vertices(Body& body, const ply::Header& h, ChunkBuilder& out) {
   std::vector<double> values;
   for (const Element& e : h.elements) {
     if (e.name != "vertex") {
@@ -298,30 +204,19 @@ void read_vertices(Body& body, const Header& h, ChunkBuilder& out) {
   }
 }
 
-const char* encoding_name(Encoding e) {
-  switch (e) {
-    case Encoding::ascii: return "ascii";
-    case Encoding::little_endian: return "binary_little_endian";
-    case Encoding::big_endian: return "binary_big_endian";
-  }
-  return "";
-}
-
 }  // namespace
 
 std::string read_ply(std::istream& in, ChunkBuilder& out) {
-  const Header h = read_header(in, out);
-  if (std::none_of(h.elements.begin(), h.elements.end(), [](const Element& e) { return e.name == "vertex"; })) {
-    throw out.error("the header declares no vertex element");
-  }
-  if (h.encoding == Encoding::ascii) {
-    AsciiBody body(in, h.lines, out);
+  const ply::Header h = ply::read_header(in, out.stage(), out.file());
+  if (!h.find("vertex")) throw out.error("the header declares no vertex element");
+  if (h.format == ply::Format::ascii) {
+    AsciiBody body(in, h.line_count, out);
     read_vertices(body, h, out);
   } else {
-    BinaryBody body(in, std::uint64_t(in.tellg()), h.encoding == Encoding::big_endian, out);
+    BinaryBody body(in, h.body_offset, h.format == ply::Format::binary_big_endian, out);
     read_vertices(body, h, out);
   }
-  return fmt::format("ply {}", encoding_name(h.encoding));
+  return fmt::format("ply {}", ply::format_name(h.format));
 }
 
 }  // namespace strata::scan_formats

@@ -6,7 +6,6 @@
 #include "core/fault.hpp"
 
 #include <fmt/format.h>
-#include <gdal_priv.h>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -118,45 +117,6 @@ std::string PlanFrame::decorations() const {
       "<text x=\"{:.1f}\" y=\"{:.1f}\" class=\"lbl\" text-anchor=\"middle\">N</text></g>\n",
       nx, ny, nx - 7, ny + 20, nx + 7, ny + 20, nx, ny + 34);
   return s;
-}
-
-Thumbnail read_thumbnail(const std::filesystem::path& path, int max_px, bool average) {
-  GDALAllRegister();
-  std::unique_ptr<GDALDataset> ds(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
-  if (!ds) throw IoError(fmt::format("{}: cannot read the raster", path.string()));
-  const int w = ds->GetRasterXSize(), h = ds->GetRasterYSize();
-  std::array<double, 6> gt{};
-  if (ds->GetGeoTransform(gt.data()) != CE_None || gt[2] != 0 || gt[4] != 0 || w <= 0 || h <= 0) {
-    throw IoError(fmt::format("{}: not a north-up georeferenced raster", path.string()));
-  }
-  const double f = std::max(1.0, double(std::max(w, h)) / std::max(1, max_px));
-  Thumbnail t;
-  t.width = std::max(1, int(std::lround(w / f)));
-  t.height = std::max(1, int(std::lround(h / f)));
-  t.bands = ds->GetRasterCount();
-  t.extent = {gt[0], gt[3] + h * gt[5], gt[0] + w * gt[1], gt[3]};
-  GDALRasterIOExtraArg extra;
-  INIT_RASTERIO_EXTRA_ARG(extra);
-  extra.eResampleAlg = average ? GRIORA_Average : GRIORA_NearestNeighbour;
-  t.band.resize(std::size_t(t.bands));
-  for (int b = 0; b < t.bands; ++b) {
-    auto& v = t.band[std::size_t(b)];
-    v.resize(std::size_t(t.width) * std::size_t(t.height));
-    if (ds->GetRasterBand(b + 1)->RasterIO(GF_Read, 0, 0, w, h, v.data(), t.width, t.height, GDT_Float32, 0, 0,
-                                           &extra) != CE_None) {
-      throw IoError(fmt::format("{}: cannot read band {}", path.string(), b + 1));
-    }
-  }
-  int has_nodata = 0;
-  const double nodata = t.bands ? ds->GetRasterBand(1)->GetNoDataValue(&has_nodata) : 0;
-  t.valid.assign(std::size_t(t.width) * std::size_t(t.height), 1);
-  if (t.bands) {
-    for (std::size_t i = 0; i < t.valid.size(); ++i) {
-      const float v = t.band[0][i];
-      if (!std::isfinite(v) || (has_nodata && std::abs(double(v) - nodata) < 1e-3)) t.valid[i] = 0;
-    }
-  }
-  return t;
 }
 
 namespace {

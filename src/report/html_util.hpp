@@ -1,7 +1,7 @@
 #pragma once
-// Internal to the report module: HTML escaping, inline PNG data, plan drawings in
-// SVG and thumbnails of GeoTIFF products. OpenCV and GDAL stay behind this header's
-// .cpp; images cross it as plain byte buffers.
+// Internal to the report module: HTML escaping, inline PNG data and plan drawings
+// in SVG (thumbnails of GeoTIFF products are read by importers/raster). OpenCV
+// stays behind this header's .cpp; images cross it as plain byte buffers.
 #include <Eigen/Core>
 
 #include <cstdint>
@@ -52,16 +52,6 @@ class PlanFrame {
   double scale_ = 1;
   int width_ = 0, height_ = 0;
 };
-
-// A raster product read at reduced size (GDAL RasterIO with resampling).
-struct Thumbnail {
-  int width = 0, height = 0, bands = 0;
-  std::vector<std::vector<float>> band;  // row-major north-up
-  std::vector<std::uint8_t> valid;       // 1 where band 1 is not nodata
-  Extent extent;                         // CRS coordinates (not the site frame)
-};
-// Reads at most `max_px` pixels along the longer side. Throws IoError naming the file.
-Thumbnail read_thumbnail(const std::filesystem::path& path, int max_px, bool average);
 
 // Colour ramps, t in [0, 1].
 void ramp_viridis(double t, std::uint8_t rgb[3]);

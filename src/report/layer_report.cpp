@@ -7,6 +7,7 @@
 #include "core/error.hpp"
 #include "core/log.hpp"
 #include "pipeline/stage_json.hpp"
+#include "importers/raster/geotiff.hpp"
 #include "report/html_util.hpp"
 #include "report/report_internal.hpp"
 
@@ -40,7 +41,7 @@ std::string missing(const std::string& text) { return "<p class=\"missing\">" + 
 // ---- drawing helpers ----------------------------------------------------------
 
 std::string ortho_image(const LayerData& d, int px, Extent* extent) {
-  const rd::Thumbnail t = rd::read_thumbnail(*d.ortho, px, true);
+  const RasterThumbnail t = read_raster_thumbnail(*d.ortho, px, true);
   rd::Image im{t.width, t.height, 4, {}};
   im.pixels.assign(std::size_t(t.width) * std::size_t(t.height) * 4, 0);
   for (int y = 0; y < t.height; ++y) {
@@ -54,8 +55,8 @@ std::string ortho_image(const LayerData& d, int px, Extent* extent) {
       p[3] = t.bands >= 4 ? std::uint8_t(std::clamp(t.band[3][i], 0.0f, 255.0f)) : 255;
     }
   }
-  *extent = {t.extent.x0 - d.site.origin.x(), t.extent.y0 - d.site.origin.y(), t.extent.x1 - d.site.origin.x(),
-             t.extent.y1 - d.site.origin.y()};
+  *extent = {t.west - d.site.origin.x(), t.south - d.site.origin.y(), t.east - d.site.origin.x(),
+             t.north - d.site.origin.y()};
   return rd::png_data_uri(im);
 }
 
@@ -494,9 +495,9 @@ std::string hillshade_section(const LayerData& d, const ReportOptions& o) {
                                    : "No DTM yet: the layer has not been processed.") +
            "</section>\n";
   }
-  rd::Thumbnail t;
+  RasterThumbnail t;
   try {
-    t = rd::read_thumbnail(*d.dtm, o.image_px, false);
+    t = read_raster_thumbnail(*d.dtm, o.image_px, false);
   } catch (const Error& e) {
     return s + missing(fmt::format("The DTM could not be read: {}", e.what())) + "</section>\n";
   }
@@ -508,7 +509,7 @@ std::string hillshade_section(const LayerData& d, const ReportOptions& o) {
     hi = std::max(hi, z[i]);
   }
   if (!(hi >= lo)) return s + missing("The DTM has no valid cell.") + "</section>\n";
-  const double cx = (t.extent.x1 - t.extent.x0) / t.width, cy = (t.extent.y1 - t.extent.y0) / t.height;
+  const double cx = (t.east - t.west) / t.width, cy = (t.north - t.south) / t.height;
   // Light from the north-west, 45 degrees up (the cartographic convention).
   const double az = 315 * std::numbers::pi / 180, alt = 45 * std::numbers::pi / 180;
   const Eigen::Vector3d light(std::cos(alt) * std::sin(az), std::cos(alt) * std::cos(az), std::sin(alt));
@@ -536,8 +537,8 @@ std::string hillshade_section(const LayerData& d, const ReportOptions& o) {
       p[3] = 255;
     }
   }
-  const Extent where{t.extent.x0 - d.site.origin.x(), t.extent.y0 - d.site.origin.y(), t.extent.x1 - d.site.origin.x(),
-                     t.extent.y1 - d.site.origin.y()};
+  const Extent where{t.west - d.site.origin.x(), t.south - d.site.origin.y(), t.east - d.site.origin.x(),
+                     t.north - d.site.origin.y()};
   const PlanFrame f(where.padded(0.03), o.image_px, o.image_px);
   s += f.open("DTM hillshade") + f.image(rd::png_data_uri(im), where) + f.decorations() + PlanFrame::close();
   std::string ramp = "<div class=\"ramp\">";
@@ -681,13 +682,13 @@ LayerData gather_layer(Project& project, const LayerRecord& layer, const ReportO
     // on the sparse points.
     if (d.dtm) {
       try {
-        const Thumbnail t = read_thumbnail(*d.dtm, o.coverage_cells, false);
+        const RasterThumbnail t = read_raster_thumbnail(*d.dtm, o.coverage_cells, false);
         std::vector<float> z(t.band[0].size(), NAN);
         for (std::size_t i = 0; i < z.size(); ++i) {
           if (t.valid[i]) z[i] = float(t.band[0][i] - d.site.origin.z());
         }
-        d.coverage = coverage_grid(t.extent.x0 - d.site.origin.x(), t.extent.y1 - d.site.origin.y(),
-                                   (t.extent.x1 - t.extent.x0) / t.width, t.width, t.height, std::move(z));
+        d.coverage = coverage_grid(t.west - d.site.origin.x(), t.north - d.site.origin.y(),
+                                   (t.east - t.west) / t.width, t.width, t.height, std::move(z));
         d.coverage_source = "DTM";
       } catch (const Error& e) {
         d.notes.push_back(fmt::format("The DTM could not be read for the coverage map ({}).", e.what()));

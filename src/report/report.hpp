@@ -2,7 +2,7 @@
 // The field report: one self-contained HTML file (images inline as PNG,
 // drawings as inline SVG, CSS inline, no links out) that tells an archaeologist
 // at the trench edge whether a layer is recorded well enough to dig it away.
-// GDAL, OpenCV and the database queries stay in the .cpp files.
+// OpenCV and the database queries stay in the .cpp files.
 #include "project/project.hpp"
 #include "report/quality_rules.hpp"
 

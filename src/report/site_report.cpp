@@ -5,6 +5,7 @@
 #include "core/log.hpp"
 #include "core/text.hpp"
 #include "exporters/section/section_writers.hpp"
+#include "importers/raster/geotiff.hpp"
 #include "report/html_util.hpp"
 #include "report/report_internal.hpp"
 #include "stratigraphy/graphviz.hpp"
@@ -147,7 +148,7 @@ std::string thickness_section(Project& project, const ReportOptions& o) {
     const std::string name = p.unit_id ? "unit " + unit_code[*p.unit_id] : p.path;
     s += "<div class=\"map\"><h3>" + xml_escape(name) + "</h3>\n";
     try {
-      const rd::Thumbnail t = rd::read_thumbnail(project.dir() / p.path, px, false);
+      const RasterThumbnail t = read_raster_thumbnail(project.dir() / p.path, px, false);
       float hi = 0;
       for (std::size_t i = 0; i < t.valid.size(); ++i) {
         if (t.valid[i]) hi = std::max(hi, t.band[0][i]);
@@ -163,8 +164,8 @@ std::string thickness_section(Project& project, const ReportOptions& o) {
           q[3] = 255;
         }
       }
-      const rd::Extent where{t.extent.x0 - site.origin.x(), t.extent.y0 - site.origin.y(),
-                             t.extent.x1 - site.origin.x(), t.extent.y1 - site.origin.y()};
+      const rd::Extent where{t.west - site.origin.x(), t.south - site.origin.y(),
+                             t.east - site.origin.x(), t.north - site.origin.y()};
       const rd::PlanFrame f(where.padded(0.03), px, px);
       s += f.open("thickness of " + name) + f.image(rd::png_data_uri(im), where) + f.decorations() +
            rd::PlanFrame::close();

@@ -8,6 +8,8 @@
 #include "core/log.hpp"
 #include "core/progress.hpp"
 #include "core/resources.hpp"
+#include "crs/crs.hpp"
+#include "exporters/raster/geotiff.hpp"
 #include "synthetic/finds.hpp"
 #include "synthetic/noise.hpp"
 #include "synthetic/photo_set.hpp"
@@ -302,29 +304,30 @@ void write_true_cameras(const std::vector<synthetic::PlannedPhoto>& plan, const 
 }
 
 // Truth surface: cell centres on a grid aligned to multiples of the cell in the CRS.
+// The grid is in CRS coordinates (the georeference's origin is zero), so each
+// height is rounded to Float32 once, from the absolute height in double.
 void write_truth_surface(const synthetic::Scene& scene, int k, const SyntheticExcavationOptions& o,
                          const fs::path& path) {
-  using namespace synthetic;
   const Eigen::Vector3d origin = site_origin(o);
-  Raster raster;
-  raster.cell = o.render.truth_cell;
+  Dtm truth;
+  RasterGrid& g = truth.grid;
+  g.cell = o.render.truth_cell;
   const double margin = o.render.truth_margin;
-  raster.epsg = o.site.epsg;
-  raster.west = std::floor((origin.x() + scene.trench_x0() - margin) / raster.cell) * raster.cell;
-  raster.north = std::ceil((origin.y() + scene.trench_y1() + margin) / raster.cell) * raster.cell;
-  raster.cols = int(std::ceil((origin.x() + scene.trench_x1() + margin - raster.west) / raster.cell));
-  raster.rows = int(std::ceil((raster.north - (origin.y() + scene.trench_y0() - margin)) / raster.cell));
-  raster.values.resize(std::size_t(raster.cols) * std::size_t(raster.rows));
-  const HeightGrid& surface = scene.surface(k);
-  tbb::parallel_for(0, raster.rows, [&](int r) {
-    for (int q = 0; q < raster.cols; ++q) {
-      const double x = raster.west + (q + 0.5) * raster.cell - origin.x();
-      const double y = raster.north - (r + 0.5) * raster.cell - origin.y();
-      raster.values[std::size_t(r) * std::size_t(raster.cols) + std::size_t(q)] =
-          surface.contains(x, y) ? float(surface.sample(x, y) + origin.z()) : raster.nodata;
+  g.x_min = std::floor((origin.x() + scene.trench_x0() - margin) / g.cell) * g.cell;
+  g.y_max = std::ceil((origin.y() + scene.trench_y1() + margin) / g.cell) * g.cell;
+  g.width = int(std::ceil((origin.x() + scene.trench_x1() + margin - g.x_min) / g.cell));
+  g.height = int(std::ceil((g.y_max - (origin.y() + scene.trench_y0() - margin)) / g.cell));
+  truth.z.resize(g.cells());
+  const synthetic::HeightGrid& surface = scene.surface(k);
+  tbb::parallel_for(0, g.height, [&](int r) {
+    for (int q = 0; q < g.width; ++q) {
+      const double x = g.x_centre(q) - origin.x();
+      const double y = g.y_centre(r) - origin.y();
+      truth.z[g.index(q, r)] = surface.contains(x, y) ? float(surface.sample(x, y) + origin.z()) : NAN;
     }
   });
-  write_geotiff(path, raster);
+  const RasterGeoreference crs_frame{describe_crs(fmt::format("EPSG:{}", o.site.epsg)).wkt, Eigen::Vector3d::Zero()};
+  write_dtm_geotiff(path, truth, crs_frame, {.cog = false, .compression = "DEFLATE"});
 }
 
 // Each recorded layer: bake its lit texture (over the first layer's, for the ground

@@ -3,8 +3,6 @@
 #include "core/error.hpp"
 
 #include <exiv2/exiv2.hpp>
-#include <gdal_priv.h>
-#include <ogr_spatialref.h>
 #include <opencv2/imgcodecs.hpp>
 
 #include <bit>
@@ -76,33 +74,6 @@ void write_jpeg(const std::filesystem::path& path, const std::vector<std::uint8_
   } catch (const Exiv2::AnyError& err) {
     throw IoError("synth.writer.jpeg: " + path.string() + ": EXIF: " + err.what());
   }
-}
-
-void write_geotiff(const std::filesystem::path& path, const Raster& r) {
-  GDALAllRegister();
-  GDALDriver* driver = GetGDALDriverManager()->GetDriverByName("GTiff");
-  if (!driver) throw IoError("synth.writer.geotiff: GDAL has no GTiff driver");
-  char** opts = nullptr;
-  opts = CSLSetNameValue(opts, "COMPRESS", "DEFLATE");
-  opts = CSLSetNameValue(opts, "PREDICTOR", "3");  // floating-point predictor
-  opts = CSLSetNameValue(opts, "TILED", "YES");
-  GDALDataset* ds = driver->Create(path.string().c_str(), r.cols, r.rows, 1, GDT_Float32, opts);
-  CSLDestroy(opts);
-  if (!ds) throw IoError("synth.writer.geotiff: cannot create " + path.string());
-  double gt[6] = {r.west, r.cell, 0.0, r.north, 0.0, -r.cell};
-  ds->SetGeoTransform(gt);
-  OGRSpatialReference srs;
-  if (srs.importFromEPSG(r.epsg) != OGRERR_NONE) {
-    GDALClose(ds);
-    throw IoError("synth.writer.geotiff: unknown EPSG:" + std::to_string(r.epsg));
-  }
-  ds->SetSpatialRef(&srs);
-  GDALRasterBand* band = ds->GetRasterBand(1);
-  band->SetNoDataValue(r.nodata);
-  const CPLErr err = band->RasterIO(GF_Write, 0, 0, r.cols, r.rows, const_cast<float*>(r.values.data()),
-                                    r.cols, r.rows, GDT_Float32, 0, 0);
-  GDALClose(ds);
-  if (err != CE_None) throw IoError("synth.writer.geotiff: cannot write " + path.string());
 }
 
 void write_scan_ply(const std::filesystem::path& path, const std::vector<Eigen::Vector3f>& points,

@@ -1,6 +1,7 @@
 #pragma once
 // File writers of the synthetic dataset (internal): JPEG with EXIF (OpenCV +
-// exiv2), Float32 GeoTIFF (GDAL), text files. Errors are IoError naming the file.
+// exiv2), scan PLY, text files. Errors are IoError naming the file. The truth
+// surfaces are GeoTIFFs written by exporters/raster.
 #include <Eigen/Core>
 
 #include <cstdint>
@@ -24,16 +25,6 @@ struct ExifFields {
 // rgb: 8-bit, interleaved R, G, B, row-major.
 void write_jpeg(const std::filesystem::path& path, const std::vector<std::uint8_t>& rgb, int width,
                 int height, int quality, const ExifFields& exif);
-
-struct Raster {
-  double west = 0, north = 0;     // metres, CRS: outer corner of the top-left cell
-  double cell = 0;                // metres
-  int cols = 0, rows = 0;
-  int epsg = 0;
-  float nodata = -9999.0f;
-  std::vector<float> values;      // row-major from the north edge
-};
-void write_geotiff(const std::filesystem::path& path, const Raster& raster);
 
 // A point cloud as binary little-endian PLY: float x y z (metres) and float intensity.
 void write_scan_ply(const std::filesystem::path& path, const std::vector<Eigen::Vector3f>& points,
