@@ -107,6 +107,18 @@ TEST(DenseMeshIo, PlyReaderRefusesCountsAndIndicesTheFileDoesNotHold) {
   EXPECT_NE(error_of(far).find("face 1 names vertex 99, but there are 4 vertices"), std::string::npos);
   EXPECT_NE(error_of(good.substr(0, good.find("end_header"))).find("no end_header"), std::string::npos);
   EXPECT_EQ(error_of(good), "accepted");
+  // The shared header grammar: a file that is not a PLY, a line outside the grammar,
+  // faces before the vertices; each named with its header line.
+  EXPECT_NE(error_of("plx\n" + good.substr(4)).find("it must start with a line 'ply'"), std::string::npos);
+  EXPECT_NE(error_of(replaced("end_header", "frobnicate 1\nend_header")).find("unknown header line 'frobnicate 1'"),
+            std::string::npos);
+  {
+    const auto v = good.find("element vertex"), f = good.find("element face"), e = good.find("end_header");
+    const std::string faces_first = good.substr(0, v) + good.substr(f, e - f) + good.substr(v, f - v) + good.substr(e);
+    const std::string err = error_of(faces_first);
+    EXPECT_NE(err.find("is not supported here"), std::string::npos) << err;
+    EXPECT_NE(err.find("line "), std::string::npos) << err;
+  }
   // Colour without "red" (it wrote past the empty colour array).
   test::write_text(dir / "green.ply", replaced("property uchar red\n", "property uchar alpha\n"));
   const PlyContents green = read_ply(dir / "green.ply");
