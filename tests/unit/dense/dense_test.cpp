@@ -259,13 +259,14 @@ TEST(Dense, RecoversAnalyticSurface) {
   // Heights against the analytic surface over the covered area.
   const double cell = 0.005;
   const int nx = static_cast<int>(2 * ax / cell) + 1, ny = static_cast<int>(2 * ay / cell) + 1;
-  const HeightField hf = sample_top_surface(dir / "out" / "surface.vdb", -ax, -ay, cell, nx, ny);
+  const RasterGrid grid = RasterGrid::from_south_west_centre(-ax, -ay, cell, nx, ny);
+  const HeightRaster<double> hf = sample_top_surface(dir / "out" / "surface.vdb", grid);
   std::vector<double> err;
   int covered = 0;
-  for (int j = 0; j < ny; ++j) {
-    for (int i = 0; i < nx; ++i) {
-      const double x = -ax + i * cell, y = -ay + j * cell;
-      const double z = hf.at(i, j);
+  for (int row = 0; row < ny; ++row) {
+    for (int col = 0; col < nx; ++col) {
+      const double x = grid.x_centre(col), y = grid.y_centre(row);
+      const double z = hf.at(col, row);
       if (!std::isfinite(z)) continue;
       ++covered;
       const double wall = std::min({std::abs(x - kBlockX0), std::abs(x - kBlockX1), std::abs(y - kBlockY0),
@@ -327,12 +328,13 @@ TEST(Dense, PitWithSteepSidesIsComplete) {
 
   const double ax = 0.25, ay = 0.2, cell = 0.005;  // metres: area around the pit, grid cell
   const int nx = static_cast<int>(2 * ax / cell) + 1, ny = static_cast<int>(2 * ay / cell) + 1;
-  const HeightField hf = sample_top_surface(dir / "out" / "surface.vdb", -ax, -ay, cell, nx, ny);
+  const RasterGrid grid = RasterGrid::from_south_west_centre(-ax, -ay, cell, nx, ny);
+  const HeightRaster<double> hf = sample_top_surface(dir / "out" / "surface.vdb", grid);
   int cells = 0, covered = 0, pit_cells = 0, pit_covered = 0;
   std::vector<double> err, pit_err;
-  for (int j = 0; j < ny; ++j) {
-    for (int i = 0; i < nx; ++i) {
-      const double x = -ax + i * cell, y = -ay + j * cell, z = hf.at(i, j);
+  for (int row = 0; row < ny; ++row) {
+    for (int col = 0; col < nx; ++col) {
+      const double x = grid.x_centre(col), y = grid.y_centre(row), z = hf.at(col, row);
       const bool pit = in_pit(x, y);
       ++cells;
       pit_cells += pit;
@@ -584,7 +586,11 @@ TEST(Dense, SmallFloatingPiecesOfTheFusedBandAreRemoved) {
   volume.integrate(kFloaterRef, render_plane(kFloaterRef, true), grey);
   for (const auto& cam : kFloaterNeighbours) volume.integrate(cam, render_plane(cam, false), grey);
   volume.finalise(0.2);
-  auto top_at_origin = [&] { return volume.top_surface(0.0, 0.0, kFloaterVoxel, 1, 1).z.at(0); };
+  // The height of one cell centred at (x, y).
+  auto top_at = [&](double x, double y) {
+    return volume.top_surface(RasterGrid::from_south_west_centre(x, y, kFloaterVoxel, 1, 1)).z.at(0);
+  };
+  auto top_at_origin = [&] { return top_at(0.0, 0.0); };
   ASSERT_NEAR(top_at_origin(), kFloaterHeight, kFloaterVoxel) << "the floater should be the uppermost surface first";
   EXPECT_EQ(volume.remove_small_components(0), 0u);
   const std::size_t before = volume.active_voxels();
@@ -593,7 +599,7 @@ TEST(Dense, SmallFloatingPiecesOfTheFusedBandAreRemoved) {
   EXPECT_GT(removed, 0u);
   EXPECT_LT(double(removed), kFloaterPieceFraction * double(before));
   EXPECT_NEAR(top_at_origin(), 0.0, kFloaterVoxel) << "the floor under the floater should be the top surface now";
-  EXPECT_NEAR(volume.top_surface(0.2, 0.1, kFloaterVoxel, 1, 1).z.at(0), 0.0, kFloaterVoxel);
+  EXPECT_NEAR(top_at(0.2, 0.1), 0.0, kFloaterVoxel);
 }
 
 // The fused surface states its height uncertainty per cell from the agreement of
@@ -616,7 +622,7 @@ TEST(Dense, FusedHeightsCarryTheUncertaintyOfTheirDepthMaps) {
       volume.integrate(cams[k], m, grey);
     }
     volume.finalise(0.2);
-    const HeightField hf = volume.top_surface(-0.05, -0.05, 0.01, 11, 11);
+    const HeightRaster<double> hf = volume.top_surface(RasterGrid::from_south_west_centre(-0.05, -0.05, 0.01, 11, 11));
     EXPECT_TRUE(hf.has_sigma());
     std::vector<double> s;
     for (std::size_t c = 0; c < hf.z.size(); ++c)
