@@ -12,7 +12,7 @@
 // and added back in exported PLY/OBJ vertices.
 #include "core/cache_key.hpp"
 #include "dense/dense_mesh.hpp"
-#include "sfm/reconstruction.hpp"
+#include "geometry/reconstruction.hpp"
 
 #include <Eigen/Core>
 
