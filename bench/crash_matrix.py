@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Crash matrix (issue 19; docs/reliability.md, "Crash injection").
+"""Crash matrix (docs/reliability.md, "Crash injection").
 
 For every kill point listed in src/core/fault.hpp (kCrashPoints), runs the strata
 command that passes it with STRATA_CRASH_AT armed, on a copy of a small synthetic

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Signed error of each layer DTM against the synthetic truth surface (issue 21).
+"""Signed error of each layer DTM against the synthetic truth surface (docs/volume.md).
 
 Usage: eval_dtm_bias.py [--project DIR] [--data DIR] [--outline FILE]
                         [--layers L1,L2,...] [--out FILE.json] [--note TEXT]

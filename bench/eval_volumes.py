@@ -1,10 +1,10 @@
 #!/usr/bin/python3
-"""Compare `strata volume DIR --json` output with the synthetic truth (issue 7).
+"""Compare `strata volume DIR --json` output with the synthetic truth (docs/volume.md).
 
 Runs nothing: reads the JSON list written by `strata volume DIR --json > vol.json`
 and truth/units.csv of a `strata synth` data set (unit, volume_m3, area_m2,
 mean_thickness_m, max_thickness_m). Prints, per unit, the volume error in % and
-the mean-thickness error in mm, and whether they meet the acceptance of issue 7
+the mean-thickness error in mm, and whether they meet the volume acceptance
 (volume within 1 %, mean thickness within 3 mm).
 
 usage: eval_volumes.py VOLUMES.json TRUTH [--json OUT.json]
@@ -16,9 +16,9 @@ import json
 import os
 import sys
 
-VOLUME_TOLERANCE_PCT = 1.0  # issue 7: volume within 1 % of the truth
-MEAN_TOLERANCE_MM = 3.0     # issue 7: mean thickness within 3 mm
-# issue 21 (without an outline): volume within 0.5 %, the truth inside the
+VOLUME_TOLERANCE_PCT = 1.0  # volume within 1 % of the truth
+MEAN_TOLERANCE_MM = 3.0     # mean thickness within 3 mm
+# without an outline: volume within 0.5 %, the truth inside the
 # interval, its half-width under 2 % of the volume, the extent's area within 2 %.
 STRICT_VOLUME_PCT = 0.5
 STRICT_INTERVAL_PCT = 2.0

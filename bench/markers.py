@@ -1,5 +1,5 @@
 """Cameras of strata and COLMAP, and copr's hand-clicked markers triangulated in them
-independently of strata's georeference (issue 15, part 5). Used by eval_real.py.
+independently of strata's georeference. Used by eval_real.py.
 
 Pixel convention here is strata's (docs: src/geometry/camera.hpp): (0, 0) is the centre
 of the top-left pixel. COLMAP puts the corner there, so its principal points and its

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# strata on real photographs with truth (issue 15): the Strecha et al. (CVPR 2008)
+# strata on real photographs with truth (docs/real_data.md): the Strecha et al. (CVPR 2008)
 # scenes Herz-Jesu-P8 and entry-P10 (true cameras from a laser scan, no EXIF) and the
 # Coal Oil Point kite set copr (41 photos, ODM gcp_list of 10 surveyed targets, plan
 # only). For each set: a fresh project, strata's alignment (`process --until sparse`,

@@ -1,6 +1,6 @@
 #pragma once
 // exporter.cameras.csv and exporter.cameras.colmap.
-#include "sfm/reconstruction.hpp"
+#include "geometry/reconstruction.hpp"
 
 #include <Eigen/Core>
 

@@ -1,6 +1,7 @@
 #pragma once
 // GDAL plumbing shared by the .cpp files that write through GDAL (an internal
 // header: it includes GDAL, so it stays out of the public headers).
+#include <cpl_string.h>
 #include <gdal_priv.h>
 
 #include <filesystem>
@@ -34,5 +35,19 @@ std::string last_gdal_error();
 // free on ...)"; GDAL reports it as whatever libtiff met first), else GDAL's message.
 // Call with errno and GDAL's error state as the failed write left them.
 std::string write_failure(const std::filesystem::path& tmp);
+
+// Owned list of "KEY=VALUE" creation options.
+class Options {
+ public:
+  Options() = default;
+  ~Options() { CSLDestroy(list_); }
+  Options(const Options&) = delete;
+  Options& operator=(const Options&) = delete;
+  void set(const char* key, const std::string& value) { list_ = CSLSetNameValue(list_, key, value.c_str()); }
+  char** get() const { return list_; }
+
+ private:
+  char** list_ = nullptr;
+};
 
 }  // namespace strata::gdal_detail

@@ -2,7 +2,7 @@
 // Writers of a section profile: the drawing as an archaeologist draws a section
 // (writer.section.svg, at 1:20) and 3D line features (writer.section.gpkg). GDAL
 // stays in section_writers.cpp.
-#include "volume/section.hpp"
+#include "geometry/section_profile.hpp"
 
 #include <Eigen/Core>
 

@@ -1,7 +1,7 @@
 #pragma once
-// Exports of the label volume (volume/voxels.hpp) for GRASS (writer.grass3d) and
+// Exports of the label volume (geometry/label_volume.hpp) for GRASS (writer.grass3d) and
 // ParaView (writer.vti). No OpenVDB here.
-#include "volume/voxels.hpp"
+#include "geometry/label_volume.hpp"
 
 #include <filesystem>
 

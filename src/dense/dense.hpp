@@ -13,7 +13,7 @@
 #include "core/cache_key.hpp"
 #include "dense/dense_mesh.hpp"
 #include "geometry/raster.hpp"
-#include "sfm/reconstruction.hpp"
+#include "geometry/reconstruction.hpp"
 
 #include <Eigen/Core>
 

@@ -23,7 +23,7 @@
 #include "geometry/similarity.hpp"
 #include "georef/marker_rays.hpp"
 #include "sfm/bundle_adjustment.hpp"
-#include "sfm/reconstruction.hpp"
+#include "geometry/reconstruction.hpp"
 #include "sfm/triangulation.hpp"
 
 #include <cstddef>

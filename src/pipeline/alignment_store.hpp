@@ -3,7 +3,7 @@
 #include "project/project.hpp"
 #include "pipeline/stage_results.hpp"
 #include "project/records.hpp"
-#include "sfm/reconstruction.hpp"
+#include "geometry/reconstruction.hpp"
 
 #include <cstdint>
 #include <map>

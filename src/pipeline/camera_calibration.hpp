@@ -6,7 +6,7 @@
 #include "core/cache_key.hpp"
 #include "project/calibration_records.hpp"
 #include "project/project.hpp"
-#include "sfm/reconstruction.hpp"
+#include "geometry/reconstruction.hpp"
 
 #include <Eigen/Core>
 

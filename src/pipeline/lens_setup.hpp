@@ -6,7 +6,7 @@
 // See docs/cameras.md.
 #include "project/records.hpp"
 #include "sfm/incremental.hpp"
-#include "sfm/reconstruction.hpp"
+#include "geometry/reconstruction.hpp"
 
 
 #include <functional>

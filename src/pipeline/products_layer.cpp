@@ -9,6 +9,7 @@
 #include "core/resources.hpp"
 #include "core/statistics.hpp"
 #include "crs/crs.hpp"
+#include "exporters/raster/gpkg_raster.hpp"
 #include "pipeline/alignment_store.hpp"
 #include "pipeline/dense_layer.hpp"
 #include "pipeline/stage_json.hpp"

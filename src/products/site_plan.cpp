@@ -96,15 +96,14 @@ std::vector<ContourLine> dtm_contours(const Dtm& dtm, const Eigen::Vector3d& ori
   OGRFieldDefn id("ID", OFTInteger), elev("ELEV", OFTReal);
   layer->CreateField(&id);
   layer->CreateField(&elev);
-  char** opts = nullptr;
-  opts = CSLSetNameValue(opts, "LEVEL_INTERVAL", fmt::format("{}", o.interval_m).c_str());
-  opts = CSLSetNameValue(opts, "LEVEL_BASE", "0");
-  opts = CSLSetNameValue(opts, "ID_FIELD", "0");
-  opts = CSLSetNameValue(opts, "ELEV_FIELD", "1");
-  opts = CSLSetNameValue(opts, "NODATA", "-9999");
+  gdal_detail::Options opts;
+  opts.set("LEVEL_INTERVAL", fmt::format("{}", o.interval_m));
+  opts.set("LEVEL_BASE", "0");
+  opts.set("ID_FIELD", "0");
+  opts.set("ELEV_FIELD", "1");
+  opts.set("NODATA", "-9999");
   const CPLErr e = GDALContourGenerateEx(GDALRasterBand::ToHandle(raster->GetRasterBand(1)),
-                                         OGRLayer::ToHandle(layer), opts, nullptr, nullptr);
-  CSLDestroy(opts);
+                                         OGRLayer::ToHandle(layer), opts.get(), nullptr, nullptr);
   if (e != CE_None) throw ProcessingError(fmt::format("products.contours: {}", CPLGetLastErrorMsg()));
   layer->ResetReading();
   for (auto& f : *layer) {

@@ -11,7 +11,7 @@
 // it a combined adjustment of photos and survey, as in classical aerotriangulation).
 // Check markers never enter the cost.
 #include "features/types.hpp"
-#include "sfm/reconstruction.hpp"
+#include "geometry/reconstruction.hpp"
 
 #include <cstddef>
 #include <string>

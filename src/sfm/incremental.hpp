@@ -6,7 +6,7 @@
 // self-calibration of each camera group.
 #include "features/types.hpp"
 #include "sfm/bundle_adjustment.hpp"
-#include "sfm/reconstruction.hpp"
+#include "geometry/reconstruction.hpp"
 
 #include <cstddef>
 #include <string>

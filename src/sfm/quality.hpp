@@ -2,7 +2,7 @@
 // Quality figures of a reconstruction that every layer records (docs/design.md,
 // "Quality figures every reconstruction records").
 #include "features/types.hpp"
-#include "sfm/reconstruction.hpp"
+#include "geometry/reconstruction.hpp"
 
 #include <cstddef>
 #include <vector>

@@ -3,7 +3,7 @@
 // pairwise verified matches by union-find (Moulon & Monasse 2012, "Unordered feature
 // tracking made fast and easy").
 #include "features/types.hpp"
-#include "sfm/reconstruction.hpp"
+#include "geometry/reconstruction.hpp"
 
 #include <cstddef>
 #include <vector>

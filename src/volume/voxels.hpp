@@ -14,6 +14,7 @@
 //   - one Int32Grid "labels": the unit label (unit id) of every voxel more than
 //     half inside a unit, the classified model of the whole excavated volume.
 // File metadata: site_origin_e/n/z, crs, voxel_size_m, and "label_<n>" = unit code.
+#include "geometry/label_volume.hpp"
 #include "volume/volume.hpp"
 
 #include <Eigen/Core>
@@ -56,20 +57,7 @@ VoxelSummary write_unit_voxels(const std::filesystem::path& path, const std::vec
 // by unit code. Throws IoError when unreadable.
 std::map<std::string, double> read_voxel_volumes(const std::filesystem::path& path);
 
-// The label grid as a dense block over its active bounding box.
-struct LabelVolume {
-  double voxel_size_m = 0;
-  Eigen::Vector3d min_centre = Eigen::Vector3d::Zero();  // site frame, centre of voxel (0, 0, 0)
-  int nx = 0, ny = 0, nz = 0;
-  std::vector<std::int32_t> labels;                     // (k * ny + j) * nx + i; 0 = no unit
-  std::map<std::int32_t, std::string> units;            // label -> unit code
-  Eigen::Vector3d site_origin = Eigen::Vector3d::Zero();  // E, N, Z
-  std::string crs;
-
-  std::int32_t at(int i, int j, int k) const {
-    return labels[(std::size_t(k) * std::size_t(ny) + std::size_t(j)) * std::size_t(nx) + std::size_t(i)];
-  }
-};
+// The label grid of a .vdb written above as a dense block (geometry/label_volume.hpp).
 LabelVolume read_label_volume(const std::filesystem::path& path);
 
 }  // namespace strata

@@ -27,7 +27,7 @@ constexpr int kWidth = 1000;
 
 // Tolerances. The generator perturbs the surveyed markers by 3 mm (1 sigma); the
 // georeference rests on 4-6 of them, so a few millimetres of datum error remain.
-constexpr double kMaxReprojectionPx = 0.5;   // issue 4 acceptance
+constexpr double kMaxReprojectionPx = 0.5;   // the alignment acceptance (docs/sfm.md)
 constexpr double kMaxCheckRmseM = 0.015;     // metres, 3D: 3 mm survey noise x ~3
 constexpr double kMaxCentreErrorM = 0.010;   // metres: datum error of a 3 mm survey
 constexpr double kMaxFocalError = 0.002;     // relative

@@ -1,7 +1,7 @@
-// Two processes, one project (issue 19, item 3; docs/reliability.md): while one
-// command changes a project, a second writing command stops with one line naming
-// the first (or waits for it with --wait), reading commands work, and nothing is
-// corrupted or lost. A writer killed mid-run does not block the next one.
+// Two processes, one project (docs/reliability.md): while one command changes a
+// project, a second writing command stops with one line naming the first (or waits
+// for it with --wait), reading commands work, and nothing is corrupted or lost. A
+// writer killed mid-run does not block the next one.
 #include "integration/field_project.hpp"
 
 #include <gtest/gtest.h>

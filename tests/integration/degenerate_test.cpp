@@ -1,4 +1,4 @@
-// Degenerate field data (issue 19, item 6; docs/reliability.md): a layer of one photo,
+// Degenerate field data (docs/reliability.md): a layer of one photo,
 // too few or collinear markers, markers no photo sees, the same photo in two layers,
 // black or blurred photos, several cameras in one layer, and a layer whose photos form
 // two groups (some of another place), photos of another place entirely (with this site's

@@ -1,5 +1,5 @@
-// The machine misbehaves (issue 19, item 4; docs/reliability.md): a disk that fills
-// part-way through a product, a read-only project folder, a project folder moved
+// The machine misbehaves (docs/reliability.md): a disk that fills part-way
+// through a product, a read-only project folder, a project folder moved
 // after processing, a photo in media/ altered or deleted, corrupted cache files.
 // Each case asserts the message and that the project records what it did before.
 #include "integration/field_project.hpp"

@@ -1,5 +1,5 @@
 #pragma once
-// Helpers of the hardening tests (issue 19): a small synthetic project made once and
+// Helpers of the hardening tests (docs/reliability.md): a small synthetic project made once and
 // copied per test, a snapshot of everything a project records (to show a refused
 // command changed nothing), and strata commands run in the background.
 #include "support/shared_scene.hpp"

@@ -1,4 +1,4 @@
-// 'strata markers guide' end to end with the real executable (issue 15, guided markers):
+// 'strata markers guide' end to end with the real executable (docs/markers.md):
 // a synthetic layer whose markers are non-coded chequered quadrant targets (coded-target
 // detection finds nothing), clicked in 2 photos each with 2 px of Gaussian noise.
 // Truth: the generator's gcp_list.txt, the true pixel of every marker in every photo
@@ -29,9 +29,9 @@ using test::run_strata;
 // set that aligns every photo, see docs/sfm.md).
 constexpr int kPhotos = 20;
 constexpr int kWidth = 1000;
-constexpr double kClickNoisePx = 2.0;        // pixels, 1 sigma per axis (issue 15)
+constexpr double kClickNoisePx = 2.0;        // pixels, 1 sigma per axis (a careful click)
 constexpr std::uint32_t kClickSeed = 15;
-// Acceptance (issue 15): found in >= 90 % of the photos that truly see the marker
+// Acceptance: found in >= 90 % of the photos that truly see the marker
 // (photos without a click), the 90th percentile of the distance to the true pixel
 // within 0.5 px, and no guided observation in a photo that does not see the marker.
 constexpr double kMinFoundFraction = 0.9;

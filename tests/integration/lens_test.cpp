@@ -35,7 +35,7 @@ struct Shot {
 constexpr Shot kSmallShot{14, 800};
 constexpr Shot kAlignShot{20, 1000};
 
-// Tolerances (issue 15, "done when").
+// Tolerances (docs/cameras.md).
 constexpr double kMaxReprojectionPx = 0.5;
 // Camera centres against the truth after a similarity from the recovered to the true
 // centres (the photo geometry itself; the georeference on markers surveyed with 3 mm

@@ -1,6 +1,6 @@
 // The same photos, markers and options give the same products, bit for bit, whatever
-// the thread count and whether or not the run was killed and resumed (issue 19,
-// part 5; docs/reliability.md, "Reproducible results"). Compared: the SHA-256 the
+// the thread count and whether or not the run was killed and resumed
+// (docs/reliability.md, "Reproducible results"). Compared: the SHA-256 the
 // products table records for every product file. The layer report is left out: it
 // states when it was generated and how long the alignment took, facts of the run and
 // not of the data.

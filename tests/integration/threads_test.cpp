@@ -1,6 +1,6 @@
 // The same photos, markers and options give the same sparse result whatever the
 // number of threads (strata --threads): the same features, matches, registered photos
-// and marker decisions, compared through the exported cameras (issue 19, part 5; a
+// and marker decisions, compared through the exported cameras (a
 // thread-dependent FLANN tree once moved a fisheye photo 2.7 m on a CI machine).
 // Not bit for bit: Ceres sums the adjustment's residuals in threads, and the order of
 // those floating-point sums moves the last digits (measured 2026-12-02: focal 4e-12

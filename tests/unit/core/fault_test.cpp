@@ -18,7 +18,7 @@ namespace {
 
 constexpr int kSurvived = 3;   // exit status of a child that passed its points alive
 constexpr int kRefused = 4;    // exit status of a child whose point threw InternalError
-constexpr std::size_t kMatrixMinimum = 50;  // issue 19: at least 50 kill points
+constexpr std::size_t kMatrixMinimum = 50;  // the crash matrix covers at least 50 kill points
 
 // Death tests re-run this binary for the child ("threadsafe"), so that each child
 // reads STRATA_CRASH_AT afresh rather than inheriting the parent's reading.

@@ -1,5 +1,6 @@
 // The UUID OpenVDB draws at random for every file is replaced by one derived from the
-// content, so that identical grids give identical files (issue 19, part 5).
+// content, so that identical grids give identical files (docs/reliability.md,
+// "Reproducible results").
 #include "core/error.hpp"
 #include "core/vdb_uuid.hpp"
 

@@ -1,4 +1,4 @@
-// The orthophoto marker check (issue 6): ArUco targets rendered into a small
+// The orthophoto marker check (docs/products.md): ArUco targets rendered into a small
 // synthetic orthophoto at known places are found, their centres turned into map
 // coordinates, and compared with the surveyed positions; a target whose survey is
 // off by a few pixels is reported as off, markers off the grid, under unseen cells

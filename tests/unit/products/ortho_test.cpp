@@ -17,7 +17,8 @@ namespace {
 constexpr double kCell = 0.005;             // metres, DTM / orthophoto cell
 constexpr double kSpotX = -0.20, kSpotY = 0.15, kSpotR = 0.02;  // metres, site frame
 constexpr double kBlockX = 0.25, kBlockY = -0.05, kBlockHalf = 0.10, kBlockH = 0.15;
-// Issue 6: a known point lands within 2 orthophoto pixels of its true position.
+// Acceptance (docs/products.md): a known point lands within 2 orthophoto pixels of
+// its true position.
 constexpr double kPositionTolerancePx = 2.0;
 // Exposure gains recovered to within 3 % (8-bit rounding, bilinear sampling).
 constexpr double kGainTolerance = 0.03;

@@ -2,6 +2,7 @@
 // a real project.gpkg, read back through GDAL/OGR as QGIS would.
 #include "crs/crs.hpp"
 #include "exporters/raster/geotiff.hpp"
+#include "exporters/raster/gpkg_raster.hpp"
 #include "products/site_plan.hpp"
 #include "project/project.hpp"
 #include "project/records.hpp"

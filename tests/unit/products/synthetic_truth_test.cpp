@@ -1,6 +1,6 @@
 // Orthophotos of the synthetic excavation (strata synth, small preset, 2 layers)
 // from the true cameras and the true surface: every marker that ArUco finds in the
-// orthophoto lies within 2 pixels of its surveyed (true) position (issue 6).
+// orthophoto lies within 2 pixels of its surveyed (true) position.
 // Set STRATA_PRODUCTS_KEEP=DIR to keep the orthophotos and DTMs for inspection.
 #include "core/error.hpp"
 #include "crs/crs.hpp"
@@ -26,7 +26,7 @@ namespace {
 
 const Eigen::Vector3d kOrigin(734000.0, 4174000.0, 1450.0);  // synth default site origin
 constexpr double kOrthoCell = 0.0025;      // metres: 60 px per 15 cm target, enough for ArUco
-constexpr double kMarkerTolerancePx = 2.0; // issue 6 acceptance
+constexpr double kMarkerTolerancePx = 2.0; // the orthophoto acceptance (docs/products.md)
 
 std::vector<std::vector<std::string>> read_csv(const fs::path& p) {
   std::ifstream f(p);

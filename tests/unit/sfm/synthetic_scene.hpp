@@ -5,7 +5,7 @@
 // with the true (off-centre, distorted) intrinsics plus Gaussian noise, verified
 // pair matches with a fraction of wrong matches, and surveyed markers.
 #include "features/types.hpp"
-#include "sfm/reconstruction.hpp"
+#include "geometry/reconstruction.hpp"
 
 #include <Eigen/Core>
 

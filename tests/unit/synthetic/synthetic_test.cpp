@@ -1,5 +1,5 @@
 // Tests of the synthetic excavation generator: the truth must be consistent with
-// itself and with the photos (issue 3).
+// itself and with the photos (docs/synthetic.md).
 #include "core/error.hpp"
 #include "geometry/camera.hpp"
 #include "support/shared_scene.hpp"

@@ -3,7 +3,6 @@
 // in spirit): calibrated camera groups, posed images and sparse points.
 // Coordinates: site frame (metres) once georeferenced, otherwise an arbitrary
 // local frame (see `georeferenced`).
-#include "features/types.hpp"
 #include "geometry/camera.hpp"
 
 #include <Eigen/Core>
