@@ -23,9 +23,9 @@
 namespace strata {
 namespace {
 
-// ---- tolerances (issue 5 "Done when", scaled to this small scene) ----------------
-constexpr double kMedianHeightTolerance = 0.003;  // metres: issue's median |dz| target
-constexpr double kP95HeightTolerance = 0.015;     // metres: issue's 95th percentile target
+// ---- tolerances (the dense acceptance, docs/dense.md, scaled to this small scene) ----
+constexpr double kMedianHeightTolerance = 0.003;  // metres: the median |dz| target
+constexpr double kP95HeightTolerance = 0.015;     // metres: the 95th percentile target
 constexpr double kMinCompleteness = 0.95;         // fraction of the well-covered area
 constexpr double kWallExclusion = 0.006;          // metres: cells this close to the block's
                                                   // vertical walls have no single true height
@@ -313,7 +313,7 @@ TEST(Dense, RecoversAnalyticSurface) {
   EXPECT_EQ(again.depth_maps_from_cache, 8);
 }
 
-// Issue 5: the surface must be complete INCLUDING a pit and its steep sides. The
+// The surface must be complete INCLUDING a pit and its steep sides. The
 // DTM-style top surface is sampled over an area that contains the whole pit; cells
 // next to the vertical sides have no single true height and are excluded from the
 // accuracy figures, but not from completeness.
@@ -431,7 +431,7 @@ double edge_gross_share(const Scene& scene, double sigma_colour) {
   return band > 0 ? static_cast<double>(gross) / band : 1.0;
 }
 
-// Issue 5: stones' edges in the trench are depth edges where the DTM must not bleed
+// Stones' edges in the trench are depth edges where the DTM must not bleed
 // the stone top onto the soil beside it.
 TEST(Dense, BilateralWeightsKeepStoneEdgesSharp) {
   constexpr double kMaxGrossShare = 0.08;  // of the pixels within kBand of an edge (plain NCC: ~0.10)
@@ -471,7 +471,7 @@ double accurate_share(const Scene& scene, const PatchMatchOptions& pm) {
   return seen > 0 ? static_cast<double>(accurate) / seen : 0.0;
 }
 
-// Issue 5 (time): the half-resolution pass must let 2 full-resolution sweeps do
+// Time: the half-resolution pass must let 2 full-resolution sweeps do
 // what 4 sweeps from random planes do, and must be what makes the difference.
 TEST(Dense, CoarseToFineNeedsFewerFullResolutionSweeps) {
   constexpr double kMaxLoss = 0.02;  // share of pixels, coarse-to-fine vs 4 full sweeps

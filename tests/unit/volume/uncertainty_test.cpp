@@ -18,7 +18,7 @@
 namespace strata {
 namespace {
 
-// ---- tolerances, each with its reason (issue 21's done-when figures)
+// ---- tolerances, each with its reason (the volume acceptance, docs/volume.md)
 constexpr double kVolumeRel = 0.005;      // volume within 0.5 % of the truth
 constexpr double kAreaRel = 0.02;         // found extent within 2 % of the truth's area
 constexpr double kIntervalRel = 0.02;     // the interval's half-width under 2 % of the volume

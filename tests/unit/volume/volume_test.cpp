@@ -36,11 +36,12 @@ namespace {
 namespace fs = std::filesystem;
 
 // ---- tolerances, each with its reason
-// Issue 7: volumes from the truth rasters within 1 % of the truth...
+// The volume acceptance (docs/volume.md): volumes from the truth rasters within 1 %
+// of the truth...
 constexpr double kTruthVolumeRel = 0.01;
 // ...and the mean thickness within 3 mm.
 constexpr double kTruthMeanThickness = 0.003;
-// Issue 7: voxels, mesh and raster sum agree within 0.5 %.
+// Voxels, mesh and raster sum agree within 0.5 %.
 constexpr double kThreeWayRel = 0.005;
 // Midpoint rule on 5 mm cells over a smooth analytic thickness: far below 0.1 %.
 constexpr double kAnalyticRel = 1e-3;
