@@ -450,7 +450,7 @@ TEST(Dense, BilateralWeightsKeepStoneEdgesSharp) {
 // Share of the reference view's pixels on the scene (ground or block top, not the
 // grazing vertical faces) whose depth is within kAccurate of the truth.
 double accurate_share(const Scene& scene, const PatchMatchOptions& pm) {
-  constexpr double kAccurate = 0.003;  // metres: the median height target
+  constexpr double kAccurate = 0.003;  // metres: the median height target
   const ReferenceDepth ref = reference_depth(scene, pm);
   const dense::PinholeCamera& cam = ref.cam;
   const dense::DepthMap& map = ref.map;
