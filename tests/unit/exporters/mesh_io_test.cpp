@@ -1,11 +1,15 @@
 // writer.ply / writer.obj round trips: header, counts, and full precision of
-// site-CRS coordinates with a large (UTM-sized) offset.
+// site-CRS coordinates with a large (UTM-sized) offset; exporter.obj (the model for
+// viewers, untextured and textured) parsed back by the test itself.
 #include "core/error.hpp"
 #include "exporters/mesh/mesh_writers.hpp"
 #include "importers/mesh/ply_mesh.hpp"
 #include "support/test_support.hpp"
 
 #include <gtest/gtest.h>
+
+#include <map>
+#include <sstream>
 
 namespace strata {
 namespace {
@@ -135,6 +139,206 @@ TEST(DenseMeshIo, ObjHasVerticesFacesAndOffset) {
   const std::string text = test::read_text(dir / "mesh.obj");
   EXPECT_NE(text.find("v 512345.678901 4123456.789012 234.500000 1.0000 0.0000 0.0000\n"), std::string::npos);
   EXPECT_NE(text.find("f 1 3 4\n"), std::string::npos);
+}
+
+// ---- exporter.obj ---------------------------------------------------------------
+
+// What a viewer reads from an OBJ file: the statements the writer uses, each face's
+// v/vt/vn indices (1-based, 0 when absent) and the material it is in.
+struct ParsedObj {
+  std::map<std::string, std::string> comments;  // "origin" -> "734001 4174001 1450 (...)", ...
+  std::string mtllib;
+  std::vector<Eigen::Vector3d> v;
+  std::vector<Eigen::Vector3d> rgb;  // per v when coloured
+  std::vector<Eigen::Vector2d> vt;
+  std::vector<Eigen::Vector3d> vn;
+  std::vector<std::array<std::array<int, 3>, 3>> f;  // [corner][v, vt, vn]
+  std::vector<std::string> face_material;
+};
+
+ParsedObj parse_obj(const std::filesystem::path& path) {
+  ParsedObj o;
+  std::istringstream in(test::read_text(path));
+  std::string line, material;
+  while (std::getline(in, line)) {
+    std::istringstream ls(line);
+    std::string tag;
+    ls >> tag;
+    if (tag == "#") {
+      std::string key, rest;
+      ls >> key;
+      std::getline(ls, rest);
+      o.comments[key] = rest;
+    } else if (tag == "mtllib") {
+      ls >> o.mtllib;
+    } else if (tag == "usemtl") {
+      ls >> material;
+    } else if (tag == "v") {
+      Eigen::Vector3d p, c;
+      ls >> p.x() >> p.y() >> p.z();
+      o.v.push_back(p);
+      if (ls >> c.x() >> c.y() >> c.z()) o.rgb.push_back(c);
+    } else if (tag == "vt") {
+      Eigen::Vector2d t;
+      ls >> t.x() >> t.y();
+      o.vt.push_back(t);
+    } else if (tag == "vn") {
+      Eigen::Vector3d n;
+      ls >> n.x() >> n.y() >> n.z();
+      o.vn.push_back(n);
+    } else if (tag == "f") {
+      std::array<std::array<int, 3>, 3> face{};
+      for (auto& corner : face) {
+        std::string c;
+        ls >> c;
+        std::istringstream cs(c);
+        std::string part;
+        for (int k = 0; k < 3 && std::getline(cs, part, '/'); ++k) corner[k] = part.empty() ? 0 : std::stoi(part);
+      }
+      o.f.push_back(face);
+      o.face_material.push_back(material);
+    }
+  }
+  return o;
+}
+
+// The origin stated in "# origin E N Z (...)".
+Eigen::Vector3d stated_origin(const ParsedObj& o) {
+  Eigen::Vector3d e = Eigen::Vector3d::Constant(std::nan(""));
+  std::istringstream(o.comments.count("origin") ? o.comments.at("origin") : "") >> e.x() >> e.y() >> e.z();
+  return e;
+}
+
+// Every face corner names an existing v (and vt, vn when the file has them).
+void expect_indices_in_range(const ParsedObj& o) {
+  for (const auto& face : o.f) {
+    for (const auto& c : face) {
+      EXPECT_GE(c[0], 1);
+      EXPECT_LE(c[0], int(o.v.size()));
+      if (!o.vt.empty()) EXPECT_TRUE(c[1] >= 1 && c[1] <= int(o.vt.size())) << c[1];
+      if (!o.vn.empty()) EXPECT_TRUE(c[2] >= 1 && c[2] <= int(o.vn.size())) << c[2];
+    }
+  }
+}
+
+std::vector<std::string> files_in(const std::filesystem::path& dir) {
+  std::vector<std::string> files;
+  for (const auto& e : std::filesystem::directory_iterator(dir)) files.push_back(e.path().filename().string());
+  std::sort(files.begin(), files.end());
+  return files;
+}
+
+// The CLI's test meshes sit at E 734000, N 4174000: float32 alone is a quarter metre off.
+const Eigen::Vector3d kUtmSiteOrigin(734000.0, 4174000.0, 1450.0);
+constexpr double kViewerTolerance = 1e-4;  // metres: what the local origin must preserve in float32
+
+DenseMesh utm_mesh() {
+  DenseMesh m = small_mesh();
+  m.normals = {{0, 0, 1}, {0, 0, 2}, {0, 0, 0}, {0.6f, 0, 0.8f}};  // unnormalised, zero: written unit length
+  return m;
+}
+
+TEST(ObjModelExport, VerticesComeBackThroughTheStatedOriginInFloat) {
+  test::ScratchDir dir("obj_model");
+  const DenseMesh m = utm_mesh();
+  ExportFrame frame;
+  frame.site_origin = kUtmSiteOrigin;
+  frame.crs = "EPSG:32636";
+  const ObjModelFiles files = write_obj_model(dir / "l1.obj", m, frame);
+  EXPECT_EQ(files_in(dir.path()), std::vector<std::string>{"l1.obj"});
+  EXPECT_TRUE(files.mtl.empty());
+  const ParsedObj o = parse_obj(dir / "l1.obj");
+  EXPECT_EQ(o.comments.at("crs"), " EPSG:32636");
+  EXPECT_NE(o.comments.at("axes:").find("x = E, y = N, z = Z (up)"), std::string::npos);
+  // Box centre in site CRS (733998.867, 4174003.625, 1450.25) -> whole metres.
+  const Eigen::Vector3d origin = stated_origin(o);
+  EXPECT_EQ(origin, Eigen::Vector3d(733999, 4174004, 1450));
+  EXPECT_EQ(files.origin, origin);
+  ASSERT_EQ(o.v.size(), m.vertices.size());
+  ASSERT_EQ(o.rgb.size(), m.vertices.size());
+  ASSERT_EQ(o.vn.size(), m.vertices.size());
+  ASSERT_EQ(o.f.size(), m.faces.size());
+  EXPECT_TRUE(o.vt.empty());
+  EXPECT_TRUE(o.mtllib.empty());
+  expect_indices_in_range(o);
+  for (std::size_t i = 0; i < m.vertices.size(); ++i) {
+    // What a float32 reader holds, back to site CRS through the stated origin.
+    const Eigen::Vector3d back = origin + o.v[i].cast<float>().cast<double>();
+    EXPECT_LT((back - (m.vertices[i] + kUtmSiteOrigin)).cwiseAbs().maxCoeff(), kViewerTolerance) << i;
+    EXPECT_LT((o.rgb[i] - m.colours[i].cast<double>() / 255.0).cwiseAbs().maxCoeff(), 1e-4) << i;
+    EXPECT_NEAR(o.vn[i].norm(), 1.0, 1e-3) << i;
+  }
+  EXPECT_NEAR(o.vn[3].x(), 0.6, 1e-4);
+  for (std::size_t f = 0; f < m.faces.size(); ++f) {
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_EQ(o.f[f][k][0], m.faces[f][k] + 1);
+      EXPECT_EQ(o.f[f][k][2], m.faces[f][k] + 1);
+    }
+  }
+}
+
+TEST(ObjModelExport, TexturedMeshHasUvsOneGroupPerAtlasAndItsMaterialFiles) {
+  test::ScratchDir dir("obj_model_textured");
+  DenseMesh m = utm_mesh();
+  m.colours.clear();  // a textured mesh has none (texture_atlas.hpp)
+  MeshTexture t;
+  t.uv = {{0.0f, 0.0f}, {1.0f, 0.25f}, {0.5f, 1.0f}, {0.125f, 0.75f}};
+  t.face_image = {1, 0};
+  t.images = {"first atlas bytes", "second atlas bytes"};
+  t.mime_type = "image/png";
+  ExportFrame frame;
+  frame.site_origin = kUtmSiteOrigin;
+  const ObjModelFiles files = write_obj_model(dir / "l1.obj", m, frame, &t);
+  EXPECT_EQ(files_in(dir.path()), (std::vector<std::string>{"l1.mtl", "l1.obj", "l1_atlas1.png", "l1_atlas2.png"}));
+  EXPECT_EQ(test::read_text(dir / "l1_atlas2.png"), t.images[1]);
+  const ParsedObj o = parse_obj(dir / "l1.obj");
+  EXPECT_EQ(o.mtllib, "l1.mtl");
+  ASSERT_EQ(o.vt.size(), m.vertices.size());
+  ASSERT_EQ(o.f.size(), m.faces.size());
+  EXPECT_TRUE(o.rgb.empty());
+  expect_indices_in_range(o);
+  for (std::size_t i = 0; i < o.vt.size(); ++i) {
+    EXPECT_TRUE(o.vt[i].x() >= 0 && o.vt[i].x() <= 1 && o.vt[i].y() >= 0 && o.vt[i].y() <= 1) << i;
+    // OBJ's v = 0 is the bottom of the image, glTF's (the texture's) the top.
+    EXPECT_NEAR(o.vt[i].x(), t.uv[i].x(), 1e-6);
+    EXPECT_NEAR(o.vt[i].y(), 1.0 - t.uv[i].y(), 1e-6);
+  }
+  // Faces grouped by atlas: face 1 (atlas 1) first, then face 0 (atlas 2).
+  EXPECT_EQ(o.face_material, (std::vector<std::string>{"atlas_1", "atlas_2"}));
+  EXPECT_EQ(o.f[0][0][0], m.faces[1][0] + 1);
+  EXPECT_EQ(o.f[0][0][1], m.faces[1][0] + 1);
+  // Each material of the .mtl names an image that exists beside it.
+  std::istringstream mtl(test::read_text(dir / "l1.mtl"));
+  std::string line, material;
+  std::map<std::string, std::string> map_kd;
+  while (std::getline(mtl, line)) {
+    std::istringstream ls(line);
+    std::string tag, value;
+    ls >> tag >> value;
+    if (tag == "newmtl") material = value;
+    if (tag == "map_Kd") map_kd[material] = value;
+  }
+  ASSERT_EQ(map_kd.size(), 2u);
+  for (const auto& [name, image] : map_kd) EXPECT_TRUE(std::filesystem::exists(dir / image)) << name << " " << image;
+  EXPECT_EQ(map_kd["atlas_1"], "l1_atlas1.png");
+}
+
+TEST(ObjModelExport, AFailureLeavesNoFileBehind) {
+  test::ScratchDir dir("obj_model_unwritable");
+  test::write_text(dir / "plain_file", "a file, not a folder");
+  const std::filesystem::path out = dir / "plain_file" / "l1.obj";  // refused even to root
+  EXPECT_THROW(write_obj_model(out, small_mesh(), ExportFrame{}), IoError);
+  // The .obj's name taken by a folder: the images and .mtl staged before it are removed too.
+  std::filesystem::create_directories(dir / "l1.obj");
+  MeshTexture t;
+  t.uv.assign(4, Eigen::Vector2f(0.5f, 0.5f));
+  t.face_image = {0, 0};
+  t.images = {"atlas"};
+  EXPECT_THROW(write_obj_model(dir / "l1.obj", small_mesh(), ExportFrame{}, &t), IoError);
+  EXPECT_EQ(files_in(dir.path()), (std::vector<std::string>{"l1.obj", "plain_file"}));
+  DenseMesh points = small_mesh();
+  points.faces.clear();
+  EXPECT_THROW(write_obj_model(dir / "points.obj", points, ExportFrame{}), InputError);
 }
 
 }  // namespace
