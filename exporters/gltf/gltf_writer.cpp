@@ -382,21 +382,8 @@ std::string glb_bytes(const fs::path& path, std::string json, std::string bin) {
 }
 
 void write_bytes(const fs::path& path, const std::string& bytes) {
-  std::error_code ec;
-  if (path.has_parent_path()) fs::create_directories(path.parent_path(), ec);
-  if (ec) {
-    throw IoError(fmt::format("{}: {}: cannot create the folder {}: {}", kStage, path.string(),
-                              path.parent_path().string(), ec.message()));
-  }
   StagedFiles staged(kStage);
-  const fs::path tmp = staged.add(path);
-  {
-    std::ofstream f(tmp, std::ios::binary);
-    if (!f) throw IoError(fmt::format("{}: {}: cannot open {} for writing", kStage, path.string(), tmp.string()));
-    f.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-    f.close();
-    if (!f) throw IoError(fmt::format("{}: {}: write failed (disk full?)", kStage, path.string()));
-  }
+  staged.write(path, [&](std::ostream& f) { f.write(bytes.data(), static_cast<std::streamsize>(bytes.size())); });
   staged.swap_in();
 }
 

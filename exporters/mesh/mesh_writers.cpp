@@ -13,7 +13,6 @@
 #include <bit>
 #include <cstring>
 #include <fstream>
-#include <functional>
 #include <iterator>
 #include <limits>
 
@@ -130,17 +129,6 @@ void write_mtl(std::ostream& f, const std::vector<std::string>& materials,
     out.line("illum 1");
     out.line("map_Kd {}", images[k].filename().string());
   }
-}
-
-// `final_path`'s staged file, filled by `write`; an IoError names the final path.
-void write_staged(StagedFiles& staged, const std::string& stage, const std::filesystem::path& final_path,
-                  const std::function<void(std::ostream&)>& write) {
-  const std::filesystem::path tmp = staged.add(final_path);
-  std::ofstream f(tmp, std::ios::binary);
-  if (!f) throw IoError(fmt::format("{}: {}: cannot open {} for writing", stage, final_path.string(), tmp.string()));
-  write(f);
-  f.close();
-  if (!f) throw IoError(fmt::format("{}: {}: write failed (disk full?)", stage, final_path.string()));
 }
 
 }  // namespace
@@ -265,19 +253,13 @@ ObjModelFiles write_obj_model(const std::filesystem::path& path, const DenseMesh
       files.images.push_back(path.parent_path() / fmt::format("{}_atlas{}{}", path.stem().string(), k + 1, ext));
     }
   }
-  std::error_code ec;
-  if (path.has_parent_path()) fs::create_directories(path.parent_path(), ec);
-  if (ec) {
-    throw IoError(fmt::format("{}: {}: cannot create the folder {}: {}", stage, path.string(),
-                              path.parent_path().string(), ec.message()));
-  }
-  // Every file staged, renamed into place only once all are complete.
+  // Every file staged, renamed into place only once all are complete, the .obj first.
   StagedFiles staged(stage);
-  write_staged(staged, stage, path, [&](std::ostream& f) { write_obj_text(f, mesh, text); });
+  staged.write(path, [&](std::ostream& f) { write_obj_text(f, mesh, text); });
   if (texture) {
-    write_staged(staged, stage, files.mtl, [&](std::ostream& f) { write_mtl(f, text.materials, files.images); });
+    staged.write(files.mtl, [&](std::ostream& f) { write_mtl(f, text.materials, files.images); });
     for (std::size_t k = 0; k < files.images.size(); ++k) {
-      write_staged(staged, stage, files.images[k], [&](std::ostream& f) {
+      staged.write(files.images[k], [&](std::ostream& f) {
         f.write(texture->images[k].data(), static_cast<std::streamsize>(texture->images[k].size()));
       });
     }

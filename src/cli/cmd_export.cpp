@@ -21,6 +21,7 @@
 #include <algorithm>
 #include <cctype>
 #include <memory>
+#include <optional>
 
 namespace strata::cli {
 namespace {
