@@ -55,6 +55,10 @@ void check_level_of_detail(int lod) {
   }
 }
 
+// A level that ends above this multiple of its target is reported: the edge collapse
+// stops when no edge can be collapsed without breaking the surface's topology.
+constexpr double kLevelOfDetailSlack = 1.25;
+
 DenseMesh layer_mesh_at_level(DenseMesh mesh, int lod, const std::string& layer, const std::string& command) {
   check_level_of_detail(lod);
   if (lod == 0) return mesh;
@@ -69,6 +73,11 @@ DenseMesh layer_mesh_at_level(DenseMesh mesh, int lod, const std::string& layer,
                                  highest));
   }
   DenseMesh simplified = simplify_mesh(mesh, target);
+  if (double(simplified.faces.size()) > kLevelOfDetailSlack * double(target)) {
+    log::warn("{}: layer {}: level of detail {} stopped at {} faces, {:.1f} x its target {}: the edge collapse "
+              "cannot shrink the mesh's small separate pieces and borders further", command, layer, lod,
+              simplified.faces.size(), double(simplified.faces.size()) / double(target), target);
+  }
   log::info("{}: layer {}: level of detail {}: {} faces (of {}; target faces / 4^{} = {})", command, layer, lod,
             simplified.faces.size(), faces, lod, target);
   return simplified;
