@@ -134,9 +134,9 @@ void register_model_command(CLI::App& exp) {
   auto* cmd = exp.add_subcommand(
       "model",
       "the site or one layer as a 3D model for viewers (Blender, MeshLab, three.js, Cesium):\n"
-      "a glTF 2.0 binary (.glb), or for one layer Wavefront OBJ (.obj, see below). glTF stores\n"
-      "float32 and is Y-up: vertices are written relative\n"
-      "to a local origin (the bounding-box centre of everything in the file, in site CRS\n"
+      "a glTF 2.0 binary (.glb), or for one layer Wavefront OBJ (.obj, below). glTF stores\n"
+      "float32 and is Y-up: vertices are written relative to a local origin (the\n"
+      "bounding-box centre of everything in the file, in site CRS\n"
       "coordinates, rounded to whole metres), which is the mesh nodes' translation, so\n"
       "millimetres survive at UTM coordinates. Axes: glTF x = E, y = Z (up), z = -N. The CRS,\n"
       "the origin [E, N, Z] and the axes are in asset.extras.\n"

@@ -5,6 +5,7 @@
 #include "exporters/mesh/mesh_writers.hpp"
 #include "project/project.hpp"
 #include "project/records.hpp"
+#include "support/obj_file.hpp"
 #include "support/test_support.hpp"
 
 #include <gtest/gtest.h>
@@ -94,38 +95,22 @@ DenseMesh coloured_grid(int cells) {
   return m;
 }
 
-// An OBJ as the test reads it: the stated origin, v (with colour), f.
-struct ObjFile {
-  Eigen::Vector3d origin = Eigen::Vector3d::Constant(std::nan(""));
-  std::vector<Eigen::Vector3d> v, rgb;
-  std::size_t faces = 0;
-  int max_index = 0;
-};
-
-ObjFile read_obj(const fs::path& path) {
-  ObjFile o;
-  std::istringstream in(test::read_text(path));
-  std::string line;
-  while (std::getline(in, line)) {
-    std::istringstream ls(line);
-    std::string tag;
-    ls >> tag;
-    if (tag == "#") {
-      std::string key;
-      ls >> key;
-      if (key == "origin") ls >> o.origin.x() >> o.origin.y() >> o.origin.z();
-    } else if (tag == "v") {
-      Eigen::Vector3d p, c;
-      ls >> p.x() >> p.y() >> p.z();
-      o.v.push_back(p);
-      if (ls >> c.x() >> c.y() >> c.z()) o.rgb.push_back(c);
-    } else if (tag == "f") {
-      ++o.faces;
-      std::string corner;
-      while (ls >> corner) o.max_index = std::max(o.max_index, std::stoi(corner));
-    }
+// The largest v index any face names.
+int max_vertex_index(const test::ObjFile& o) {
+  int k = 0;
+  for (const auto& face : o.f) {
+    for (const auto& corner : face) k = std::max(k, corner[0]);
   }
-  return o;
+  return k;
+}
+
+// The recorded quad of a fresh project exported as `file` (.glb or .obj) in `dir`.
+fs::path exported_quad(const test::ScratchDir& dir, const std::string& file) {
+  const fs::path site = project_with_layer(dir);
+  record_dense_mesh(site, quad());
+  const auto r = run_strata({"export", "model", site.string(), "--layer", "L1", "--out", (dir / file).string()});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  return dir / file;
 }
 
 std::size_t glb_faces(const nlohmann::json& j) {
@@ -152,18 +137,14 @@ TEST(CliExportModel, RefusesWithoutDenseMeshOrAModelExtension) {
 
 TEST(CliExportModel, ObjCarriesTheSiteFrameThroughItsStatedOrigin) {
   test::ScratchDir dir("model_obj");
-  const fs::path site = project_with_layer(dir);
   const DenseMesh m = quad();
-  record_dense_mesh(site, m);
-  const auto r = run_strata({"export", "model", site.string(), "--layer", "L1", "--out", (dir / "l1.obj").string()});
-  ASSERT_EQ(r.exit_code, 0) << r.err;
-  const ObjFile o = read_obj(dir / "l1.obj");
+  const test::ObjFile o = test::read_obj(exported_quad(dir, "l1.obj"));
   // The glTF export's local origin (GlbCarriesTheSiteFrame): whole metres.
   EXPECT_EQ(o.origin, Eigen::Vector3d(734001, 4174001, 1450));
   ASSERT_EQ(o.v.size(), m.vertices.size());
   ASSERT_EQ(o.rgb.size(), m.vertices.size());
-  EXPECT_EQ(o.faces, m.faces.size());
-  EXPECT_LE(o.max_index, int(m.vertices.size()));
+  EXPECT_EQ(o.f.size(), m.faces.size());
+  EXPECT_LE(max_vertex_index(o), int(m.vertices.size()));
   for (std::size_t i = 0; i < m.vertices.size(); ++i) {
     const Eigen::Vector3d back = o.origin + o.v[i].cast<float>().cast<double>();  // as a float32 reader has it
     EXPECT_LT((back - (m.vertices[i] + kSiteOrigin)).cwiseAbs().maxCoeff(), kSubMillimetre) << i;
@@ -190,10 +171,10 @@ TEST(CliExportModel, LevelsOfDetailKeepAQuarterOfTheFacesEachAndTheirColours) {
                          obj.string()});
     ASSERT_EQ(r.exit_code, 0) << r.err;
     EXPECT_NE(r.err.find("level of detail " + std::to_string(lod)), std::string::npos) << r.err;
-    const ObjFile o = read_obj(obj);
-    EXPECT_LE(o.faces, target) << lod;
-    EXPECT_GE(double(o.faces), kMinShareOfTarget * double(target)) << lod;
-    EXPECT_LE(o.max_index, int(o.v.size()));
+    const test::ObjFile o = test::read_obj(obj);
+    EXPECT_LE(o.f.size(), target) << lod;
+    EXPECT_GE(double(o.f.size()), kMinShareOfTarget * double(target)) << lod;
+    EXPECT_LE(max_vertex_index(o), int(o.v.size()));
     ASSERT_EQ(o.rgb.size(), o.v.size()) << lod;
     // The red ramp survives: a vertex's red is near the ramp's value where it lies.
     constexpr double kRampTolerance = 0.15;  // of full scale: a coarse vertex averages its patch
@@ -205,7 +186,7 @@ TEST(CliExportModel, LevelsOfDetailKeepAQuarterOfTheFacesEachAndTheirColours) {
     r = run_strata({"export", "model", site.string(), "--layer", "L1", "--lod", std::to_string(lod), "--out",
                     glb.string()});
     ASSERT_EQ(r.exit_code, 0) << r.err;
-    EXPECT_EQ(glb_faces(glb_json(glb)), o.faces) << lod;
+    EXPECT_EQ(glb_faces(glb_json(glb)), o.f.size()) << lod;
   }
   // The refusals write into an empty folder of their own, which must stay empty.
   const fs::path out = dir / "refused";
@@ -234,12 +215,8 @@ TEST(CliExportModel, LevelsOfDetailKeepAQuarterOfTheFacesEachAndTheirColours) {
 
 TEST(CliExportModel, GlbCarriesTheSiteFrame) {
   test::ScratchDir dir("model_glb");
-  const fs::path site = project_with_layer(dir);
   const DenseMesh m = quad();
-  record_dense_mesh(site, m);
-  const auto r = run_strata({"export", "model", site.string(), "--layer", "L1", "--out", (dir / "l1.glb").string()});
-  ASSERT_EQ(r.exit_code, 0) << r.err;
-  const nlohmann::json j = glb_json(dir / "l1.glb");
+  const nlohmann::json j = glb_json(exported_quad(dir, "l1.glb"));
   ASSERT_TRUE(j.is_object());
   EXPECT_EQ(j["asset"]["extras"]["crs"], "EPSG:32636");
   // Box centre 734001.3734, 4174001.3178, 1449.90355 (CRS) -> whole metres.

@@ -4,6 +4,7 @@
 #include "core/error.hpp"
 #include "exporters/mesh/mesh_writers.hpp"
 #include "importers/mesh/ply_mesh.hpp"
+#include "support/obj_file.hpp"
 #include "support/test_support.hpp"
 
 #include <gtest/gtest.h>
@@ -18,6 +19,13 @@ constexpr double kCrsTolerance = 1e-6;    // metres: doubles keep micrometres at
 constexpr double kLocalTolerance = 1e-5;  // metres: float in the site frame, |x| < 100 m
 const Eigen::Vector3d kOrigin(512345.678901, 4123456.789012, 234.5);  // E, N, Z metres
 
+ExportFrame frame_at(const Eigen::Vector3d& site_origin, const std::string& crs = "EPSG:32636") {
+  ExportFrame frame;
+  frame.site_origin = site_origin;
+  frame.crs = crs;
+  return frame;
+}
+
 DenseMesh small_mesh() {
   DenseMesh m;
   m.vertices = {{0.0, 0.0, 0.0}, {1.234567, 0.000123, -0.5}, {0.1, 2.000001, 0.25}, {-3.5, 7.25, 1.0}};
@@ -29,10 +37,7 @@ DenseMesh small_mesh() {
 TEST(DenseMeshIo, PlyRoundTripKeepsCrsCoordinatesInDouble) {
   test::ScratchDir dir("dense_ply");
   const DenseMesh m = small_mesh();
-  ExportFrame frame;
-  frame.site_origin = kOrigin;
-  frame.crs = "EPSG:32636";
-  write_ply(dir / "mesh.ply", m, frame);
+  write_ply(dir / "mesh.ply", m, frame_at(kOrigin));
   // Only the mesh: its temporary file took the final name.
   std::vector<std::string> files;
   for (const auto& e : std::filesystem::directory_iterator(dir.path())) files.push_back(e.path().filename().string());
@@ -143,80 +148,18 @@ TEST(DenseMeshIo, ObjHasVerticesFacesAndOffset) {
 
 // ---- exporter.obj ---------------------------------------------------------------
 
-// What a viewer reads from an OBJ file: the statements the writer uses, each face's
-// v/vt/vn indices (1-based, 0 when absent) and the material it is in.
-struct ParsedObj {
-  std::map<std::string, std::string> comments;  // "origin" -> "734001 4174001 1450 (...)", ...
-  std::string mtllib;
-  std::vector<Eigen::Vector3d> v;
-  std::vector<Eigen::Vector3d> rgb;  // per v when coloured
-  std::vector<Eigen::Vector2d> vt;
-  std::vector<Eigen::Vector3d> vn;
-  std::vector<std::array<std::array<int, 3>, 3>> f;  // [corner][v, vt, vn]
-  std::vector<std::string> face_material;
-};
-
-ParsedObj parse_obj(const std::filesystem::path& path) {
-  ParsedObj o;
-  std::istringstream in(test::read_text(path));
-  std::string line, material;
-  while (std::getline(in, line)) {
-    std::istringstream ls(line);
-    std::string tag;
-    ls >> tag;
-    if (tag == "#") {
-      std::string key, rest;
-      ls >> key;
-      std::getline(ls, rest);
-      o.comments[key] = rest;
-    } else if (tag == "mtllib") {
-      ls >> o.mtllib;
-    } else if (tag == "usemtl") {
-      ls >> material;
-    } else if (tag == "v") {
-      Eigen::Vector3d p, c;
-      ls >> p.x() >> p.y() >> p.z();
-      o.v.push_back(p);
-      if (ls >> c.x() >> c.y() >> c.z()) o.rgb.push_back(c);
-    } else if (tag == "vt") {
-      Eigen::Vector2d t;
-      ls >> t.x() >> t.y();
-      o.vt.push_back(t);
-    } else if (tag == "vn") {
-      Eigen::Vector3d n;
-      ls >> n.x() >> n.y() >> n.z();
-      o.vn.push_back(n);
-    } else if (tag == "f") {
-      std::array<std::array<int, 3>, 3> face{};
-      for (auto& corner : face) {
-        std::string c;
-        ls >> c;
-        std::istringstream cs(c);
-        std::string part;
-        for (int k = 0; k < 3 && std::getline(cs, part, '/'); ++k) corner[k] = part.empty() ? 0 : std::stoi(part);
-      }
-      o.f.push_back(face);
-      o.face_material.push_back(material);
-    }
-  }
-  return o;
-}
-
-// The origin stated in "# origin E N Z (...)".
-Eigen::Vector3d stated_origin(const ParsedObj& o) {
-  Eigen::Vector3d e = Eigen::Vector3d::Constant(std::nan(""));
-  std::istringstream(o.comments.count("origin") ? o.comments.at("origin") : "") >> e.x() >> e.y() >> e.z();
-  return e;
-}
-
 // Every face corner names an existing v (and vt, vn when the file has them).
-void expect_indices_in_range(const ParsedObj& o) {
+void expect_indices_in_range(const test::ObjFile& o) {
   for (const auto& face : o.f) {
     for (const auto& c : face) {
       EXPECT_GE(c[0], 1);
       EXPECT_LE(c[0], int(o.v.size()));
-      if (!o.vt.empty()) EXPECT_TRUE(c[1] >= 1 && c[1] <= int(o.vt.size())) << c[1];
-      if (!o.vn.empty()) EXPECT_TRUE(c[2] >= 1 && c[2] <= int(o.vn.size())) << c[2];
+      if (!o.vt.empty()) {
+        EXPECT_TRUE(c[1] >= 1 && c[1] <= int(o.vt.size())) << c[1];
+      }
+      if (!o.vn.empty()) {
+        EXPECT_TRUE(c[2] >= 1 && c[2] <= int(o.vn.size())) << c[2];
+      }
     }
   }
 }
@@ -241,17 +184,14 @@ DenseMesh utm_mesh() {
 TEST(ObjModelExport, VerticesComeBackThroughTheStatedOriginInFloat) {
   test::ScratchDir dir("obj_model");
   const DenseMesh m = utm_mesh();
-  ExportFrame frame;
-  frame.site_origin = kUtmSiteOrigin;
-  frame.crs = "EPSG:32636";
-  const ObjModelFiles files = write_obj_model(dir / "l1.obj", m, frame);
+  const ObjModelFiles files = write_obj_model(dir / "l1.obj", m, frame_at(kUtmSiteOrigin));
   EXPECT_EQ(files_in(dir.path()), std::vector<std::string>{"l1.obj"});
   EXPECT_TRUE(files.mtl.empty());
-  const ParsedObj o = parse_obj(dir / "l1.obj");
-  EXPECT_EQ(o.comments.at("crs"), " EPSG:32636");
+  const test::ObjFile o = test::read_obj(dir / "l1.obj");
+  EXPECT_EQ(o.comments.at("crs"), "EPSG:32636");
   EXPECT_NE(o.comments.at("axes:").find("x = E, y = N, z = Z (up)"), std::string::npos);
   // Box centre in site CRS (733998.867, 4174003.625, 1450.25) -> whole metres.
-  const Eigen::Vector3d origin = stated_origin(o);
+  const Eigen::Vector3d origin = o.origin;
   EXPECT_EQ(origin, Eigen::Vector3d(733999, 4174004, 1450));
   EXPECT_EQ(files.origin, origin);
   ASSERT_EQ(o.v.size(), m.vertices.size());
@@ -286,12 +226,10 @@ TEST(ObjModelExport, TexturedMeshHasUvsOneGroupPerAtlasAndItsMaterialFiles) {
   t.face_image = {1, 0};
   t.images = {"first atlas bytes", "second atlas bytes"};
   t.mime_type = "image/png";
-  ExportFrame frame;
-  frame.site_origin = kUtmSiteOrigin;
-  const ObjModelFiles files = write_obj_model(dir / "l1.obj", m, frame, &t);
+  const ObjModelFiles files = write_obj_model(dir / "l1.obj", m, frame_at(kUtmSiteOrigin, ""), &t);
   EXPECT_EQ(files_in(dir.path()), (std::vector<std::string>{"l1.mtl", "l1.obj", "l1_atlas1.png", "l1_atlas2.png"}));
   EXPECT_EQ(test::read_text(dir / "l1_atlas2.png"), t.images[1]);
-  const ParsedObj o = parse_obj(dir / "l1.obj");
+  const test::ObjFile o = test::read_obj(dir / "l1.obj");
   EXPECT_EQ(o.mtllib, "l1.mtl");
   ASSERT_EQ(o.vt.size(), m.vertices.size());
   ASSERT_EQ(o.f.size(), m.faces.size());
