@@ -37,10 +37,6 @@ constexpr std::uint32_t kGlbMagic = 0x46546C67;  // "glTF"
 constexpr std::uint32_t kGlbVersion = 2;
 constexpr std::uint32_t kChunkJson = 0x4E4F534A;  // "JSON"
 constexpr std::uint32_t kChunkBin = 0x004E4942;   // "BIN\0"
-// A normal shorter than this (a reader's zero fill, a degenerate fusion cell) has no
-// direction worth keeping; the faces around its vertex give one instead.
-constexpr double kMinNormalLength = 1e-6;
-
 // (E, N, Z) -> glTF (x, y, z) = (E, Z, -N): Y up, and a rotation (determinant +1).
 Eigen::Vector3d to_gltf_axes(const Eigen::Vector3d& enz) { return {enz.x(), enz.z(), -enz.y()}; }
 
@@ -58,29 +54,8 @@ void check_meshes(const fs::path& path, std::span<const GltfMesh> meshes) {
     const DenseMesh* m = meshes[i].mesh;
     const std::string name = mesh_name(meshes[i], i);
     if (!m || m->faces.empty()) throw fail(fmt::format("mesh '{}' has no faces; glTF export needs a triangle mesh", name));
-    if (!m->colours.empty() && m->colours.size() != m->vertices.size())
-      throw fail(fmt::format("mesh '{}': {} colours for {} vertices", name, m->colours.size(), m->vertices.size()));
-    if (!m->normals.empty() && m->normals.size() != m->vertices.size())
-      throw fail(fmt::format("mesh '{}': {} normals for {} vertices", name, m->normals.size(), m->vertices.size()));
-    const auto n = static_cast<std::int64_t>(m->vertices.size());
-    for (const auto& f : m->faces) {
-      for (int k : f) {
-        if (k < 0 || k >= n) throw fail(fmt::format("mesh '{}': face index {} out of range (0..{})", name, k, n - 1));
-      }
-    }
-    for (const auto& v : m->vertices) {
-      if (!v.allFinite()) throw fail(fmt::format("mesh '{}': a vertex is not finite", name));
-    }
-    if (const GltfTexture* t = meshes[i].texture) {
-      if (t->uv.size() != m->vertices.size())
-        throw fail(fmt::format("mesh '{}': {} UVs for {} vertices", name, t->uv.size(), m->vertices.size()));
-      if (t->face_image.size() != m->faces.size())
-        throw fail(fmt::format("mesh '{}': {} face images for {} faces", name, t->face_image.size(), m->faces.size()));
-      for (int k : t->face_image)
-        if (k < 0 || k >= int(t->images.size())) throw fail(fmt::format("mesh '{}': face image {} out of range", name, k));
-      if (t->mime_type != "image/jpeg" && t->mime_type != "image/png")
-        throw fail(fmt::format("mesh '{}': image type '{}' is neither image/jpeg nor image/png", name, t->mime_type));
-    }
+    const std::string problem = mesh_inconsistency(*m, meshes[i].texture);
+    if (!problem.empty()) throw fail(fmt::format("mesh '{}': {}", name, problem));
     if (const auto& c = meshes[i].colour) {
       for (double v : *c)
         if (!(v >= 0 && v <= 1)) throw fail(fmt::format("mesh '{}': colour components must lie in [0, 1]", name));
@@ -116,26 +91,18 @@ void check_nodes(const fs::path& path, const GltfScene& scene) {
   }
 }
 
-// The bounding-box centre of every vertex, in site CRS coordinates, rounded to whole
-// metres: short to quote, exact in float32 for a viewer that stores translations so.
+// The local origin of everything placed: mesh vertices and positioned nodes.
 Eigen::Vector3d local_origin(const GltfScene& scene, const Eigen::Vector3d& site_origin) {
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
   Eigen::Vector3d hi = -lo;
-  for (const auto& m : scene.meshes) {
-    for (const auto& v : m.mesh->vertices) {
-      lo = lo.cwiseMin(v);
-      hi = hi.cwiseMax(v);
-    }
-  }
+  for (const auto& m : scene.meshes) grow_box(*m.mesh, lo, hi);
   for (const auto& n : scene.nodes) {
     if (n.position) {
       lo = lo.cwiseMin(*n.position);
       hi = hi.cwiseMax(*n.position);
     }
   }
-  if (!(lo.array() <= hi.array()).all()) lo = hi = Eigen::Vector3d::Zero();  // nothing placed
-  const Eigen::Vector3d centre = 0.5 * (lo + hi) + site_origin;
-  return centre.array().round().matrix();
+  return model_local_origin(lo, hi, site_origin);
 }
 
 // The BIN chunk under construction and the bufferViews that slice it.
@@ -189,30 +156,12 @@ int add_positions(BinaryBuffer& bin, Json& accessors, const DenseMesh& m, const 
   return a;
 }
 
-// Area-weighted sums of the normals of the faces around each vertex (site axes).
-std::vector<Eigen::Vector3d> face_normal_sums(const DenseMesh& m) {
-  std::vector<Eigen::Vector3d> sums(m.vertices.size(), Eigen::Vector3d::Zero());
-  for (const auto& f : m.faces) {
-    const Eigen::Vector3d n =
-        (m.vertices[f[1]] - m.vertices[f[0]]).cross(m.vertices[f[2]] - m.vertices[f[0]]);  // |n| = 2 area
-    for (int k : f) sums[k] += n;
-  }
-  return sums;
-}
-
-// Unit normals in glTF axes. An unusable normal takes its faces' direction, an
-// isolated vertex's "up".
+// Unit normals (geometry/mesh.hpp: an unusable one takes its faces' direction) in glTF axes.
 int add_normals(BinaryBuffer& bin, Json& accessors, const DenseMesh& m) {
-  std::vector<Eigen::Vector3d> fallback;
   std::vector<float> xyz;
   xyz.reserve(3 * m.normals.size());
-  for (std::size_t i = 0; i < m.normals.size(); ++i) {
-    Eigen::Vector3d n = m.normals[i].cast<double>();
-    if (!n.allFinite() || n.norm() < kMinNormalLength) {
-      if (fallback.empty()) fallback = face_normal_sums(m);
-      n = fallback[i].norm() > 0 ? fallback[i] : Eigen::Vector3d::UnitZ();
-    }
-    const Eigen::Vector3d g = to_gltf_axes(n.normalized());
+  for (const Eigen::Vector3f& n : unit_normals(m)) {
+    const Eigen::Vector3d g = to_gltf_axes(n.cast<double>());
     for (int k = 0; k < 3; ++k) xyz.push_back(static_cast<float>(g[k]));
   }
   const int view = bin.add_view(xyz.data(), xyz.size() * sizeof(float), kArrayBuffer, 12);
@@ -433,21 +382,8 @@ std::string glb_bytes(const fs::path& path, std::string json, std::string bin) {
 }
 
 void write_bytes(const fs::path& path, const std::string& bytes) {
-  std::error_code ec;
-  if (path.has_parent_path()) fs::create_directories(path.parent_path(), ec);
-  if (ec) {
-    throw IoError(fmt::format("{}: {}: cannot create the folder {}: {}", kStage, path.string(),
-                              path.parent_path().string(), ec.message()));
-  }
   StagedFiles staged(kStage);
-  const fs::path tmp = staged.add(path);
-  {
-    std::ofstream f(tmp, std::ios::binary);
-    if (!f) throw IoError(fmt::format("{}: {}: cannot open {} for writing", kStage, path.string(), tmp.string()));
-    f.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-    f.close();
-    if (!f) throw IoError(fmt::format("{}: {}: write failed (disk full?)", kStage, path.string()));
-  }
+  staged.write(path, [&](std::ostream& f) { f.write(bytes.data(), static_cast<std::streamsize>(bytes.size())); });
   staged.swap_in();
 }
 

@@ -36,15 +36,11 @@
 
 namespace strata {
 
-// A texture atlas for one mesh: the images are embedded (bufferView + mimeType), one
-// material per image (baseColorTexture; the images are sRGB as glTF expects), one
-// primitive per image holding the faces that use it; UVs go to TEXCOORD_0.
-struct GltfTexture {
-  std::vector<Eigen::Vector2f> uv;  // per vertex, (0, 0) = the image's top-left corner
-  std::vector<int> face_image;      // per face, index into images
-  std::vector<std::string> images;  // encoded image files
-  std::string mime_type = "image/jpeg";  // "image/jpeg" or "image/png"
-};
+// A texture atlas for one mesh (geometry/mesh.hpp): the images are embedded
+// (bufferView + mimeType), one material per image (baseColorTexture; the images are
+// sRGB as glTF expects), one primitive per image holding the faces that use it; UVs
+// go to TEXCOORD_0.
+using GltfTexture = MeshTexture;
 
 struct GltfMesh {
   std::string name;                // node and mesh name (e.g. the layer); "" -> "mesh N"

@@ -6,12 +6,15 @@
 
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
+#include "core/staged_files.hpp"
 
 #include <fmt/format.h>
 
 #include <bit>
 #include <cstring>
 #include <fstream>
+#include <iterator>
+#include <limits>
 
 namespace strata {
 namespace {
@@ -26,22 +29,105 @@ void put(std::string& buf, T v) {
   buf.append(bytes, sizeof(T));
 }
 
-void check_mesh(const DenseMesh& mesh, const std::string& stage, const std::filesystem::path& path) {
-  if (!mesh.colours.empty() && mesh.colours.size() != mesh.vertices.size()) {
-    throw InternalError(fmt::format("{}: {}: {} colours for {} vertices", stage, path.string(),
-                                    mesh.colours.size(), mesh.vertices.size()));
-  }
-  if (!mesh.normals.empty() && mesh.normals.size() != mesh.vertices.size()) {
-    throw InternalError(fmt::format("{}: {}: {} normals for {} vertices", stage, path.string(),
-                                    mesh.normals.size(), mesh.vertices.size()));
-  }
-  const int n = static_cast<int>(mesh.vertices.size());
-  for (const auto& f : mesh.faces) {
-    for (int k : f) {
-      if (k < 0 || k >= n) {
-        throw InternalError(fmt::format("{}: {}: face index {} out of range", stage, path.string(), k));
-      }
+void check_mesh(const DenseMesh& mesh, const std::string& stage, const std::filesystem::path& path,
+                const MeshTexture* texture = nullptr) {
+  const std::string problem = mesh_inconsistency(mesh, texture);
+  if (!problem.empty()) throw InternalError(fmt::format("{}: {}: {}", stage, path.string(), problem));
+}
+
+// What an OBJ file holds besides the mesh: comment lines, the shift that takes the
+// site frame to the written coordinates, their decimals, and for a textured mesh its
+// material library and one material per atlas image.
+struct ObjText {
+  std::vector<std::string> comments;
+  Eigen::Vector3d shift = Eigen::Vector3d::Zero();  // metres, added to each site-frame vertex
+  int decimals = 5;  // 10 micrometres: below float32's spacing beyond 80 m
+  const MeshTexture* texture = nullptr;
+  std::string mtllib;
+  std::vector<std::string> materials;  // per atlas image
+};
+
+// Appends to `buf` and hands it to `f` every MiB: bounded memory for large meshes.
+class ChunkedText {
+ public:
+  explicit ChunkedText(std::ostream& f) : f_(f) {}
+  ~ChunkedText() { f_ << buf_; }
+  template <typename... Args>
+  void line(fmt::format_string<Args...> format, Args&&... args) {
+    fmt::format_to(std::back_inserter(buf_), format, std::forward<Args>(args)...);
+    buf_ += '\n';
+    if (buf_.size() > (1u << 20)) {
+      f_ << buf_;
+      buf_.clear();
     }
+  }
+
+ private:
+  std::ostream& f_;
+  std::string buf_;
+};
+
+// "f v v v", "f v/t v/t v/t", "f v//n ...", "f v/t/n ..." (OBJ indices from 1; vertex,
+// UV and normal i share index i + 1).
+void face_line(ChunkedText& out, const std::array<int, 3>& face, bool uv, bool normal) {
+  const int a = face[0] + 1, b = face[1] + 1, c = face[2] + 1;
+  if (uv && normal) out.line("f {0}/{0}/{0} {1}/{1}/{1} {2}/{2}/{2}", a, b, c);
+  else if (uv) out.line("f {0}/{0} {1}/{1} {2}/{2}", a, b, c);
+  else if (normal) out.line("f {0}//{0} {1}//{1} {2}//{2}", a, b, c);
+  else out.line("f {} {} {}", a, b, c);
+}
+
+// Comments, mtllib, v (with "r g b" in [0, 1] when coloured: the vertex-colour
+// extension MeshLab, CloudCompare and Blender read), vt (OBJ's v = 0 is the bottom of
+// the image, glTF's the top: v_obj = 1 - v), vn, then the faces: one usemtl group per
+// atlas image when textured.
+void write_obj_text(std::ostream& f, const DenseMesh& mesh, const ObjText& t) {
+  ChunkedText out(f);
+  for (const auto& c : t.comments) out.line("# {}", c);
+  if (!t.mtllib.empty()) out.line("mtllib {}", t.mtllib);
+  const bool colour = !mesh.colours.empty() && !t.texture;  // a texture replaces the vertex colours
+  for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
+    const Eigen::Vector3d v = mesh.vertices[i] + t.shift;
+    if (colour) {
+      const auto& c = mesh.colours[i];
+      out.line("v {:.{}f} {:.{}f} {:.{}f} {:.4f} {:.4f} {:.4f}", v.x(), t.decimals, v.y(), t.decimals, v.z(),
+               t.decimals, c[0] / 255.0, c[1] / 255.0, c[2] / 255.0);
+    } else {
+      out.line("v {:.{}f} {:.{}f} {:.{}f}", v.x(), t.decimals, v.y(), t.decimals, v.z(), t.decimals);
+    }
+  }
+  if (t.texture) {
+    for (const auto& uv : t.texture->uv) out.line("vt {:.6f} {:.6f}", uv.x(), 1.0f - uv.y());
+  }
+  const std::vector<Eigen::Vector3f> normals = unit_normals(mesh);
+  for (const auto& n : normals) out.line("vn {:.4f} {:.4f} {:.4f}", n.x(), n.y(), n.z());
+  const bool uv = t.texture != nullptr, normal = !normals.empty();
+  if (!t.texture) {
+    for (const auto& face : mesh.faces) face_line(out, face, uv, normal);
+    return;
+  }
+  for (std::size_t k = 0; k < t.materials.size(); ++k) {
+    out.line("usemtl {}", t.materials[k]);
+    for (std::size_t i = 0; i < mesh.faces.size(); ++i) {
+      if (t.texture->face_image[i] == int(k)) face_line(out, mesh.faces[i], uv, normal);
+    }
+  }
+}
+
+// One matte material per atlas (diffuse white times the image, no specular; illum 1),
+// the image named relative to the .mtl, which sits beside it.
+void write_mtl(std::ostream& f, const std::vector<std::string>& materials,
+               const std::vector<std::filesystem::path>& images) {
+  ChunkedText out(f);
+  out.line("# generated by strata (exporter.obj)");
+  for (std::size_t k = 0; k < materials.size(); ++k) {
+    out.line("newmtl {}", materials[k]);
+    out.line("Ka 1 1 1");
+    out.line("Kd 1 1 1");
+    out.line("Ks 0 0 0");
+    out.line("d 1");
+    out.line("illum 1");
+    out.line("map_Kd {}", images[k].filename().string());
   }
 }
 
@@ -116,47 +202,70 @@ void write_ply(const std::filesystem::path& path, const DenseMesh& mesh, const E
 void write_obj(const std::filesystem::path& path, const DenseMesh& mesh, const ExportFrame& frame) {
   const std::string stage = "writer.obj";
   check_mesh(mesh, stage, path);
+  ObjText text;
+  text.comments = {"generated by strata (dense)"};
+  if (!frame.crs.empty()) text.comments.push_back("crs " + frame.crs);
+  if (frame.crs_coordinates) {
+    text.comments.push_back("coordinates: site CRS, metres");
+    text.shift = frame.site_origin;
+    text.decimals = 6;  // micrometres in CRS coordinates
+  } else {
+    text.comments.push_back(fmt::format("strata_offset {:.6f} {:.6f} {:.6f}", frame.site_origin.x(),
+                                        frame.site_origin.y(), frame.site_origin.z()));
+  }
   write_atomically(path, stage, [&](const std::filesystem::path& tmp) {
     std::ofstream f(tmp);
     if (!f) throw IoError(fmt::format("{}: {}: cannot open for writing", stage, tmp.string()));
-    f << "# generated by strata (dense)\n";
-    if (!frame.crs.empty()) f << "# crs " << frame.crs << "\n";
-    if (frame.crs_coordinates) {
-      f << "# coordinates: site CRS, metres\n";
-    } else {
-      f << fmt::format("# strata_offset {:.6f} {:.6f} {:.6f}\n", frame.site_origin.x(),
-                       frame.site_origin.y(), frame.site_origin.z());
-    }
-    std::string buf;
-    for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
-      const Eigen::Vector3d v =
-          frame.crs_coordinates ? Eigen::Vector3d(mesh.vertices[i] + frame.site_origin) : mesh.vertices[i];
-      // Micrometre resolution in CRS coordinates; float-like precision locally.
-      if (frame.crs_coordinates) {
-        buf += fmt::format("v {:.6f} {:.6f} {:.6f}", v.x(), v.y(), v.z());
-      } else {
-        buf += fmt::format("v {:.5f} {:.5f} {:.5f}", v.x(), v.y(), v.z());
-      }
-      if (!mesh.colours.empty()) {
-        const auto& c = mesh.colours[i];
-        buf += fmt::format(" {:.4f} {:.4f} {:.4f}", c[0] / 255.0, c[1] / 255.0, c[2] / 255.0);
-      }
-      buf += '\n';
-      if (buf.size() > (1u << 20)) {
-        f << buf;
-        buf.clear();
-      }
-    }
-    for (const auto& face : mesh.faces) {
-      buf += fmt::format("f {} {} {}\n", face[0] + 1, face[1] + 1, face[2] + 1);
-      if (buf.size() > (1u << 20)) {
-        f << buf;
-        buf.clear();
-      }
-    }
-    f << buf;
+    write_obj_text(f, mesh, text);
     if (!f) throw IoError(fmt::format("{}: {}: write failed (disk full?)", stage, tmp.string()));
   }, "process.dense.product_temp_written");
+}
+
+ObjModelFiles write_obj_model(const std::filesystem::path& path, const DenseMesh& mesh, const ExportFrame& frame,
+                              const MeshTexture* texture) {
+  namespace fs = std::filesystem;
+  const std::string stage = "exporter.obj";
+  check_mesh(mesh, stage, path, texture);
+  if (mesh.faces.empty()) {
+    throw InputError(fmt::format("{}: {}: the mesh has no faces; OBJ export needs a triangle mesh", stage, path.string()));
+  }
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+  grow_box(mesh, lo, hi);
+  ObjModelFiles files;
+  files.obj = path;
+  files.origin = model_local_origin(lo, hi, frame.site_origin);
+  const Eigen::Vector3d& o = files.origin;
+  ObjText text;
+  text.shift = frame.site_origin - o;
+  text.texture = texture;
+  text.comments = {
+      "generated by strata (exporter.obj)",
+      "crs " + (frame.crs.empty() ? std::string("unknown") : frame.crs),
+      fmt::format("origin {:.0f} {:.0f} {:.0f} (E N Z, site CRS, metres)", o.x(), o.y(), o.z()),
+      "axes: x = E, y = N, z = Z (up), metres; site CRS (E, N, Z) = origin + (x, y, z)",
+      fmt::format("strata_offset {:.6f} {:.6f} {:.6f}", o.x(), o.y(), o.z())};
+  if (texture) {
+    const std::string ext = texture->mime_type == "image/png" ? ".png" : ".jpg";
+    files.mtl = fs::path(path).replace_extension(".mtl");
+    text.mtllib = files.mtl.filename().string();
+    for (std::size_t k = 0; k < texture->images.size(); ++k) {
+      text.materials.push_back(fmt::format("atlas_{}", k + 1));
+      files.images.push_back(path.parent_path() / fmt::format("{}_atlas{}{}", path.stem().string(), k + 1, ext));
+    }
+  }
+  // Every file staged, renamed into place only once all are complete, the .obj first.
+  StagedFiles staged(stage);
+  staged.write(path, [&](std::ostream& f) { write_obj_text(f, mesh, text); });
+  if (texture) {
+    staged.write(files.mtl, [&](std::ostream& f) { write_mtl(f, text.materials, files.images); });
+    for (std::size_t k = 0; k < files.images.size(); ++k) {
+      staged.write(files.images[k], [&](std::ostream& f) {
+        f.write(texture->images[k].data(), static_cast<std::streamsize>(texture->images[k].size()));
+      });
+    }
+  }
+  staged.swap_in();
+  return files;
 }
 
 }  // namespace strata

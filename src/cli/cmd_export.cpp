@@ -7,6 +7,7 @@
 #include "core/log.hpp"
 #include "exporters/cameras/camera_export.hpp"
 #include "exporters/gltf/gltf_writer.hpp"
+#include "exporters/mesh/mesh_writers.hpp"
 #include "geometry/mesh.hpp"
 #include "importers/mesh/ply_mesh.hpp"
 #include "pipeline/alignment_store.hpp"
@@ -20,6 +21,7 @@
 #include <algorithm>
 #include <cctype>
 #include <memory>
+#include <optional>
 
 namespace strata::cli {
 namespace {
@@ -45,10 +47,13 @@ std::string lower_extension(const std::string& path) {
   return ext;
 }
 
-// The whole site in one .glb: layer meshes, unit solids, markers, cameras.
-void export_site_model(const std::string& dir, const std::string& out) {
+// The whole site in one .glb: layer meshes (at level of detail `lod`), unit solids,
+// markers, cameras.
+void export_site_model(const std::string& dir, const std::string& out, int lod) {
   Project p = Project::open(dir);
-  const SiteScene site = build_site_scene(p, dir, SiteSceneOptions{});
+  SiteSceneOptions options;
+  options.lod = lod;
+  const SiteScene site = build_site_scene(p, dir, options);
   const SiteInfo info = p.site();
   ExportFrame frame;
   frame.site_origin = info.origin;
@@ -64,17 +69,18 @@ struct TextureArgs {
   int atlas_size_px = 4096;
 };
 
-// The layer mesh textured from its aligned photos (products.texture), as glTF data.
-struct TexturedGltf {
+// The layer mesh textured from its aligned photos (products.texture), as the model
+// writers take it.
+struct TexturedModel {
   TexturedMesh textured;
-  GltfTexture texture;
+  MeshTexture texture;
 };
 
-TexturedGltf texture_layer_mesh(Project& p, const std::string& layer, const DenseMesh& mesh, const TextureArgs& t) {
+TexturedModel texture_layer_mesh(Project& p, const std::string& layer, const DenseMesh& mesh, const TextureArgs& t) {
   TextureOptions o;
   o.atlas_size_px = t.atlas_size_px;
   TextureSummary s;
-  TexturedGltf out;
+  TexturedModel out;
   out.textured = build_texture_atlas(mesh, layer_ortho_views(p, layer), o, &s);
   out.texture.uv = out.textured.uv;
   out.texture.face_image = out.textured.face_atlas;
@@ -87,12 +93,50 @@ TexturedGltf texture_layer_mesh(Project& p, const std::string& layer, const Dens
   return out;
 }
 
+// The file formats of `export model`, by the extension of --out.
+enum class ModelFormat { glb, obj };
+
+ModelFormat model_format(const std::string& out) {
+  const std::string ext = lower_extension(out);
+  if (ext == ".glb") return ModelFormat::glb;
+  if (ext == ".obj") return ModelFormat::obj;
+  throw InputError(fmt::format("--out {}: export model writes glTF binary (.glb) or Wavefront OBJ (.obj) "
+                               "(the plain mesh as PLY: 'strata export mesh')", out));
+}
+
+// One layer's mesh (`mesh`, site frame) as .glb or .obj, textured or vertex-coloured.
+void write_layer_model(Project& p, const std::string& layer, const DenseMesh& mesh, const std::string& out,
+                       ModelFormat format, const TextureArgs& t) {
+  const SiteInfo site = p.site();
+  ExportFrame frame;
+  frame.site_origin = site.origin;
+  frame.crs = site.crs;
+  std::optional<TexturedModel> tex;
+  if (t.texture) tex = texture_layer_mesh(p, layer, mesh, t);
+  const DenseMesh& written = tex ? tex->textured.mesh : mesh;
+  const MeshTexture* texture = tex ? &tex->texture : nullptr;
+  const std::string what = fmt::format("{} vertices, {} faces{}", written.vertices.size(), written.faces.size(),
+                                       tex ? ", textured" : "");
+  if (format == ModelFormat::obj) {
+    const ObjModelFiles files = write_obj_model(out, written, frame, texture);
+    log::info("wrote {} ({}; local origin E {:.0f} N {:.0f} Z {:.0f}, x = E, y = N, z = up){}", out, what,
+              files.origin.x(), files.origin.y(), files.origin.z(),
+              files.mtl.empty() ? "" : fmt::format(", {} and {} atlas image(s)", files.mtl.string(), files.images.size()));
+    return;
+  }
+  GltfMesh gm{layer, &written};
+  gm.texture = texture;
+  write_glb(out, std::span<const GltfMesh>(&gm, 1), frame);
+  log::info("wrote {} ({})", out, what);
+}
+
 void register_model_command(CLI::App& exp) {
   auto* cmd = exp.add_subcommand(
       "model",
       "the site or one layer as a 3D model for viewers (Blender, MeshLab, three.js, Cesium):\n"
-      "a glTF 2.0 binary (.glb). glTF stores float32 and is Y-up: vertices are written relative\n"
-      "to a local origin (the bounding-box centre of everything in the file, in site CRS\n"
+      "a glTF 2.0 binary (.glb), or for one layer Wavefront OBJ (.obj, below). glTF stores\n"
+      "float32 and is Y-up: vertices are written relative to a local origin (the\n"
+      "bounding-box centre of everything in the file, in site CRS\n"
       "coordinates, rounded to whole metres), which is the mesh nodes' translation, so\n"
       "millimetres survive at UTM coordinates. Axes: glTF x = E, y = Z (up), z = -N. The CRS,\n"
       "the origin [E, N, Z] and the axes are in asset.extras.\n"
@@ -105,9 +149,17 @@ void register_model_command(CLI::App& exp) {
       "--texture (with --layer): the mesh textured from the layer's aligned photos instead of\n"
       "vertex colours: each face from its best unoccluded photo, packed into square atlases\n"
       "embedded as JPEG (docs/model.md, Textures).\n"
-      "Not yet: textures in the site model, levels of detail.\n"
+      "--lod N: level of detail, each layer mesh simplified to about faces / 4^N (0: the fused\n"
+      "mesh; colours and normals kept; refused when fewer than 100 faces would remain).\n"
+      "--out FILE.obj (with --layer): Wavefront OBJ relative to the same local origin, in the\n"
+      "site's axes (x = E, y = N, z = up; origin, CRS and axes in the comment lines at the top):\n"
+      "'v x y z r g b' vertex colours and vn normals, or with --texture vt, FILE.mtl and the\n"
+      "atlases as FILE_atlasK.jpg (.png with --jpeg-quality 0) beside it.\n"
+      "Not yet: textures in the site model, the site model as OBJ.\n"
       "Needs the layers' dense meshes ('strata process DIR --layer L --until dense').");
-  const auto a = add_layer_export_options(cmd, "output file, .glb", "the layer (default: the whole site)");
+  const auto a = add_layer_export_options(cmd, "output file, .glb or .obj", "the layer (default: the whole site)");
+  const auto lod = std::make_shared<int>(0);
+  cmd->add_option("--lod", *lod, "level of detail: 0 the fused mesh, N about faces / 4^N")->capture_default_str();
   const auto t = std::make_shared<TextureArgs>();
   cmd->add_flag("--texture", t->texture, "texture the layer mesh from its photos (needs --layer and the aligned photos)");
   cmd->add_option("--jpeg-quality", t->jpeg_quality, "atlas JPEG quality, 1-100; 0 writes PNG (lossless, larger)")
@@ -117,13 +169,15 @@ void register_model_command(CLI::App& exp) {
       ->check(CLI::Range(64, 16384))
       ->capture_default_str();
   cmd->callback([=] {
-    if (lower_extension(a->out) != ".glb") {
-      throw InputError(fmt::format("--out {}: export model writes glTF binary (.glb) only so far; OBJ comes later "
-                                   "(the plain mesh as PLY: 'strata export mesh')", a->out));
-    }
+    check_level_of_detail(*lod);
+    const ModelFormat format = model_format(a->out);
     if (a->layer.empty()) {
       if (t->texture) throw InputError("--texture needs --layer: the site model is not textured yet");
-      export_site_model(a->dir, a->out);
+      if (format == ModelFormat::obj) {
+        throw InputError(fmt::format("--out {}: OBJ holds one layer's mesh, give --layer; the site model (unit "
+                                     "solids, markers, cameras) is written as .glb", a->out));
+      }
+      export_site_model(a->dir, a->out, *lod);
       return;
     }
     Project p = Project::open(a->dir);
@@ -133,23 +187,10 @@ void register_model_command(CLI::App& exp) {
       throw InputError(fmt::format("layer {} has no dense mesh yet; run 'strata process {} --layer {} --until dense'",
                                    l.name, a->dir, l.name));
     }
-    const SiteInfo site = p.site();
-    const DenseMesh mesh = site_frame_mesh(read_ply(checked_product_file(p, l, *product, a->dir)), site.origin);
-    ExportFrame frame;
-    frame.site_origin = site.origin;
-    frame.crs = site.crs;
-    if (t->texture) {
-      const TexturedGltf tex = texture_layer_mesh(p, l.name, mesh, *t);
-      GltfMesh gm{l.name, &tex.textured.mesh};
-      gm.texture = &tex.texture;
-      write_glb(a->out, std::span<const GltfMesh>(&gm, 1), frame);
-      log::info("wrote {} ({} vertices, {} faces, textured)", a->out, tex.textured.mesh.vertices.size(),
-                tex.textured.mesh.faces.size());
-      return;
-    }
-    const GltfMesh meshes[] = {{l.name, &mesh}};
-    write_glb(a->out, meshes, frame);
-    log::info("wrote {} ({} vertices, {} faces)", a->out, mesh.vertices.size(), mesh.faces.size());
+    const DenseMesh mesh = layer_mesh_at_level(
+        site_frame_mesh(read_ply(checked_product_file(p, l, *product, a->dir)), p.site().origin), *lod, l.name,
+        "export model");
+    write_layer_model(p, l.name, mesh, a->out, format, *t);
   });
 }
 

@@ -151,7 +151,7 @@ void register_viewer_command(CLI::App& exp) {
       "in any browser offline: three.js inlined from Debian's libjs-three, the model embedded.\n"
       "Layers and units toggle, unit volumes on hover, markers named, a movable vertical section\n"
       "plane, and a measuring tool showing site CRS coordinates and distances. Layer meshes above\n"
-      "--max-faces are simplified first (their vertex colours are then dropped). See docs/model.md.");
+      "--max-faces are simplified first (colours and normals kept). See docs/model.md.");
   auto a = std::make_shared<ViewerArgs>();
   cmd->add_option("DIR", a->dir, "project folder")->required();
   cmd->add_option("--layer", a->layer, "only this layer's mesh (default: every layer)");

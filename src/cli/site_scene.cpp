@@ -49,6 +49,40 @@ DenseMesh site_frame_mesh(PlyContents ply, const Eigen::Vector3d& site_origin) {
   return std::move(ply.mesh);
 }
 
+void check_level_of_detail(int lod) {
+  if (lod < 0) {
+    throw InputError(fmt::format("--lod {}: a level of detail is 0 (the full mesh) or more (N: about faces / 4^N)", lod));
+  }
+}
+
+// A level that ends above this multiple of its target is reported: the edge collapse
+// stops when no edge can be collapsed without breaking the surface's topology.
+constexpr double kLevelOfDetailSlack = 1.25;
+
+DenseMesh layer_mesh_at_level(DenseMesh mesh, int lod, const std::string& layer, const std::string& command) {
+  check_level_of_detail(lod);
+  if (lod == 0) return mesh;
+  const std::size_t faces = mesh.faces.size();
+  std::size_t target = faces;
+  int highest = 0;  // the highest level that keeps kMinLevelOfDetailFaces
+  for (int k = 1; k <= lod && target >= kMinLevelOfDetailFaces; ++k) target /= 4;
+  for (std::size_t t = faces / 4; t >= kMinLevelOfDetailFaces; t /= 4) ++highest;
+  if (target < kMinLevelOfDetailFaces) {
+    throw InputError(fmt::format("--lod {}: layer {} has {} faces, level {} would leave fewer than {} (the highest "
+                                 "level for this layer is {})", lod, layer, faces, lod, kMinLevelOfDetailFaces,
+                                 highest));
+  }
+  DenseMesh simplified = simplify_mesh(mesh, target);
+  if (double(simplified.faces.size()) > kLevelOfDetailSlack * double(target)) {
+    log::warn("{}: layer {}: level of detail {} stopped at {} faces, {:.1f} x its target {}: the edge collapse "
+              "cannot shrink the mesh's small separate pieces and borders further", command, layer, lod,
+              simplified.faces.size(), double(simplified.faces.size()) / double(target), target);
+  }
+  log::info("{}: layer {}: level of detail {}: {} faces (of {}; target faces / 4^{} = {})", command, layer, lod,
+            simplified.faces.size(), faces, lod, target);
+  return simplified;
+}
+
 namespace {
 
 // A distinct colour per unit, the same on every export of the same units: hues a golden
@@ -78,9 +112,10 @@ void add_layer_meshes(Project& p, const std::vector<LayerRecord>& layers, const 
       log::warn("{}: layer {} has no dense mesh yet: left out", options.command, l.name);
       continue;
     }
-    DenseMesh mesh = site_frame_mesh(read_ply(checked_product_file(p, l, *product, dir)), origin);
+    DenseMesh mesh = layer_mesh_at_level(site_frame_mesh(read_ply(checked_product_file(p, l, *product, dir)), origin),
+                                         options.lod, l.name, options.command);
     if (options.max_layer_faces > 0 && mesh.faces.size() > options.max_layer_faces) {
-      log::info("{}: layer {}: {} faces simplified to at most {} (vertex colours dropped)", options.command, l.name,
+      log::info("{}: layer {}: {} faces simplified to at most {}", options.command, l.name,
                 mesh.faces.size(), options.max_layer_faces);
       mesh = simplify_mesh(mesh, options.max_layer_faces);
     }

@@ -27,8 +27,10 @@ struct SiteScene {
 };
 
 struct SiteSceneOptions {
-  // Faces per layer mesh; larger meshes are simplified (CGAL edge collapse, vertex
-  // colours dropped). 0: keep every face.
+  // Level of detail of every layer mesh (layer_mesh_at_level), >= 0; 0: the fused mesh.
+  int lod = 0;
+  // Faces per layer mesh; larger meshes are simplified (CGAL edge collapse, colours and
+  // normals carried). 0: keep every face.
   std::size_t max_layer_faces = 0;
   std::string only_layer;  // "": every layer and the unit solids; else this layer alone (no unit solids)
   std::string command = "export model";  // names the command in warnings and errors
@@ -45,6 +47,20 @@ std::filesystem::path checked_product_file(Project& p, const LayerRecord& l, con
 
 // A dense-stage PLY's mesh in the site frame (relative to the site origin).
 DenseMesh site_frame_mesh(PlyContents ply, const Eigen::Vector3d& site_origin);
+
+// Fewest faces a level of detail may leave: below this a layer is a handful of
+// triangles, no longer a model of its surface.
+constexpr std::size_t kMinLevelOfDetailFaces = 100;
+
+// Refuses (InputError naming the value) a negative level of detail.
+void check_level_of_detail(int lod);
+
+// Level of detail `lod` of a layer's mesh: 0 the mesh itself, N >= 1 simplified to
+// faces / 4^N (simplify_mesh: edge collapse, colours and normals carried), each level
+// a quarter of the one above, as a halving of the edge length would give. Refuses
+// (InputError naming the value and the layer) a level that would leave fewer than
+// kMinLevelOfDetailFaces faces. Logs the face count of the level.
+DenseMesh layer_mesh_at_level(DenseMesh mesh, int lod, const std::string& layer, const std::string& command);
 
 void register_viewer_command(CLI::App& exp);  // export viewer
 

@@ -4,6 +4,8 @@
 
 #include <fmt/format.h>
 
+#include <fstream>
+
 namespace strata {
 
 namespace fs = std::filesystem;
@@ -18,6 +20,21 @@ fs::path StagedFiles::add(const fs::path& final_path) {
   staged.replace_filename(final_path.stem().string() + ".next" + final_path.extension().string());
   files_.emplace_back(staged, final_path);
   return staged;
+}
+
+void StagedFiles::write(const fs::path& final_path, const std::function<void(std::ostream&)>& fill) {
+  std::error_code ec;
+  if (final_path.has_parent_path()) fs::create_directories(final_path.parent_path(), ec);
+  if (ec) {
+    throw IoError(fmt::format("{}: {}: cannot create the folder {}: {}", stage_, final_path.string(),
+                              final_path.parent_path().string(), ec.message()));
+  }
+  const fs::path staged = add(final_path);
+  std::ofstream f(staged, std::ios::binary);
+  if (!f) throw IoError(fmt::format("{}: {}: cannot open {} for writing", stage_, final_path.string(), staged.string()));
+  fill(f);
+  f.close();
+  if (!f) throw IoError(fmt::format("{}: {}: write failed (disk full?)", stage_, final_path.string()));
 }
 
 void StagedFiles::swap_in() {

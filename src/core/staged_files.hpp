@@ -4,6 +4,8 @@
 // fails part-way (a full disk) leaves the files it would have replaced untouched.
 // Destroyed before swap_in (the command failed), it removes the staged files.
 #include <filesystem>
+#include <functional>
+#include <iosfwd>
 #include <string>
 #include <utility>
 #include <vector>
@@ -19,6 +21,10 @@ class StagedFiles {
   ~StagedFiles();
   // The staged name of `final_path`: its stem + ".next" + its extension.
   std::filesystem::path add(const std::filesystem::path& final_path);
+  // Adds `final_path` and fills its staged file through `fill` (a binary stream),
+  // creating the folder when missing; throws IoError "<stage>: <final_path>: ..." when
+  // the folder cannot be made, the file opened or the writing completed.
+  void write(const std::filesystem::path& final_path, const std::function<void(std::ostream&)>& fill);
   // Every staged file takes its final name (rename: atomic, the old file replaced),
   // in the order added; throws IoError naming the file that could not be renamed.
   void swap_in();

@@ -9,8 +9,10 @@
 namespace strata {
 
 // Edge-collapse simplification (CGAL Surface_mesh_simplification, Lindstrom-Turk
-// placement) to at most target_faces triangles. Colours and normals are dropped
-// (the caller re-samples them). Returns the mesh unchanged when already small enough.
+// placement) to at most target_faces triangles. Vertex colours and normals, when the
+// mesh has them, are carried over: each simplified vertex has the mean colour and the
+// mean (unit) normal of the input vertices nearest to it (its Voronoi cell). Returns
+// the mesh unchanged when already small enough.
 DenseMesh simplify_mesh(const DenseMesh& mesh, std::size_t target_faces);
 // Volume bounded by a closed triangle mesh, cubic metres (CGAL
 // Polygon_mesh_processing::volume). Throws ProcessingError when the mesh is not closed.

@@ -5,6 +5,7 @@
 #include "exporters/mesh/mesh_writers.hpp"
 #include "project/project.hpp"
 #include "project/records.hpp"
+#include "support/obj_file.hpp"
 #include "support/test_support.hpp"
 
 #include <gtest/gtest.h>
@@ -14,6 +15,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <regex>
+#include <sstream>
 
 namespace strata {
 namespace {
@@ -73,7 +75,51 @@ nlohmann::json glb_json(const fs::path& glb) {
   return nlohmann::json::parse(b.substr(20, json_len));
 }
 
-TEST(CliExportModel, RefusesWithoutDenseMeshOrGlbExtension) {
+// A coloured grid of cells x cells squares, 1 cm each, two triangles per square (site
+// frame, near the quad): red rises to the east, so colours show where they came from.
+DenseMesh coloured_grid(int cells) {
+  DenseMesh m;
+  for (int j = 0; j <= cells; ++j) {
+    for (int i = 0; i <= cells; ++i) {
+      m.vertices.emplace_back(100.0 + 0.01 * i, 100.0 + 0.01 * j, 0.001 * i);
+      m.colours.emplace_back(std::uint8_t(255 * i / cells), 128, 64);
+    }
+  }
+  for (int j = 0; j < cells; ++j) {
+    for (int i = 0; i < cells; ++i) {
+      const int a = j * (cells + 1) + i;
+      m.faces.push_back({a, a + 1, a + cells + 2});
+      m.faces.push_back({a, a + cells + 2, a + cells + 1});
+    }
+  }
+  return m;
+}
+
+// The largest v index any face names.
+int max_vertex_index(const test::ObjFile& o) {
+  int k = 0;
+  for (const auto& face : o.f) {
+    for (const auto& corner : face) k = std::max(k, corner[0]);
+  }
+  return k;
+}
+
+// The recorded quad of a fresh project exported as `file` (.glb or .obj) in `dir`.
+fs::path exported_quad(const test::ScratchDir& dir, const std::string& file) {
+  const fs::path site = project_with_layer(dir);
+  record_dense_mesh(site, quad());
+  const auto r = run_strata({"export", "model", site.string(), "--layer", "L1", "--out", (dir / file).string()});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  return dir / file;
+}
+
+std::size_t glb_faces(const nlohmann::json& j) {
+  std::size_t indices = 0;
+  for (const auto& prim : j["meshes"][0]["primitives"]) indices += std::size_t(j["accessors"][int(prim["indices"])]["count"]);
+  return indices / 3;
+}
+
+TEST(CliExportModel, RefusesWithoutDenseMeshOrAModelExtension) {
   test::ScratchDir dir("model_refused");
   const std::string site = project_with_layer(dir).string();
   auto r = run_strata({"export", "model", site, "--layer", "L1", "--out", (dir / "l1.glb").string()});
@@ -82,20 +128,95 @@ TEST(CliExportModel, RefusesWithoutDenseMeshOrGlbExtension) {
   EXPECT_NE(r.err.find("no dense mesh"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("--until dense"), std::string::npos) << r.err;
   EXPECT_FALSE(fs::exists(dir / "l1.glb"));
-  r = run_strata({"export", "model", site, "--layer", "L1", "--out", (dir / "l1.obj").string()});
+  r = run_strata({"export", "model", site, "--layer", "L1", "--out", (dir / "l1.ply").string()});
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.err.find(".glb"), std::string::npos) << r.err;
-  EXPECT_FALSE(fs::exists(dir / "l1.obj"));
+  EXPECT_NE(r.err.find(".obj"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir / "l1.ply"));
+}
+
+TEST(CliExportModel, ObjCarriesTheSiteFrameThroughItsStatedOrigin) {
+  test::ScratchDir dir("model_obj");
+  const DenseMesh m = quad();
+  const test::ObjFile o = test::read_obj(exported_quad(dir, "l1.obj"));
+  // The glTF export's local origin (GlbCarriesTheSiteFrame): whole metres.
+  EXPECT_EQ(o.origin, Eigen::Vector3d(734001, 4174001, 1450));
+  ASSERT_EQ(o.v.size(), m.vertices.size());
+  ASSERT_EQ(o.rgb.size(), m.vertices.size());
+  EXPECT_EQ(o.f.size(), m.faces.size());
+  EXPECT_LE(max_vertex_index(o), int(m.vertices.size()));
+  for (std::size_t i = 0; i < m.vertices.size(); ++i) {
+    const Eigen::Vector3d back = o.origin + o.v[i].cast<float>().cast<double>();  // as a float32 reader has it
+    EXPECT_LT((back - (m.vertices[i] + kSiteOrigin)).cwiseAbs().maxCoeff(), kSubMillimetre) << i;
+    EXPECT_NEAR(o.rgb[i].x(), 180 / 255.0, 1e-4);
+  }
+  EXPECT_FALSE(fs::exists(dir / "l1.mtl"));  // untextured: no material library
+}
+
+// A 40 x 40 grid: 3200 faces. --lod 1 and 2 a quarter and a sixteenth of them with
+// their colours, --lod 3 (50 faces) and --lod -1 refused naming the value, as is the
+// site model as OBJ and an .obj in a folder that cannot exist; none leaves a file.
+TEST(CliExportModel, LevelsOfDetailKeepAQuarterOfTheFacesEachAndTheirColours) {
+  test::ScratchDir dir("model_lod");
+  const fs::path site = project_with_layer(dir);
+  const DenseMesh m = coloured_grid(40);
+  record_dense_mesh(site, m);
+  // The collapses stop on an edge count, so a level ends at or a little below its target.
+  constexpr double kMinShareOfTarget = 0.8;
+  for (int lod = 1; lod <= 2; ++lod) {
+    const std::size_t target = m.faces.size() >> (2 * lod);
+    const std::string name = "lod" + std::to_string(lod);
+    const fs::path obj = dir / (name + ".obj"), glb = dir / (name + ".glb");
+    auto r = run_strata({"export", "model", site.string(), "--layer", "L1", "--lod", std::to_string(lod), "--out",
+                         obj.string()});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_NE(r.err.find("level of detail " + std::to_string(lod)), std::string::npos) << r.err;
+    const test::ObjFile o = test::read_obj(obj);
+    EXPECT_LE(o.f.size(), target) << lod;
+    EXPECT_GE(double(o.f.size()), kMinShareOfTarget * double(target)) << lod;
+    EXPECT_LE(max_vertex_index(o), int(o.v.size()));
+    ASSERT_EQ(o.rgb.size(), o.v.size()) << lod;
+    // The red ramp survives: a vertex's red is near the ramp's value where it lies.
+    constexpr double kRampTolerance = 0.15;  // of full scale: a coarse vertex averages its patch
+    for (std::size_t i = 0; i < o.v.size(); ++i) {
+      const double east = o.origin.x() + o.v[i].x() - (kSiteOrigin.x() + 100.0);  // metres from the west edge
+      EXPECT_NEAR(o.rgb[i].x(), east / 0.4, kRampTolerance) << lod << " " << i;
+      EXPECT_NEAR(o.rgb[i].y(), 128 / 255.0, 1e-3) << lod << " " << i;
+    }
+    r = run_strata({"export", "model", site.string(), "--layer", "L1", "--lod", std::to_string(lod), "--out",
+                    glb.string()});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_EQ(glb_faces(glb_json(glb)), o.f.size()) << lod;
+  }
+  // The refusals write into an empty folder of their own, which must stay empty.
+  const fs::path out = dir / "refused";
+  fs::create_directories(out);
+  for (const std::string lod : {"3", "-1"}) {
+    const auto r = run_strata({"export", "model", site.string(), "--layer", "L1", "--lod", lod, "--out",
+                               (out / "bad.obj").string()});
+    EXPECT_EQ(r.exit_code, 1) << lod;
+    EXPECT_EQ(lines(r.err), 1) << r.err;
+    EXPECT_NE(r.err.find("--lod " + lod), std::string::npos) << r.err;
+  }
+  auto r = run_strata({"export", "model", site.string(), "--lod", "3", "--out", (out / "site.glb").string()});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("--lod 3: layer L1 has 3200 faces"), std::string::npos) << r.err;
+  r = run_strata({"export", "model", site.string(), "--out", (out / "site.obj").string()});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("--layer"), std::string::npos) << r.err;
+  test::write_text(out / "plain_file", "a file, not a folder");
+  r = run_strata({"export", "model", site.string(), "--layer", "L1", "--out", (out / "plain_file" / "l1.obj").string()});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(lines(r.err), 1) << r.err;
+  EXPECT_NE(r.err.find("l1.obj"), std::string::npos) << r.err;
+  fs::remove(out / "plain_file");
+  EXPECT_TRUE(fs::is_empty(out)) << test::tree_fingerprint(out);
 }
 
 TEST(CliExportModel, GlbCarriesTheSiteFrame) {
   test::ScratchDir dir("model_glb");
-  const fs::path site = project_with_layer(dir);
   const DenseMesh m = quad();
-  record_dense_mesh(site, m);
-  const auto r = run_strata({"export", "model", site.string(), "--layer", "L1", "--out", (dir / "l1.glb").string()});
-  ASSERT_EQ(r.exit_code, 0) << r.err;
-  const nlohmann::json j = glb_json(dir / "l1.glb");
+  const nlohmann::json j = glb_json(exported_quad(dir, "l1.glb"));
   ASSERT_TRUE(j.is_object());
   EXPECT_EQ(j["asset"]["extras"]["crs"], "EPSG:32636");
   // Box centre 734001.3734, 4174001.3178, 1449.90355 (CRS) -> whole metres.
