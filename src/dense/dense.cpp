@@ -481,13 +481,15 @@ void measure_completeness(const QualityOptions& q, const Reconstruction& rec, co
   const double cell = q.cell_size_m;
   const int nx = std::max(1, static_cast<int>(std::ceil((hi.x() - lo.x()) / cell)));
   const int ny = std::max(1, static_cast<int>(std::ceil((hi.y() - lo.y()) / cell)));
-  const HeightField hf = volume.top_surface(lo.x() + 0.5 * cell, lo.y() + 0.5 * cell, cell, nx, ny);
+  // South-west corner at lo.
+  const RasterGrid grid{.x_min = lo.x(), .y_max = lo.y() + ny * cell, .cell = cell, .width = nx, .height = ny};
+  const HeightRaster<double> hf = volume.top_surface(grid);
   std::size_t inside = 0, covered = 0;
-  for (int j = 0; j < ny; ++j) {
-    for (int i = 0; i < nx; ++i) {
-      if (!inside_polygon(area, {hf.x0 + i * cell, hf.y0 + j * cell})) continue;
+  for (int row = 0; row < ny; ++row) {
+    for (int col = 0; col < nx; ++col) {
+      if (!inside_polygon(area, {grid.x_centre(col), grid.y_centre(row)})) continue;
       ++inside;
-      if (std::isfinite(hf.at(i, j))) ++covered;
+      if (hf.valid(col, row)) ++covered;
     }
   }
   summary.area_m2 = static_cast<double>(inside) * cell * cell;

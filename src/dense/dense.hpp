@@ -12,6 +12,7 @@
 // and added back in exported PLY/OBJ vertices.
 #include "core/cache_key.hpp"
 #include "dense/dense_mesh.hpp"
+#include "geometry/raster.hpp"
 #include "geometry/reconstruction.hpp"
 
 #include <Eigen/Core>
@@ -232,24 +233,12 @@ struct LevelSetInfo {
   Eigen::Vector3d max = Eigen::Vector3d::Zero();
 };
 
-// A regular XY grid of heights (site frame, metres). Cell (i, j) has its centre at
-// (x0 + i*cell, y0 + j*cell); z[j*nx + i]; NaN where there is no surface.
-struct HeightField {
-  double x0 = 0, y0 = 0, cell = 0;
-  int nx = 0, ny = 0;
-  std::vector<double> z;
-  // Height uncertainty per cell, metres, one sigma (empty: not known). From a
-  // fused surface: the agreement of the depth maps that saw the cell (fusion.cpp).
-  std::vector<double> sigma;
-  double at(int i, int j) const { return z[static_cast<std::size_t>(j) * nx + i]; }
-  bool has_sigma() const { return sigma.size() == z.size() && !z.empty(); }
-};
-
 LevelSetInfo read_level_set_info(const std::filesystem::path& vdb);
-// The uppermost zero crossing of the "surface" grid above each cell centre (the
-// visible top of the layer, what a DTM needs). Throws IoError when unreadable.
-HeightField sample_top_surface(const std::filesystem::path& vdb, double x0, double y0,
-                               double cell, int nx, int ny);
+// The uppermost zero crossing of the "surface" grid above each cell centre of
+// `grid` (the visible top of the layer, what a DTM needs); NaN where there is
+// none. With the height uncertainty per cell (metres, one sigma) when the level
+// set holds the depth maps' agreement (fusion.cpp). Throws IoError when unreadable.
+HeightRaster<double> sample_top_surface(const std::filesystem::path& vdb, const RasterGrid& grid);
 // A layer's fused surface (surface.vdb) opened for sampling in 3D, where a height
 // field cannot look: under an overhang, along a vertical face. Site frame, metres.
 class LevelSetProbe {

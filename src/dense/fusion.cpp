@@ -477,16 +477,10 @@ DenseMesh TsdfVolume::points_from_mesh(const DenseMesh& full_mesh) const {
   return mesh;
 }
 
-HeightField TsdfVolume::top_surface(double x0, double y0, double cell, int nx, int ny) const {
-  STRATA_CHECK(cell > 0 && nx >= 0 && ny >= 0, "bad height grid");
+HeightRaster<double> TsdfVolume::top_surface(const RasterGrid& grid) const {
+  STRATA_CHECK(grid.cell > 0 && grid.width >= 0 && grid.height >= 0, "bad height grid");
   const auto& I = *impl_;
-  HeightField hf;
-  hf.x0 = x0;
-  hf.y0 = y0;
-  hf.cell = cell;
-  hf.nx = nx;
-  hf.ny = ny;
-  hf.z.assign(static_cast<std::size_t>(nx) * ny, std::numeric_limits<double>::quiet_NaN());
+  HeightRaster<double> hf = HeightRaster<double>::empty(grid);
   const openvdb::CoordBBox bbox = I.tsdf->evalActiveVoxelBoundingBox();
   if (bbox.empty()) return hf;
 
@@ -550,9 +544,9 @@ HeightField TsdfVolume::top_surface(double x0, double y0, double cell, int nx, i
   // Bilinear over the four surrounding columns when all have a crossing, else the
   // nearest column's (edges of the surface, vertical walls).
   const double vs = I.voxel;
-  for (int j = 0; j < ny; ++j) {
-    for (int i = 0; i < nx; ++i) {
-      const double fx = (x0 + i * cell) / vs, fy = (y0 + j * cell) / vs;
+  for (int row = 0; row < grid.height; ++row) {
+    for (int col = 0; col < grid.width; ++col) {
+      const double fx = grid.x_centre(col) / vs, fy = grid.y_centre(row) / vs;
       const int i0 = static_cast<int>(std::floor(fx)), j0 = static_cast<int>(std::floor(fy));
       const double ax = fx - i0, ay = fy - j0;
       const float z00 = col_at(i0, j0), z10 = col_at(i0 + 1, j0), z01 = col_at(i0, j0 + 1),
@@ -572,7 +566,7 @@ HeightField TsdfVolume::top_surface(double x0, double y0, double cell, int nx, i
         }
       }
       if (std::isfinite(z)) {
-        const std::size_t cidx = static_cast<std::size_t>(j) * nx + i;
+        const std::size_t cidx = grid.index(col, row);
         hf.z[cidx] = z * vs;
         if (with_sigma) hf.sigma[cidx] = sigma;
       }
@@ -710,12 +704,12 @@ LevelSetInfo read_level_set_info(const std::filesystem::path& vdb) {
   return info;
 }
 
-HeightField sample_top_surface(const std::filesystem::path& vdb, double x0, double y0, double cell,
-                               int nx, int ny) {
-  if (!(cell > 0) || nx < 0 || ny < 0) {
-    throw InputError(fmt::format("sample_top_surface: bad grid (cell {} m, {} x {})", cell, nx, ny));
+HeightRaster<double> sample_top_surface(const std::filesystem::path& vdb, const RasterGrid& grid) {
+  if (!(grid.cell > 0) || grid.width < 0 || grid.height < 0) {
+    throw InputError(
+        fmt::format("sample_top_surface: bad grid (cell {} m, {} x {})", grid.cell, grid.width, grid.height));
   }
-  return dense::TsdfVolume::read(vdb, nullptr)->top_surface(x0, y0, cell, nx, ny);
+  return dense::TsdfVolume::read(vdb, nullptr)->top_surface(grid);
 }
 
 LevelSetProbe::LevelSetProbe(const std::filesystem::path& vdb) : volume_(dense::TsdfVolume::read(vdb, nullptr)) {}

@@ -155,7 +155,7 @@ class TsdfVolume {
   // cell, on the zero level set) with colour and the level-set gradient as normal.
   DenseMesh points_from_mesh(const DenseMesh& full_mesh) const;
   // Uppermost zero crossing per cell (see sample_top_surface()).
-  HeightField top_surface(double x0, double y0, double cell, int nx, int ny) const;
+  HeightRaster<double> top_surface(const RasterGrid& grid) const;
   // |signed distance| to the surface at each point, metres; NaN outside the band.
   std::vector<double> distances(const std::vector<Eigen::Vector3d>& points) const;
   // Signed distances (trilinear) at (x, y, z0 + k dz), k < n: > 0 in front of the

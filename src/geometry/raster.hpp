@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -32,6 +33,16 @@ struct RasterGrid {
   double y_min() const { return y_max - height * cell; }
   std::size_t cells() const { return std::size_t(width) * std::size_t(height); }
   std::size_t index(int col, int row) const { return std::size_t(row) * std::size_t(width) + std::size_t(col); }
+  // The centre of the cell at index(col, row).
+  Eigen::Vector2d centre(std::size_t index) const {
+    return {x_centre(int(index % std::size_t(width))), y_centre(int(index / std::size_t(width)))};
+  }
+  bool operator==(const RasterGrid&) const = default;
+
+  // The grid of width x height cells whose south-west cell has its centre at (x0, y0).
+  static RasterGrid from_south_west_centre(double x0, double y0, double cell, int width, int height) {
+    return {x0 - 0.5 * cell, y0 + (height - 0.5) * cell, cell, width, height};
+  }
 };
 
 // Heights (or another length: a thickness) in metres on a grid, row-major north-up;
@@ -45,7 +56,12 @@ struct HeightRaster {
   // unknown); empty: none.
   std::vector<T> sigma;
 
+  // A raster of NaN heights (no sigma) on `g`.
+  static HeightRaster empty(const RasterGrid& g) {
+    return {g, std::vector<T>(g.cells(), std::numeric_limits<T>::quiet_NaN()), {}};
+  }
   T at(int col, int row) const { return z[grid.index(col, row)]; }
+  T& at(int col, int row) { return z[grid.index(col, row)]; }
   bool valid(int col, int row) const { return std::isfinite(at(col, row)); }
   bool has_sigma() const { return sigma.size() == z.size() && !z.empty(); }
 };

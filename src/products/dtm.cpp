@@ -22,27 +22,6 @@ void DtmOptions::validate() const {
   }
 }
 
-Dtm dtm_from_height_field(const HeightField& hf) {
-  Dtm d;
-  d.grid.cell = hf.cell;
-  d.grid.width = hf.nx;
-  d.grid.height = hf.ny;
-  d.grid.x_min = hf.x0 - 0.5 * hf.cell;
-  d.grid.y_max = hf.y0 + (hf.ny - 1) * hf.cell + 0.5 * hf.cell;
-  d.z.assign(d.grid.cells(), std::numeric_limits<float>::quiet_NaN());
-  if (hf.has_sigma()) d.sigma.assign(d.grid.cells(), std::numeric_limits<float>::quiet_NaN());
-  // HeightField rows go south to north (j along +y); rasters go north to south.
-  for (int j = 0; j < hf.ny; ++j) {
-    const int row = hf.ny - 1 - j;
-    for (int i = 0; i < hf.nx; ++i) {
-      const double z = hf.at(i, j);
-      if (std::isfinite(z)) d.z[d.grid.index(i, row)] = float(z);
-      if (hf.has_sigma() && std::isfinite(z)) d.sigma[d.grid.index(i, row)] = float(hf.sigma[std::size_t(j) * hf.nx + i]);
-    }
-  }
-  return d;
-}
-
 std::size_t fill_small_gaps(Dtm& dtm, double fill_gap_m) {
   const RasterGrid& g = dtm.grid;
   const int r = int(std::floor(fill_gap_m / g.cell));
@@ -101,8 +80,8 @@ Dtm build_dtm(const std::filesystem::path& vdb, const DtmOptions& options) {
     throw InputError(fmt::format("products.dtm: {} x {} cells at {} m is too large; use a coarser cell", nx,
                                  ny, c));
   }
-  const HeightField hf = sample_top_surface(vdb, x0 + 0.5 * c, y0 + 0.5 * c, c, nx, ny);
-  Dtm dtm = dtm_from_height_field(hf);
+  const RasterGrid grid{.x_min = x0, .y_max = y0 + ny * c, .cell = c, .width = nx, .height = ny};
+  Dtm dtm = convert_raster<float>(sample_top_surface(vdb, grid));
   fill_small_gaps(dtm, options.fill_gap_m);
   return dtm;
 }

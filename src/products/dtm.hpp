@@ -37,9 +37,6 @@ Dtm build_dtm(const std::filesystem::path& vdb, const DtmOptions& options);
 // the number of cells filled.
 std::size_t fill_small_gaps(Dtm& dtm, double fill_gap_m);
 
-// The same grid as a dense HeightField (cell centres, y up) turned north-up.
-Dtm dtm_from_height_field(const HeightField& hf);
-
 // Statistics of the heights as a GIS reads them back: each valid cell's absolute
 // height rounded to Float32 (z + z_offset), so that GRASS/QGIS statistics of the
 // exported file agree to float precision.

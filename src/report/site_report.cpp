@@ -194,11 +194,10 @@ std::string section_section(Project& project, const ReportOptions& o) {
     // surface's known cells, through its middle.
     rd::Extent e;
     for (const auto& l : model.layers) {
-      const auto& f = l.z;
-      for (int j = 0; j < f.ny; ++j) {
-        for (int i = 0; i < f.nx; ++i) {
-          if (std::isfinite(f.at(i, j))) e.add(f.x0 + i * f.cell, f.y0 + j * f.cell);
-        }
+      for (std::size_t c = 0; c < l.z.z.size(); ++c) {
+        if (!std::isfinite(l.z.z[c])) continue;
+        const Eigen::Vector2d p = l.z.grid.centre(c);
+        e.add(p.x(), p.y());
       }
     }
     if (e.empty()) return s + missing("The layer surfaces have no known cell.") + "</section>\n";

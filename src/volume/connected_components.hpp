@@ -11,12 +11,13 @@ namespace strata::volume_detail {
 // 4: cells sharing an edge; 8: also cells sharing a corner.
 enum class Connectivity { four = 4, eight = 8 };
 
-// The components of the set cells of a mask, cells numbered c = j * nx + i.
+// The components of the set cells of a mask, cells numbered c = row * nx + col
+// (a north-up RasterGrid's index).
 struct Components {
   std::vector<std::int32_t> label;  // per cell: its component, -1 where the mask is unset
   // Cells grouped by component: component k holds cells[first[k] .. first[k + 1]),
   // components in the order of their lowest cell, each in flood-fill order
-  // (4-connectivity visits neighbours west, east, south, north).
+  // (4-connectivity visits neighbours west, east, north, south).
   std::vector<std::size_t> cells;
   std::vector<std::size_t> first;   // count() + 1 offsets into `cells`
 

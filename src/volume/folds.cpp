@@ -53,19 +53,22 @@ double ground_length(const double* d, int n, double z0, double dz, double h) {
   return length;
 }
 
-// Steepest slope (rise over run) of a height field at cell (i, j): central
-// differences, one-sided next to NaN cells; 0 where no neighbour is known.
-double slope_at(const HeightField& f, int i, int j) {
-  auto at = [&](int a, int b) { return a < 0 || b < 0 || a >= f.nx || b >= f.ny ? kNaN : f.at(a, b); };
-  const double z = at(i, j);
+// Steepest slope (rise over run) of a height field at a cell: central
+// differences, one-sided next to NaN cells; 0 where no neighbour is known. (The
+// derivative along the rows runs southwards: only its magnitude counts.)
+double slope_at(const HeightRaster<double>& f, int col, int row) {
+  const RasterGrid& g = f.grid;
+  auto at = [&](int c, int r) { return c < 0 || r < 0 || c >= g.width || r >= g.height ? kNaN : f.at(c, r); };
+  const double z = at(col, row);
   if (!finite(z)) return 0;
   auto derivative = [&](double lo, double hi) {
-    if (finite(lo) && finite(hi)) return (hi - lo) / (2 * f.cell);
-    if (finite(hi)) return (hi - z) / f.cell;
-    if (finite(lo)) return (z - lo) / f.cell;
+    if (finite(lo) && finite(hi)) return (hi - lo) / (2 * g.cell);
+    if (finite(hi)) return (hi - z) / g.cell;
+    if (finite(lo)) return (z - lo) / g.cell;
     return 0.0;
   };
-  const double gx = derivative(at(i - 1, j), at(i + 1, j)), gy = derivative(at(i, j - 1), at(i, j + 1));
+  const double gx = derivative(at(col - 1, row), at(col + 1, row));
+  const double gy = derivative(at(col, row - 1), at(col, row + 1));
   return std::hypot(gx, gy);
 }
 
@@ -111,9 +114,9 @@ int layer_giving(const std::vector<LayerSurface>& layers, std::size_t c, double 
 
 void check_solid(UnitSolid& s, const std::vector<LayerSurface>& layers,
                  const std::vector<const LevelSetProbe*>& probes, const VolumeOptions& options) {
-  const HeightField& grid = layers.front().z;
-  const int nx = grid.nx, ny = grid.ny;
-  const std::size_t n = grid.z.size();
+  const RasterGrid& grid = layers.front().z.grid;
+  const int nx = grid.width, ny = grid.height;
+  const std::size_t n = grid.cells();
   const double cell_area = grid.cell * grid.cell;
   const int top_hint = int(std::find_if(layers.begin(), layers.end(),
                                         [&](const LayerSurface& l) { return l.layer == s.top_layer; }) -
@@ -130,9 +133,9 @@ void check_solid(UnitSolid& s, const std::vector<LayerSurface>& layers,
     bottom_of[c] = layer_giving(layers, c, s.bottom.z[c], top_hint + 1);
     if (top_of[c] < 0 || bottom_of[c] < 0) continue;
     ++bottom_count[std::size_t(bottom_of[c])];
-    const int i = int(c % nx), j = int(c / nx);
-    steep[c] = std::max(slope_at(layers[std::size_t(top_of[c])].z, i, j),
-                        slope_at(layers[std::size_t(bottom_of[c])].z, i, j)) > steep_slope;
+    const int col = int(c % nx), row = int(c / nx);
+    steep[c] = std::max(slope_at(layers[std::size_t(top_of[c])].z, col, row),
+                        slope_at(layers[std::size_t(bottom_of[c])].z, col, row)) > steep_slope;
   }
   const int usual_bottom = int(std::max_element(bottom_count.begin(), bottom_count.end()) - bottom_count.begin());
   UnitMeasures& m = s.measures;
@@ -180,12 +183,12 @@ void check_solid(UnitSolid& s, const std::vector<LayerSurface>& layers,
           db.resize(std::size_t(steps) + 1);
           // Sub-lines at the voxel spacing, so a face inside the cell is seen.
           const int sub = std::max(1, int(std::ceil(grid.cell / voxel - 1e-9)));
-          const double x = grid.x0 + double(c % nx) * grid.cell, y = grid.y0 + double(c / nx) * grid.cell;
+          const Eigen::Vector2d centre = grid.centre(c);
           double voxel_thickness = 0;
           for (int u = 0; u < sub; ++u)
             for (int v = 0; v < sub; ++v) {
-              const double px = x + ((u + 0.5) / sub - 0.5) * grid.cell;
-              const double py = y + ((v + 0.5) / sub - 0.5) * grid.cell;
+              const double px = centre.x() + ((u + 0.5) / sub - 0.5) * grid.cell;
+              const double py = centre.y() + ((v + 0.5) / sub - 0.5) * grid.cell;
               pt.column(px, py, z0, voxel, steps + 1, dt.data());
               pb.column(px, py, z0, voxel, steps + 1, db.data());
               voxel_thickness += ground_length(dt.data(), steps + 1, z0, voxel, top_z[c]) -

@@ -75,39 +75,42 @@ void fill_enclosed_holes(std::vector<std::uint8_t>& mask, int nx, int ny) {
 }
 
 // The fill domain on the grid (see GapFillOptions).
-std::vector<std::uint8_t> fill_domain(const std::vector<LayerSurface>& layers, const SiteGrid& g,
+std::vector<std::uint8_t> fill_domain(const std::vector<LayerSurface>& layers, const RasterGrid& g,
                                       const VolumeOptions& o) {
-  std::vector<std::uint8_t> domain(g.size(), 0);
+  std::vector<std::uint8_t> domain(g.cells(), 0);
   if (!o.fill.outline.empty()) {
-    for (int j = 0; j < g.ny; ++j)
-      for (int i = 0; i < g.nx; ++i) domain[std::size_t(j) * g.nx + i] = inside_polygon(o.fill.outline, g.x(i), g.y(j));
+    for (std::size_t c = 0; c < g.cells(); ++c) {
+      const Eigen::Vector2d p = g.centre(c);
+      domain[c] = inside_polygon(o.fill.outline, p.x(), p.y());
+    }
   } else {
     // Union of the measured cells, closed with a disc: dilation = within r of the
     // union, erosion = farther than r from what is outside the dilation.
-    std::vector<std::uint8_t> data(g.size(), 0);
+    std::vector<std::uint8_t> data(g.cells(), 0);
     for (const auto& l : layers)
-      for (std::size_t c = 0; c < g.size(); ++c)
+      for (std::size_t c = 0; c < g.cells(); ++c)
         if (std::isfinite(l.z.z[c]) && !l.filled(c)) data[c] = 1;
     const double r = o.fill.closing_m / g.cell;  // cells
     std::vector<double> d;
-    distance_transform(data, g.nx, g.ny, d, nullptr);
-    std::vector<std::uint8_t> beyond(g.size(), 0);  // outside the dilation
-    for (std::size_t c = 0; c < g.size(); ++c) beyond[c] = d[c] > r;
-    distance_transform(beyond, g.nx, g.ny, d, nullptr);  // inf when the dilation covers the grid
-    for (std::size_t c = 0; c < g.size(); ++c) domain[c] = data[c] || d[c] > r;
-    fill_enclosed_holes(domain, g.nx, g.ny);
+    distance_transform(data, g.width, g.height, d, nullptr);
+    std::vector<std::uint8_t> beyond(g.cells(), 0);  // outside the dilation
+    for (std::size_t c = 0; c < g.cells(); ++c) beyond[c] = d[c] > r;
+    distance_transform(beyond, g.width, g.height, d, nullptr);  // inf when the dilation covers the grid
+    for (std::size_t c = 0; c < g.cells(); ++c) domain[c] = data[c] || d[c] > r;
+    fill_enclosed_holes(domain, g.width, g.height);
   }
   for (const auto& [unit, poly] : o.footprints)
-    for (int j = 0; j < g.ny; ++j)
-      for (int i = 0; i < g.nx; ++i)
-        if (inside_polygon(poly, g.x(i), g.y(j))) domain[std::size_t(j) * g.nx + i] = 1;
+    for (std::size_t c = 0; c < g.cells(); ++c) {
+      const Eigen::Vector2d p = g.centre(c);
+      if (inside_polygon(poly, p.x(), p.y())) domain[c] = 1;
+    }
   return domain;
 }
 
 // Membrane fill of one layer inside the domain; returns the number of filled cells.
-std::size_t fill_layer(LayerSurface& l, const std::vector<std::uint8_t>& domain, const SiteGrid& g) {
-  const int nx = g.nx, ny = g.ny;
-  const std::size_t n = g.size();
+std::size_t fill_layer(LayerSurface& l, const std::vector<std::uint8_t>& domain, const RasterGrid& g) {
+  const int nx = g.width, ny = g.height;
+  const std::size_t n = g.cells();
   std::vector<std::uint8_t> known(n, 0);
   for (std::size_t c = 0; c < n; ++c) known[c] = std::isfinite(l.z.z[c]);
   // Unknowns: domain cells without a height, in components that touch a known cell.
@@ -223,16 +226,14 @@ GapFillSummary fill_surface_gaps(std::vector<LayerSurface>& layers, const Volume
   options.validate();
   GapFillSummary out;
   if (layers.empty() || !options.fill.enabled) return out;
-  const SiteGrid g = SiteGrid::of(layers.front().z);
-  for (const auto& l : layers)
-    STRATA_CHECK(l.z.nx == g.nx && l.z.ny == g.ny && l.z.cell == g.cell && l.z.x0 == g.x0 && l.z.y0 == g.y0,
-                 "layer {} is not on the common grid", l.layer);
+  const RasterGrid& g = layers.front().z.grid;
+  for (const auto& l : layers) STRATA_CHECK(l.z.grid == g, "layer {} is not on the common grid", l.layer);
   const std::vector<std::uint8_t> domain = fill_domain(layers, g, options);
   const double cell_area = g.cell * g.cell;
   out.domain_area_m2 = double(std::count(domain.begin(), domain.end(), 1)) * cell_area;
   for (auto& l : layers) {
     std::size_t measured = 0;
-    for (std::size_t c = 0; c < g.size(); ++c) measured += domain[c] && std::isfinite(l.z.z[c]) && !l.filled(c);
+    for (std::size_t c = 0; c < g.cells(); ++c) measured += domain[c] && std::isfinite(l.z.z[c]) && !l.filled(c);
     out.measured_area_m2[l.layer] = double(measured) * cell_area;
     out.filled_area_m2[l.layer] = double(fill_layer(l, domain, g)) * cell_area;
     log::info("volume: layer {}: {:.3f} m2 measured, {:.3f} m2 filled in a fill domain of {:.3f} m2", l.layer,

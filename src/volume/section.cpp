@@ -20,7 +20,7 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 SectionProfile cut_section(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const std::vector<LayerSurface>& layers,
                            const std::vector<UnitSolid>& solids, double step_m) {
   if (layers.empty()) throw InputError("section: there are no layer surfaces to cut");
-  const double step = step_m > 0 ? step_m : layers.front().z.cell;
+  const double step = step_m > 0 ? step_m : layers.front().z.grid.cell;
   const double length = (b - a).norm();
   if (!(length >= 2 * step))
     throw InputError(fmt::format("section: the line is {:.3f} m long; it must be at least {:.3f} m", length, 2 * step));

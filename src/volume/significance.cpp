@@ -116,11 +116,11 @@ std::vector<double> convolve(const std::vector<double>& v, int nx, int ny, const
 
 }  // namespace
 
-std::vector<double> smoothing_residual(const HeightField& z, double sigma_m) {
+std::vector<double> smoothing_residual(const HeightRaster<double>& z, double sigma_m) {
   const std::size_t n = z.z.size();
   std::vector<double> residual(n, std::numeric_limits<double>::quiet_NaN());
   if (!(sigma_m > 0) || n == 0) return residual;
-  const double s = sigma_m / z.cell;  // cells
+  const double s = sigma_m / z.grid.cell;  // cells
   const int r = std::max(1, int(std::ceil(3 * s)));
   std::vector<double> k(std::size_t(r) + 1);
   double total = 0;
@@ -129,8 +129,8 @@ std::vector<double> smoothing_residual(const HeightField& z, double sigma_m) {
   std::vector<double> values(n, 0), ones(n, 0);
   for (std::size_t c = 0; c < n; ++c)
     if (std::isfinite(z.z[c])) values[c] = z.z[c], ones[c] = 1;
-  const std::vector<double> sum = convolve(values, z.nx, z.ny, k);
-  const std::vector<double> weight = convolve(ones, z.nx, z.ny, k);
+  const std::vector<double> sum = convolve(values, z.grid.width, z.grid.height, k);
+  const std::vector<double> weight = convolve(ones, z.grid.width, z.grid.height, k);
   for (std::size_t c = 0; c < n; ++c)
     if (ones[c] > 0 && weight[c] >= 0.5) residual[c] = sum[c] / weight[c] - z.z[c];
   return residual;
@@ -167,19 +167,16 @@ std::vector<std::size_t> judging_cells(const std::vector<double>& difference, co
 // medians of the four quadrants about the judging cells' centroid. A warp or tilt
 // of one surface against the other shows as a spread of these; the unit inside
 // may see any of them. 0 when fewer than two quadrants hold enough cells.
-double offset_spread(const std::vector<std::size_t>& cells, const std::vector<double>& difference, const SiteGrid& grid,
+double offset_spread(const std::vector<std::size_t>& cells, const std::vector<double>& difference, const RasterGrid& grid,
                      std::size_t min_cells) {
-  const auto x = [&](std::size_t c) { return grid.x(int(c % std::size_t(grid.nx))); };
-  const auto y = [&](std::size_t c) { return grid.y(int(c / std::size_t(grid.nx))); };
-  double cx = 0, cy = 0;
-  for (std::size_t c : cells) {
-    cx += x(c);
-    cy += y(c);
-  }
-  cx /= double(cells.size());
-  cy /= double(cells.size());
+  Eigen::Vector2d centroid = Eigen::Vector2d::Zero();
+  for (std::size_t c : cells) centroid += grid.centre(c);
+  centroid /= double(cells.size());
   std::vector<double> quadrant[4];
-  for (std::size_t c : cells) quadrant[(x(c) > cx ? 1 : 0) + (y(c) > cy ? 2 : 0)].push_back(difference[c]);
+  for (std::size_t c : cells) {
+    const Eigen::Vector2d p = grid.centre(c);
+    quadrant[(p.x() > centroid.x() ? 1 : 0) + (p.y() > centroid.y() ? 2 : 0)].push_back(difference[c]);
+  }
   std::vector<double> medians;
   for (auto& q : quadrant)
     if (q.size() >= std::max<std::size_t>(min_cells / 4, 2)) medians.push_back(median(q));
@@ -259,8 +256,8 @@ FactorBins factor_by_coverage(const std::vector<std::size_t>& cells, const std::
 // columns at growing lags: rho(h) = 1 - gamma(h) / variance; the correlation
 // distance L is where rho falls to 1/e. `fallback_m` when it cannot be read.
 double correlation_length(std::vector<double> u, const StableGround& s, const std::vector<double>& sigma,
-                          const std::vector<double>& coverage, const SiteGrid& grid, double fallback_m) {
-  const std::size_t n = grid.size();
+                          const std::vector<double>& coverage, const RasterGrid& grid, double fallback_m) {
+  const std::size_t n = grid.cells();
   double var = 0;
   std::size_t count = 0;
   for (std::size_t c = 0; c < n; ++c)
@@ -274,19 +271,19 @@ double correlation_length(std::vector<double> u, const StableGround& s, const st
   const int lags[] = {1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256};
   double prev_h = 0, prev_rho = 1;
   for (int h : lags) {
-    if (h >= std::max(grid.nx, grid.ny)) break;
+    if (h >= std::max(grid.width, grid.height)) break;
     double sum = 0;
     std::size_t pairs = 0;
-    for (int j = 0; j < grid.ny; ++j)
-      for (int i = 0; i < grid.nx; ++i) {
-        const double a = u[std::size_t(j) * grid.nx + i];
+    for (int j = 0; j < grid.height; ++j)
+      for (int i = 0; i < grid.width; ++i) {
+        const double a = u[std::size_t(j) * grid.width + i];
         if (!std::isfinite(a)) continue;
-        if (i + h < grid.nx) {
-          const double b = u[std::size_t(j) * grid.nx + i + h];
+        if (i + h < grid.width) {
+          const double b = u[std::size_t(j) * grid.width + i + h];
           if (std::isfinite(b)) sum += (a - b) * (a - b), ++pairs;
         }
-        if (j + h < grid.ny) {
-          const double b = u[std::size_t(j + h) * grid.nx + i];
+        if (j + h < grid.height) {
+          const double b = u[std::size_t(j + h) * grid.width + i];
           if (std::isfinite(b)) sum += (a - b) * (a - b), ++pairs;
         }
       }
@@ -306,10 +303,10 @@ double correlation_length(std::vector<double> u, const StableGround& s, const st
 
 StableGround judge_stable_ground(const std::vector<double>& difference, const std::vector<double>& sigma,
                                  const std::vector<std::uint8_t>& stable, const std::vector<double>& coverage,
-                                 const SiteGrid& grid, std::size_t min_cells, double fallback_correlation_m) {
+                                 const RasterGrid& grid, std::size_t min_cells, double fallback_correlation_m) {
   StableGround s;
   s.correlation_m = fallback_correlation_m;
-  const std::size_t n = grid.size();
+  const std::size_t n = grid.cells();
   const std::vector<std::size_t> cells = judging_cells(difference, sigma, stable);
   std::vector<double> d;
   for (std::size_t c : cells) d.push_back(difference[c]);

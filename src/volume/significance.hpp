@@ -66,7 +66,7 @@ struct StableGround {
 // `min_cells`; `fallback_correlation_m` is kept when the variogram cannot be read.
 StableGround judge_stable_ground(const std::vector<double>& difference, const std::vector<double>& sigma,
                                  const std::vector<std::uint8_t>& stable, const std::vector<double>& coverage,
-                                 const SiteGrid& grid, std::size_t min_cells, double fallback_correlation_m);
+                                 const RasterGrid& grid, std::size_t min_cells, double fallback_correlation_m);
 
 // Mean of the finite values within `radius_cells` (square neighbourhood) of
 // every cell; NaN where there is none.
@@ -75,7 +75,7 @@ std::vector<double> box_mean(const std::vector<double>& values, int nx, int ny, 
 // G * z - z per cell: the change of a height field smoothed once more by an
 // isotropic Gaussian of `sigma_m` (normalised over the finite cells, kernel to 3
 // sigma); NaN where z is NaN or less than half the kernel's weight is known.
-std::vector<double> smoothing_residual(const HeightField& z, double sigma_m);
+std::vector<double> smoothing_residual(const HeightRaster<double>& z, double sigma_m);
 // Sets every cell within `radius_cells` (square neighbourhood) of a set cell.
 std::vector<std::uint8_t> dilate(const std::vector<std::uint8_t>& mask, int nx, int ny, int radius_cells);
 

@@ -34,7 +34,7 @@ struct SurfaceSource {
   LayerRecord layer;
   fs::path path;
   bool raster = false;
-  std::optional<HeightField> field;  // rasters: read at once
+  std::optional<HeightRaster<double>> field;  // rasters: read at once
   fs::path sigma_path;               // rasters: per-cell height sigma beside it, if any
   double xmin = 0, ymin = 0, xmax = 0, ymax = 0;  // site frame extent
 };
@@ -159,12 +159,12 @@ std::vector<SurfaceSource> surface_sources(Project& project, const SiteVolumeOpt
       continue;
     }
     if (s.raster) {
-      s.field = height_field(read_height_geotiff(s.path, origin));
-      const auto& f = *s.field;
-      s.xmin = f.x0 - 0.5 * f.cell;
-      s.ymin = f.y0 - 0.5 * f.cell;
-      s.xmax = f.x0 + (f.nx - 0.5) * f.cell;
-      s.ymax = f.y0 + (f.ny - 0.5) * f.cell;
+      s.field = read_height_geotiff(s.path, origin);
+      const RasterGrid& g = s.field->grid;
+      s.xmin = g.x_min;
+      s.ymin = g.y_min();
+      s.xmax = g.x_max();
+      s.ymax = g.y_max;
     } else {
       const LevelSetInfo info = read_level_set_info(s.path);
       s.xmin = info.min.x();
@@ -183,7 +183,7 @@ std::vector<SurfaceSource> surface_sources(Project& project, const SiteVolumeOpt
 // The common grid: the union of the extents, aligned to the first raster's pixel
 // centres when its pixel is the cell (no resampling of DTMs), else to multiples of
 // the cell.
-SiteGrid common_grid(const std::vector<SurfaceSource>& sources, double cell_m) {
+RasterGrid common_grid(const std::vector<SurfaceSource>& sources, double cell_m) {
   double cell = cell_m;
   const SurfaceSource* first_raster = nullptr;
   for (const auto& s : sources)
@@ -191,11 +191,12 @@ SiteGrid common_grid(const std::vector<SurfaceSource>& sources, double cell_m) {
       first_raster = &s;
       break;
     }
-  if (cell == 0) cell = first_raster ? first_raster->field->cell : kDefaultCell;
+  if (cell == 0) cell = first_raster ? first_raster->field->grid.cell : kDefaultCell;
   double ax = 0, ay = 0;  // a cell centre the grid goes through
-  if (first_raster && std::abs(first_raster->field->cell - cell) < 1e-9 * cell) {
-    ax = first_raster->field->x0;
-    ay = first_raster->field->y0;
+  if (first_raster && std::abs(first_raster->field->grid.cell - cell) < 1e-9 * cell) {
+    const RasterGrid& g = first_raster->field->grid;
+    ax = g.x_centre(0);
+    ay = g.y_centre(g.height - 1);
   }
   double xmin = 1e300, ymin = 1e300, xmax = -1e300, ymax = -1e300;
   for (const auto& s : sources) {
@@ -204,26 +205,22 @@ SiteGrid common_grid(const std::vector<SurfaceSource>& sources, double cell_m) {
     xmax = std::max(xmax, s.xmax);
     ymax = std::max(ymax, s.ymax);
   }
-  SiteGrid grid;
-  grid.cell = cell;
   // Cells whose centre ax + k*cell lies inside the union of the extents.
   const double k0 = std::ceil((xmin - ax) / cell - 1e-6), k1 = std::floor((xmax - ax) / cell + 1e-6);
   const double l0 = std::ceil((ymin - ay) / cell - 1e-6), l1 = std::floor((ymax - ay) / cell + 1e-6);
-  grid.x0 = ax + k0 * cell;
-  grid.y0 = ay + l0 * cell;
-  grid.nx = int(k1 - k0) + 1;
-  grid.ny = int(l1 - l0) + 1;
+  const RasterGrid grid = RasterGrid::from_south_west_centre(ax + k0 * cell, ay + l0 * cell, cell, int(k1 - k0) + 1,
+                                                             int(l1 - l0) + 1);
   constexpr double kMaxCells = 200e6;
-  if (double(grid.nx) * grid.ny > kMaxCells)
+  if (double(grid.width) * grid.height > kMaxCells)
     throw InputError(fmt::format("volume: a {} m grid over {:.1f} x {:.1f} m has too many cells; choose a larger --cell",
                                  cell, xmax - xmin, ymax - ymin));
-  log::info("volume: common grid {} x {} cells of {} mm", grid.nx, grid.ny, 1000 * cell);
+  log::info("volume: common grid {} x {} cells of {} mm", grid.width, grid.height, 1000 * cell);
   return grid;
 }
 
 // Every surface sampled on the common grid, with its uncertainty figures.
 std::vector<LayerSurface> sample_surfaces(Database& db, const std::vector<SurfaceSource>& sources,
-                                          const SiteGrid& grid, const SiteVolumeOptions& options,
+                                          const RasterGrid& grid, const SiteVolumeOptions& options,
                                           const Eigen::Vector3d& origin) {
   std::vector<LayerSurface> layers;
   for (const auto& s : sources) {
@@ -231,10 +228,10 @@ std::vector<LayerSurface> sample_surfaces(Database& db, const std::vector<Surfac
     l.layer = s.layer.name;
     l.unit = s.layer.unit;
     l.source = s.path.string();
-    l.z = s.raster ? resample(*s.field, grid) : sample_top_surface(s.path, grid.x0, grid.y0, grid.cell, grid.nx, grid.ny);
+    l.z = s.raster ? resample(*s.field, grid) : sample_top_surface(s.path, grid);
     if (!s.sigma_path.empty()) {
       const Eigen::Vector3d plane(origin.x(), origin.y(), 0);  // metres of uncertainty, no height offset
-      l.z.sigma = resample(height_field(read_height_geotiff(s.sigma_path, plane)), grid).z;
+      l.z.sigma = resample(read_height_geotiff(s.sigma_path, plane), grid).z;
     }
     l.noise_m = surface_noise(db, s.layer.id, options.default_noise_m);
     l.vertical_rmse_m = vertical_rmse(db, s.layer.id);
@@ -286,7 +283,7 @@ SiteModel load_site_model(Project& project, const SiteVolumeOptions& options) {
   model.units = list_units(db);
   model.relations = list_relations(db);
   const std::vector<SurfaceSource> sources = surface_sources(project, options, model.site.origin);
-  const SiteGrid grid = common_grid(sources, options.cell_m);
+  const RasterGrid grid = common_grid(sources, options.cell_m);
   model.layers = sample_surfaces(db, sources, grid, options, model.site.origin);
   const VolumeOptions vo = options_with_polygons(project, options, model.site);
   model.fill = fill_surface_gaps(model.layers, vo);
@@ -303,10 +300,10 @@ namespace {
 // The thickness of a solid, metres, where it was dug (NaN elsewhere), north-up as
 // its GeoTIFF holds it.
 Dtm thickness_raster(const UnitSolid& solid) {
-  HeightField t = solid.top;
+  HeightRaster<double> t = solid.top;
   for (std::size_t c = 0; c < t.z.size(); ++c)
     if (solid.dug(c)) t.z[c] = solid.thickness(c);
-  return dtm_from_height_field(t);
+  return convert_raster<float>(t);
 }
 
 }  // namespace
@@ -423,7 +420,7 @@ VoxelSummary store_site_volumes(Project& project, const SiteModel& model, const 
     for (const auto& b : s.bottom_layers) bottoms += (bottoms.empty() ? "" : ",") + b;
     const auto& m = s.measures;
     nlohmann::ordered_json details = unit_measures_json(s);
-    details.update(nlohmann::ordered_json{{"cell_m", s.top.cell},
+    details.update(nlohmann::ordered_json{{"cell_m", s.top.grid.cell},
                                           {"cells", m.cells},
                                           {"noise_threshold_m", options.volume.noise_threshold_m},
                                           {"max_thickness_quantile", options.volume.max_thickness_quantile},
@@ -445,16 +442,17 @@ VoxelSummary store_site_volumes(Project& project, const SiteModel& model, const 
     r.unit_id = id->second;
     r.kind = "thickness";
     r.path = (rel_dir / fmt::format("thickness_{}.tif", s.unit)).string();
-    r.params_json = nlohmann::json{{"cell_m", s.top.cell}}.dump();
+    r.params_json = nlohmann::json{{"cell_m", s.top.grid.cell}}.dump();
     record_product(db, project.dir(), r);
   }
   // The extent of every unit as polygons (the outline of its dug cells).
   db.exec("DELETE FROM unit_extents");
   for (const auto& s : model.solids) {
     if (s.measures.cells == 0) continue;
-    HeightField mask = s.top;
-    for (std::size_t c = 0; c < mask.z.size(); ++c) mask.z[c] = s.dug(c) ? 1.0 : std::nan("");
-    const Footprint extent = dtm_footprint(dtm_from_height_field(mask), model.site.origin, 0);
+    Dtm mask = Dtm::empty(s.top.grid);
+    for (std::size_t c = 0; c < mask.z.size(); ++c)
+      if (s.dug(c)) mask.z[c] = 1.0f;
+    const Footprint extent = dtm_footprint(mask, model.site.origin, 0);
     if (extent.polygons.empty()) continue;
     const auto& m = s.measures;
     auto st = db.prepare(
@@ -473,7 +471,7 @@ VoxelSummary store_site_volumes(Project& project, const SiteModel& model, const 
   ProductRecord r;
   r.kind = "voxels";
   r.path = (rel_dir / "units.vdb").string();
-  r.params_json = nlohmann::json{{"voxel_size_m", voxels.voxel_size_m}, {"cell_m", model.layers.front().z.cell}}.dump();
+  r.params_json = nlohmann::json{{"voxel_size_m", voxels.voxel_size_m}, {"cell_m", model.layers.front().z.grid.cell}}.dump();
   record_product(db, project.dir(), r);
   tx.commit();
   return voxels;

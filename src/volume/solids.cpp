@@ -45,10 +45,10 @@ struct KeptRegion {
   double volume_m3 = 0;
 };
 std::vector<std::uint8_t> significant_regions(const std::vector<double>& t, const std::vector<double>& lod,
-                                              const SiteGrid& g, const VolumeOptions& o, double sign,
+                                              const RasterGrid& g, const VolumeOptions& o, double sign,
                                               std::vector<KeptRegion>* kept = nullptr) {
-  const std::size_t n = g.size();
-  const int nx = g.nx, ny = g.ny;
+  const std::size_t n = g.cells();
+  const int nx = g.width, ny = g.height;
   std::vector<double> st(n);
   for (std::size_t c = 0; c < n; ++c) st[c] = sign * t[c];
   std::vector<std::uint8_t> mask(n, 0);
@@ -81,10 +81,10 @@ std::vector<std::uint8_t> significant_regions(const std::vector<double>& t, cons
 // no larger than the largest negative region's is noise (that bound is at most 1 %
 // of the largest positive region's volume, so one raised feature, a spoil heap,
 // cannot take away a unit's real parts).
-std::vector<std::uint8_t> dug_cells(const std::vector<double>& t, const std::vector<double>& lod, const SiteGrid& g,
+std::vector<std::uint8_t> dug_cells(const std::vector<double>& t, const std::vector<double>& lod, const RasterGrid& g,
                                     const VolumeOptions& o, bool null_from_negative = false) {
-  const std::size_t n = g.size();
-  const int nx = g.nx, ny = g.ny;
+  const std::size_t n = g.cells();
+  const int nx = g.width, ny = g.height;
   std::vector<KeptRegion> positive, negative;
   std::vector<std::uint8_t> dug = significant_regions(t, lod, g, o, +1, null_from_negative ? &positive : nullptr);
   if (null_from_negative) {
@@ -125,14 +125,14 @@ std::vector<std::uint8_t> dug_cells(const std::vector<double>& t, const std::vec
 // in the middle of a unit belongs to it; an island where both surfaces were
 // measured and agree (a stone left standing) does not.
 void add_unmeasured_holes(std::vector<std::uint8_t>& dug, const std::vector<double>& t,
-                          const std::vector<std::uint8_t>& measured, const SiteGrid& g) {
+                          const std::vector<std::uint8_t>& measured, const RasterGrid& g) {
   std::vector<std::uint8_t> open(dug.size());
   for (std::size_t c = 0; c < dug.size(); ++c) open[c] = !dug[c];
-  const Components holes = connected_components(open, g.nx, g.ny, Connectivity::four);
+  const Components holes = connected_components(open, g.width, g.height, Connectivity::four);
   for (std::size_t k = 0; k < holes.count(); ++k) {
     const bool keep_out = std::any_of(holes.begin(k), holes.end(k), [&](std::size_t c) {
-      const int i = int(c % std::size_t(g.nx)), j = int(c / std::size_t(g.nx));
-      return measured[c] || !std::isfinite(t[c]) || i == 0 || j == 0 || i + 1 == g.nx || j + 1 == g.ny;
+      const int i = int(c % std::size_t(g.width)), j = int(c / std::size_t(g.width));
+      return measured[c] || !std::isfinite(t[c]) || i == 0 || j == 0 || i + 1 == g.width || j + 1 == g.height;
     });
     if (!keep_out)
       for (auto c = holes.begin(k); c != holes.end(k); ++c) dug[*c] = 1;
@@ -173,12 +173,12 @@ class CellSigma {
   std::vector<double> base_;  // per layer: median stated sigma of its measured cells
 };
 
-std::vector<std::vector<std::uint8_t>> risen_cells(const std::vector<LayerSurface>& layers, const SiteGrid& grid,
+std::vector<std::vector<std::uint8_t>> risen_cells(const std::vector<LayerSurface>& layers, const RasterGrid& grid,
                                                    const CellSigma& cell_sigma, const VolumeOptions& options) {
   std::vector<std::vector<std::uint8_t>> risen(layers.size());
   if (!options.surfaces_only_go_down) return risen;
   const double zq = two_sided_normal_quantile(options.confidence);
-  const std::size_t n = grid.size();
+  const std::size_t n = grid.cells();
   for (std::size_t k = 1; k < layers.size(); ++k) {
     const LayerSurface& l = layers[k];
     std::vector<double> rise(n, kNaN), lod(n, kNaN);
@@ -279,50 +279,31 @@ bool inside_polygon(const std::vector<Eigen::Vector2d>& poly, double x, double y
   return in;
 }
 
-HeightField SiteGrid::empty_field() const {
-  HeightField f;
-  f.x0 = x0;
-  f.y0 = y0;
-  f.cell = cell;
-  f.nx = nx;
-  f.ny = ny;
-  f.z.assign(size(), kNaN);
-  return f;
-}
-
-double sample_height(const HeightField& f, double x, double y) {
-  if (f.nx <= 0 || f.ny <= 0) return kNaN;
-  const double u = (x - f.x0) / f.cell, v = (y - f.y0) / f.cell;  // cell-centre units
-  if (u < -0.5 || v < -0.5 || u > f.nx - 0.5 || v > f.ny - 0.5) return kNaN;
-  const int i0 = std::clamp(int(std::floor(u)), 0, std::max(f.nx - 2, 0));
-  const int j0 = std::clamp(int(std::floor(v)), 0, std::max(f.ny - 2, 0));
-  const int i1 = std::min(i0 + 1, f.nx - 1), j1 = std::min(j0 + 1, f.ny - 1);
-  const double tu = std::clamp(u - i0, 0.0, 1.0), tv = std::clamp(v - j0, 0.0, 1.0);
-  const double z00 = f.at(i0, j0), z10 = f.at(i1, j0), z01 = f.at(i0, j1), z11 = f.at(i1, j1);
+double sample_height(const HeightRaster<double>& f, double x, double y) {
+  const RasterGrid& g = f.grid;
+  if (g.width <= 0 || g.height <= 0) return kNaN;
+  // Column and row in cell-centre units; rows grow southwards.
+  const double u = (x - g.x_min) / g.cell - 0.5, v = (g.y_max - y) / g.cell - 0.5;
+  if (u < -0.5 || v < -0.5 || u > g.width - 0.5 || v > g.height - 0.5) return kNaN;
+  const int c0 = std::clamp(int(std::floor(u)), 0, std::max(g.width - 2, 0));
+  const int r0 = std::clamp(int(std::floor(v)), 0, std::max(g.height - 2, 0));
+  const int c1 = std::min(c0 + 1, g.width - 1), r1 = std::min(r0 + 1, g.height - 1);
+  const double tu = std::clamp(u - c0, 0.0, 1.0), tv = std::clamp(v - r0, 0.0, 1.0);
+  const double z00 = f.at(c0, r0), z10 = f.at(c1, r0), z01 = f.at(c0, r1), z11 = f.at(c1, r1);
   if (finite(z00) && finite(z10) && finite(z01) && finite(z11))
     return (1 - tv) * ((1 - tu) * z00 + tu * z10) + tv * ((1 - tu) * z01 + tu * z11);
-  // At the edge of the known surface: the nearest finite centre, never an
-  // extrapolation across a gap.
-  const int in = std::clamp(int(std::lround(u)), 0, f.nx - 1), jn = std::clamp(int(std::lround(v)), 0, f.ny - 1);
-  return f.at(in, jn);
+  // At the edge of the known surface: the nearest centre, never an extrapolation
+  // across a gap. Half-way between two rows, the northern one.
+  const int cn = std::clamp(int(std::lround(u)), 0, g.width - 1);
+  const int rn = std::clamp(int(std::ceil(v - 0.5)), 0, g.height - 1);
+  return f.at(cn, rn);
 }
 
-HeightField resample(const HeightField& f, const SiteGrid& grid) {
-  HeightField out = grid.empty_field();
-  for (int j = 0; j < grid.ny; ++j)
-    for (int i = 0; i < grid.nx; ++i)
-      out.z[std::size_t(j) * grid.nx + i] = sample_height(f, grid.x(i), grid.y(j));
+HeightRaster<double> resample(const HeightRaster<double>& f, const RasterGrid& grid) {
+  HeightRaster<double> out = HeightRaster<double>::empty(grid);
+  for (int row = 0; row < grid.height; ++row)
+    for (int col = 0; col < grid.width; ++col) out.at(col, row) = sample_height(f, grid.x_centre(col), grid.y_centre(row));
   return out;
-}
-
-HeightField height_field(const HeightRaster<double>& raster) {
-  const RasterGrid& g = raster.grid;
-  SiteGrid grid{g.x_centre(0), g.y_centre(g.height - 1), g.cell, g.width, g.height};
-  HeightField f = grid.empty_field();
-  // HeightField rows run south to north, raster rows north to south.
-  for (int j = 0; j < g.height; ++j)
-    for (int i = 0; i < g.width; ++i) f.z[std::size_t(j) * g.width + i] = raster.at(i, g.height - 1 - j);
-  return f;
 }
 
 void VolumeOptions::validate() const {
@@ -508,10 +489,11 @@ std::vector<double> detection_levels(const UnitDifference& d, const Extent& e, c
 // The cells dug at these levels of detection: inside the footprint when there is
 // one; else the significant cells, within the trench outline when there is one.
 std::vector<std::uint8_t> where_dug(const UnitDifference& d, const std::vector<double>& lod, const Polygon* footprint,
-                                    const SiteGrid& grid, const VolumeOptions& options) {
+                                    const RasterGrid& grid, const VolumeOptions& options) {
   const std::size_t n = d.t.size();
   const auto inside = [&](const Polygon& poly, std::size_t c) {
-    return inside_polygon(poly, grid.x(int(c % grid.nx)), grid.y(int(c / grid.nx)));
+    const Eigen::Vector2d p = grid.centre(c);
+    return inside_polygon(poly, p.x(), p.y());
   };
   std::vector<std::uint8_t> dug(n, 0);
   if (footprint) {
@@ -534,9 +516,9 @@ std::vector<std::uint8_t> where_dug(const UnitDifference& d, const std::vector<d
   // inside the morphological closing of that extent (a gap straddling the unit's
   // edge closes as the edge runs on), or in a hole it encloses.
   const int r = int(std::ceil(options.fill.closing_m / grid.cell - 1e-9));
-  std::vector<std::uint8_t> closed = dilate(dug, grid.nx, grid.ny, r);
+  std::vector<std::uint8_t> closed = dilate(dug, grid.width, grid.height, r);
   for (auto& x : closed) x = !x;
-  closed = dilate(closed, grid.nx, grid.ny, r);
+  closed = dilate(closed, grid.width, grid.height, r);
   for (std::size_t c = 0; c < n; ++c)
     if (!closed[c] && !dug[c] && !d.measured[c] && d.t[c] > lod[c]) dug[c] = 1;
   add_unmeasured_holes(dug, d.t, d.trusted, grid);
@@ -545,11 +527,11 @@ std::vector<std::uint8_t> where_dug(const UnitDifference& d, const std::vector<d
 
 // The share of cells within coverage_radius_m where both surfaces were measured:
 // low at the ragged edge of a layer's photo coverage. Empty when not asked for.
-std::vector<double> measured_coverage(const UnitDifference& d, const SiteGrid& grid, const VolumeOptions& options) {
+std::vector<double> measured_coverage(const UnitDifference& d, const RasterGrid& grid, const VolumeOptions& options) {
   if (!(options.coverage_radius_m > 0)) return {};
   std::vector<double> ones(d.measured.size());
   for (std::size_t c = 0; c < ones.size(); ++c) ones[c] = d.measured[c] ? 1.0 : 0.0;
-  return volume_detail::box_mean(ones, grid.nx, grid.ny,
+  return volume_detail::box_mean(ones, grid.width, grid.height,
                                  std::max(1, int(std::lround(options.coverage_radius_m / grid.cell))));
 }
 
@@ -568,14 +550,14 @@ void log_stable_ground(const std::string& unit, const StableGround& ground) {
 // The stable ground (measured, away from the dug area) judges the stated sigmas,
 // the offset and the correlation; the extent is found again with what it says,
 // twice (the dug area moves the stable ground).
-void judge_by_stable_ground(Extent& e, const UnitDifference& d, const Polygon* footprint, const SiteGrid& grid,
+void judge_by_stable_ground(Extent& e, const UnitDifference& d, const Polygon* footprint, const RasterGrid& grid,
                             const VolumeOptions& options, const std::string& unit) {
   const std::size_t n = d.t.size();
   const int buffer = int(std::ceil(options.stable_buffer_m / grid.cell - 1e-9));
   const std::vector<double> coverage = measured_coverage(d, grid, options);
   const std::size_t min_cells = std::size_t(std::ceil(options.min_stable_area_m2 / (grid.cell * grid.cell)));
   for (int pass = 0; pass < 2; ++pass) {
-    const std::vector<std::uint8_t> near = dilate(e.dug, grid.nx, grid.ny, buffer);
+    const std::vector<std::uint8_t> near = dilate(e.dug, grid.width, grid.height, buffer);
     std::vector<std::uint8_t> stable(n, 0);
     // (Risen cells stay: leaving out cells chosen by their difference would bias
     // the judge of that very difference.)
@@ -599,7 +581,7 @@ void judge_by_stable_ground(Extent& e, const UnitDifference& d, const Polygon* f
 // Where the unit was dug: first at the levels the georeference figures give, then
 // as the stable ground judges them.
 Extent find_extent(const UnitDifference& d, const std::vector<LayerSurface>& layers, const Polygon* footprint,
-                   const SiteGrid& grid, const VolumeOptions& options, const std::string& unit) {
+                   const RasterGrid& grid, const VolumeOptions& options, const std::string& unit) {
   Extent e;
   e.factor.assign(d.t.size(), 1.0);
   e.offset2 = georeference_offset2(d, layers);
@@ -615,36 +597,37 @@ Extent find_extent(const UnitDifference& d, const std::vector<LayerSurface>& lay
 // the scale of normal_scale_m, not of one noisy cell.
 class MidSurface {
  public:
-  MidSurface(const UnitDifference& d, const Extent& e, const std::vector<LayerSurface>& layers, const SiteGrid& grid,
+  MidSurface(const UnitDifference& d, const Extent& e, const std::vector<LayerSurface>& layers, const RasterGrid& grid,
              double normal_scale_m)
       : d_(d), e_(e), layers_(layers), grid_(grid),
         reach_(std::max(1, int(std::lround(0.5 * normal_scale_m / grid.cell)))) {}
 
-  // cos of the mid-surface's slope at dug cell c.
+  // cos of the mid-surface's slope at dug cell c (gy runs southwards, along the
+  // rows: only its square counts).
   double cos_slope(std::size_t c) const {
-    const int i = int(c % grid_.nx), j = int(c / grid_.nx);
-    const double gx = slope(i, j, 1, 0), gy = slope(i, j, 0, 1);
+    const int col = int(c % grid_.width), row = int(c / grid_.width);
+    const double gx = slope(col, row, 1, 0), gy = slope(col, row, 0, 1);
     return 1 / std::sqrt(1 + gx * gx + gy * gy);
   }
 
  private:
-  double at(int i, int j) const {  // NaN off the dug cells
-    if (i < 0 || j < 0 || i >= grid_.nx || j >= grid_.ny) return kNaN;
-    const std::size_t c = std::size_t(j) * grid_.nx + i;
+  double at(int col, int row) const {  // NaN off the dug cells
+    if (col < 0 || row < 0 || col >= grid_.width || row >= grid_.height) return kNaN;
+    const std::size_t c = grid_.index(col, row);
     return e_.dug[c] ? 0.5 * (layers_[d_.top_layer(c)].z.z[c] + layers_[d_.bottom_layer(c)].z.z[c]) : kNaN;
   }
-  double slope(int i, int j, int di, int dj) const {
+  double slope(int col, int row, int dc, int dr) const {
     int a = 0, b = 0;
-    while (a < reach_ && finite(at(i + (a + 1) * di, j + (a + 1) * dj))) ++a;
-    while (b < reach_ && finite(at(i - (b + 1) * di, j - (b + 1) * dj))) ++b;
+    while (a < reach_ && finite(at(col + (a + 1) * dc, row + (a + 1) * dr))) ++a;
+    while (b < reach_ && finite(at(col - (b + 1) * dc, row - (b + 1) * dr))) ++b;
     if (a + b == 0) return 0.0;
-    return (at(i + a * di, j + a * dj) - at(i - b * di, j - b * dj)) / ((a + b) * grid_.cell);
+    return (at(col + a * dc, row + a * dr) - at(col - b * dc, row - b * dr)) / ((a + b) * grid_.cell);
   }
 
   const UnitDifference& d_;
   const Extent& e_;
   const std::vector<LayerSurface>& layers_;
-  const SiteGrid& grid_;
+  const RasterGrid& grid_;
   int reach_;
 };
 
@@ -662,7 +645,7 @@ struct DugSums {
 // The solid's heights on its dug cells, its volume, count and thickness range,
 // and the sums the rest of its measures come from.
 DugSums sum_dug_cells(UnitSolid& s, const UnitDifference& d, const Extent& e, const std::vector<LayerSurface>& layers,
-                      const std::vector<std::vector<double>>& smoothing, const SiteGrid& grid,
+                      const std::vector<std::vector<double>>& smoothing, const RasterGrid& grid,
                       const VolumeOptions& options) {
   const double cell_area = grid.cell * grid.cell;
   const MidSurface mid(d, e, layers, grid, options.normal_scale_m);
@@ -706,7 +689,7 @@ DugSums sum_dug_cells(UnitSolid& s, const UnitDifference& d, const Extent& e, co
 
 // Where the edge lies: the volume found with the level halved and doubled spans
 // the choice; one sigma of a uniform error over that span, m3.
-double extent_sigma(const UnitDifference& d, const Extent& e, const SiteGrid& grid, const VolumeOptions& options) {
+double extent_sigma(const UnitDifference& d, const Extent& e, const RasterGrid& grid, const VolumeOptions& options) {
   const double cell_area = grid.cell * grid.cell;
   auto volume_at = [&](double factor) {
     std::vector<double> l = e.lod;
@@ -723,7 +706,7 @@ double extent_sigma(const UnitDifference& d, const Extent& e, const SiteGrid& gr
 // The measures of a solid whose dug cells are summed: area, thicknesses, and the
 // parts of its volume's uncertainty.
 void settle_measures(UnitSolid& s, DugSums& sums, const UnitDifference& d, const Extent& e, const Polygon* footprint,
-                     const SiteGrid& grid, const VolumeOptions& options) {
+                     const RasterGrid& grid, const VolumeOptions& options) {
   const double cell_area = grid.cell * grid.cell;
   UnitMeasures& m = s.measures;
   m.confidence = options.confidence;
@@ -772,16 +755,16 @@ void settle_measures(UnitSolid& s, DugSums& sums, const UnitDifference& d, const
 // The solid of one unit that has later surfaces.
 UnitSolid unit_solid(const std::string& unit, const UnitLayers& u, const std::vector<LayerSurface>& layers,
                      const CellSigma& cell_sigma, const std::vector<std::vector<std::uint8_t>>& risen,
-                     const std::vector<std::vector<double>>& smoothing, const SiteGrid& grid,
+                     const std::vector<std::vector<double>>& smoothing, const RasterGrid& grid,
                      const VolumeOptions& options) {
   const auto it = options.footprints.find(unit);
   const Polygon* footprint = it != options.footprints.end() ? &it->second : nullptr;
   UnitSolid s;
   s.unit = unit;
   s.top_layer = layers[u.own.front()].layer;
-  s.top = grid.empty_field();
-  s.bottom = grid.empty_field();
-  UnitDifference d = pair_surfaces(layers, u, grid.size());
+  s.top = HeightRaster<double>::empty(grid);
+  s.bottom = HeightRaster<double>::empty(grid);
+  UnitDifference d = pair_surfaces(layers, u, grid.cells());
   judge_cells(d, layers, cell_sigma, risen, options);
   const Extent e = find_extent(d, layers, footprint, grid, options, unit);
   DugSums sums = sum_dug_cells(s, d, e, layers, smoothing, grid, options);
@@ -796,11 +779,8 @@ UnitSolid unit_solid(const std::string& unit, const UnitLayers& u, const std::ve
 std::vector<UnitSolid> build_unit_solids(const std::vector<LayerSurface>& layers, const VolumeOptions& options) {
   options.validate();
   if (layers.empty()) return {};
-  const SiteGrid grid = SiteGrid::of(layers.front().z);
-  for (const auto& l : layers)
-    STRATA_CHECK(l.z.nx == grid.nx && l.z.ny == grid.ny && l.z.cell == grid.cell && l.z.x0 == grid.x0 &&
-                     l.z.y0 == grid.y0,
-                 "layer {} is not on the common grid", l.layer);
+  const RasterGrid& grid = layers.front().z.grid;
+  for (const auto& l : layers) STRATA_CHECK(l.z.grid == grid, "layer {} is not on the common grid", l.layer);
   // Units in the order of their first layer.
   std::vector<std::string> units;
   for (const auto& l : layers)
@@ -832,11 +812,15 @@ std::vector<UnitSolid> build_unit_solids(const std::vector<LayerSurface>& layers
 // ---- closed mesh ------------------------------------------------------------------
 
 DenseMesh unit_solid_mesh(const UnitSolid& solid) {
-  const HeightField& top = solid.top;
-  const int nx = top.nx, ny = top.ny;
-  const double h = top.cell;
+  const RasterGrid& grid = solid.top.grid;
+  const int nx = grid.width, ny = grid.height;
+  const double h = grid.cell;
+  // Here j counts cells from the southern edge (row ny - 1 - j), so that j, as y,
+  // grows northwards and the quadrants and corners below go counter-clockwise.
+  auto top = [&](int i, int j) { return solid.top.at(i, ny - 1 - j); };
+  auto bottom = [&](int i, int j) { return solid.bottom.at(i, ny - 1 - j); };
   auto dug = [&](int i, int j) {
-    return i >= 0 && j >= 0 && i < nx && j < ny && finite(top.at(i, j));
+    return i >= 0 && j >= 0 && i < nx && j < ny && finite(top(i, j));
   };
   DenseMesh mesh;
   // Corner (ci, cj) lies between cells (ci-1..ci, cj-1..cj). Around a corner the
@@ -874,11 +858,11 @@ DenseMesh unit_solid_mesh(const UnitSolid& solid) {
         int n = 0;
         for (int q = 0; q < 4; ++q)
           if (group[q] == g) {
-            zt += solid.top.at(ci + kDi[q], cj + kDj[q]);
-            zb += solid.bottom.at(ci + kDi[q], cj + kDj[q]);
+            zt += top(ci + kDi[q], cj + kDj[q]);
+            zb += bottom(ci + kDi[q], cj + kDj[q]);
             ++n;
           }
-        const double x = top.x0 + (ci - 0.5) * h, y = top.y0 + (cj - 0.5) * h;
+        const double x = grid.x_min + ci * h, y = grid.y_min() + cj * h;
         const int vt = int(mesh.vertices.size());
         mesh.vertices.emplace_back(x, y, zt / n);
         mesh.vertices.emplace_back(x, y, zb / n);
@@ -974,7 +958,7 @@ StratigraphicCheck check_stratigraphy(const HarrisMatrix& matrix, const std::vec
   // Each unit with geometry: its top and where it is present.
   struct Presence {
     std::string unit;
-    const HeightField* top = nullptr;  // NaN where absent
+    const HeightRaster<double>* top = nullptr;  // NaN where absent
   };
   std::vector<Presence> units;
   for (const auto& s : solids) units.push_back({s.unit, &s.top});
@@ -982,13 +966,13 @@ StratigraphicCheck check_stratigraphy(const HarrisMatrix& matrix, const std::vec
     const bool known = std::any_of(units.begin(), units.end(), [&](const Presence& p) { return p.unit == l.unit; });
     if (!known) units.push_back({l.unit, &l.z});  // not dug: its (first) layer surface
   }
-  const SiteGrid g = SiteGrid::of(layers.front().z);
+  const RasterGrid& g = layers.front().z.grid;
   const double cell_area = g.cell * g.cell;
   // A region counts from this many cells (at least one).
   const std::size_t min_cells =
       std::max<std::size_t>(1, std::size_t(std::ceil(options.min_area_m2 / cell_area - 1e-9)));
-  std::vector<double> depth(g.size());
-  std::vector<std::uint8_t> below(g.size());
+  std::vector<double> depth(g.cells());
+  std::vector<std::uint8_t> below(g.cells());
   std::vector<double> values;
   for (const auto& a : units)
     for (const auto& b : units) {
@@ -1000,15 +984,15 @@ StratigraphicCheck check_stratigraphy(const HarrisMatrix& matrix, const std::vec
         continue;  // a layer's unit unknown to the matrix: nothing recorded
       }
       if (!later) continue;
-      STRATA_CHECK(a.top->z.size() == g.size() && b.top->z.size() == g.size(), "units {} and {} are not on one grid",
+      STRATA_CHECK(a.top->z.size() == g.cells() && b.top->z.size() == g.cells(), "units {} and {} are not on one grid",
                    a.unit, b.unit);
       // Where the later unit's top lies below the earlier one's by more than the
       // tolerance, and by how much (metres).
-      for (std::size_t c = 0; c < g.size(); ++c) {
+      for (std::size_t c = 0; c < g.cells(); ++c) {
         depth[c] = b.top->z[c] - a.top->z[c];
         below[c] = depth[c] > options.tolerance_m;  // false for NaN
       }
-      const Components regions = connected_components(below, g.nx, g.ny, Connectivity::eight);
+      const Components regions = connected_components(below, g.width, g.height, Connectivity::eight);
       if (regions.count() == 0) continue;
       StratigraphicConflict c;
       c.later = a.unit;
@@ -1036,7 +1020,7 @@ StratigraphicCheck check_stratigraphy(const HarrisMatrix& matrix, const std::vec
         if (robust > c.amount_m) {
           c.amount_m = robust;
           c.max_amount_m = depth[deepest];
-          c.where = {g.x(int(deepest % std::size_t(g.nx))), g.y(int(deepest / std::size_t(g.nx)))};
+          c.where = g.centre(deepest);
         }
       }
       (c.regions > 0 ? out.conflicts : out.ignored).push_back(c);

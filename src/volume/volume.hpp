@@ -14,7 +14,7 @@
 //
 // Standard library, Eigen and the plain structs of dense/ only: OpenVDB lives in
 // voxels.cpp, GDAL in section.cpp and the raster importer and exporter.
-#include "dense/dense.hpp"  // HeightField, DenseMesh
+#include "dense/dense.hpp"  // DenseMesh
 #include "geometry/raster.hpp"
 
 #include <Eigen/Core>
@@ -30,38 +30,21 @@ namespace strata {
 
 class HarrisMatrix;
 
-// A regular grid of cell centres in the site frame: centre (i, j) at
-// (x0 + i*cell, y0 + j*cell), j grows northwards. Same convention as HeightField.
-struct SiteGrid {
-  double x0 = 0, y0 = 0;  // metres, site frame, centre of cell (0, 0)
-  double cell = 0;        // metres
-  int nx = 0, ny = 0;
-
-  std::size_t size() const { return std::size_t(nx) * std::size_t(ny); }
-  double x(int i) const { return x0 + i * cell; }
-  double y(int j) const { return y0 + j * cell; }
-  // A grid of NaN heights on these cells.
-  HeightField empty_field() const;
-  static SiteGrid of(const HeightField& f) { return {f.x0, f.y0, f.cell, f.nx, f.ny}; }
-};
-
 // Whether (x, y) lies inside the polygon (even-odd rule; closed or open ring).
 bool inside_polygon(const std::vector<Eigen::Vector2d>& poly, double x, double y);
 
 // Bilinear height at (x, y) in the site frame from the four surrounding cell
-// centres; when some of them are NaN, the nearest finite centre within one cell;
-// NaN outside the field or where nothing is known.
-double sample_height(const HeightField& f, double x, double y);
-// The field resampled onto another grid with sample_height.
-HeightField resample(const HeightField& f, const SiteGrid& grid);
-// A north-up raster (a DTM read from its file) as a HeightField on its cell centres.
-HeightField height_field(const HeightRaster<double>& raster);
+// centres; when some of them are NaN, the nearest centre (NaN when it is NaN);
+// NaN outside the raster.
+double sample_height(const HeightRaster<double>& f, double x, double y);
+// The heights resampled onto another grid with sample_height (no sigma).
+HeightRaster<double> resample(const HeightRaster<double>& f, const RasterGrid& grid);
 
 // One recorded surface state on the common grid.
 struct LayerSurface {
   std::string layer;        // layer name, e.g. "L2"
   std::string unit;         // unit code of the layer (the unit whose top it shows)
-  HeightField z;            // metres, site frame; NaN where the surface is unknown
+  HeightRaster<double> z;   // metres, site frame, north-up; NaN where the surface is unknown
   std::string source;       // file it came from, for messages and details_json
   // Uncertainty of the surface, metres, one sigma:
   double noise_m = 0.003;   // per-cell random noise (dense surface vs sparse points)
@@ -256,7 +239,7 @@ struct UnitSolid {
   std::string unit;                         // unit code
   std::string top_layer;                    // layer whose surface is the top
   std::vector<std::string> bottom_layers;   // layers that gave the bottom somewhere
-  HeightField top, bottom;                  // metres, site frame
+  HeightRaster<double> top, bottom;         // metres, site frame, north-up
   UnitMeasures measures;
 
   bool dug(std::size_t cell) const { return top.z[cell] == top.z[cell]; }  // not NaN

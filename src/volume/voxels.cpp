@@ -31,8 +31,8 @@ void init_vdb() {
 // rounding would pick a column at random). None without solids.
 std::optional<Eigen::Vector2d> voxel_offset(const std::vector<UnitSolid>& solids, double h) {
   if (solids.empty()) return std::nullopt;
-  const HeightField& g = solids.front().top;
-  return Eigen::Vector2d(std::fmod(g.x0 - 0.5 * g.cell + 0.5 * h, h), std::fmod(g.y0 - 0.5 * g.cell + 0.5 * h, h));
+  const RasterGrid& g = solids.front().top.grid;
+  return Eigen::Vector2d(std::fmod(g.x_min + 0.5 * h, h), std::fmod(g.y_min() + 0.5 * h, h));
 }
 
 // A dug cell of the measurement grid in the voxel column its centre falls in.
@@ -41,16 +41,17 @@ struct CellColumn {
   double t, b;  // top and bottom, site frame, metres
 };
 
-// The solid's dug cells, by voxel column (J, then I).
+// The solid's dug cells, by voxel column (J, then I). J grows northwards: the rows
+// are read from the southern one up, so that the cells of a column (summed in
+// voxelize_solid) come in the same order whatever the sort does with equal keys.
 std::vector<CellColumn> dug_cells(const UnitSolid& solid, const VdbWriter& vdb) {
-  const HeightField& top = solid.top;
-  const HeightField& bottom = solid.bottom;
+  const RasterGrid& g = solid.top.grid;
   std::vector<CellColumn> cells;
-  for (int j = 0; j < top.ny; ++j)
-    for (int i = 0; i < top.nx; ++i) {
-      const double t = top.at(i, j), b = bottom.at(i, j);
+  for (int row = g.height - 1; row >= 0; --row)
+    for (int col = 0; col < g.width; ++col) {
+      const double t = solid.top.at(col, row), b = solid.bottom.at(col, row);
       if (!std::isfinite(t) || !(t > b)) continue;  // a negative thickness (footprint mode) adds no voxels
-      const Eigen::Vector3d idx = vdb.index_of(Eigen::Vector3d(top.x0 + i * top.cell, top.y0 + j * top.cell, 0));
+      const Eigen::Vector3d idx = vdb.index_of(Eigen::Vector3d(g.x_centre(col), g.y_centre(row), 0));
       cells.push_back({int(std::floor(idx.x() + 0.5)), int(std::floor(idx.y() + 0.5)), t, b});
     }
   std::sort(cells.begin(), cells.end(), [](const auto& p, const auto& q) { return p.J != q.J ? p.J < q.J : p.I < q.I; });
@@ -63,7 +64,7 @@ std::vector<CellColumn> dug_cells(const UnitSolid& solid, const VdbWriter& vdb) 
 // the ratio of voxel to cell. A voxel more than half inside is labelled.
 void voxelize_solid(const UnitSolid& solid, double h, VdbWriter& vdb) {
   const std::vector<CellColumn> cells = dug_cells(solid, vdb);
-  const double cell_area_over_voxel = solid.top.cell * solid.top.cell / (h * h * h);
+  const double cell_area_over_voxel = solid.top.grid.cell * solid.top.grid.cell / (h * h * h);
   for (std::size_t c0 = 0; c0 < cells.size();) {
     std::size_t c1 = c0;
     double zmin = 1e300, zmax = -1e300;

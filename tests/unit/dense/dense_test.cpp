@@ -23,9 +23,9 @@
 namespace strata {
 namespace {
 
-// ---- tolerances (issue 5 "Done when", scaled to this small scene) ----------------
-constexpr double kMedianHeightTolerance = 0.003;  // metres: issue's median |dz| target
-constexpr double kP95HeightTolerance = 0.015;     // metres: issue's 95th percentile target
+// ---- tolerances (the dense acceptance, docs/dense.md, scaled to this small scene) ----
+constexpr double kMedianHeightTolerance = 0.003;  // metres: the median |dz| target
+constexpr double kP95HeightTolerance = 0.015;     // metres: the 95th percentile target
 constexpr double kMinCompleteness = 0.95;         // fraction of the well-covered area
 constexpr double kWallExclusion = 0.006;          // metres: cells this close to the block's
                                                   // vertical walls have no single true height
@@ -259,13 +259,14 @@ TEST(Dense, RecoversAnalyticSurface) {
   // Heights against the analytic surface over the covered area.
   const double cell = 0.005;
   const int nx = static_cast<int>(2 * ax / cell) + 1, ny = static_cast<int>(2 * ay / cell) + 1;
-  const HeightField hf = sample_top_surface(dir / "out" / "surface.vdb", -ax, -ay, cell, nx, ny);
+  const RasterGrid grid = RasterGrid::from_south_west_centre(-ax, -ay, cell, nx, ny);
+  const HeightRaster<double> hf = sample_top_surface(dir / "out" / "surface.vdb", grid);
   std::vector<double> err;
   int covered = 0;
-  for (int j = 0; j < ny; ++j) {
-    for (int i = 0; i < nx; ++i) {
-      const double x = -ax + i * cell, y = -ay + j * cell;
-      const double z = hf.at(i, j);
+  for (int row = 0; row < ny; ++row) {
+    for (int col = 0; col < nx; ++col) {
+      const double x = grid.x_centre(col), y = grid.y_centre(row);
+      const double z = hf.at(col, row);
       if (!std::isfinite(z)) continue;
       ++covered;
       const double wall = std::min({std::abs(x - kBlockX0), std::abs(x - kBlockX1), std::abs(y - kBlockY0),
@@ -312,7 +313,7 @@ TEST(Dense, RecoversAnalyticSurface) {
   EXPECT_EQ(again.depth_maps_from_cache, 8);
 }
 
-// Issue 5: the surface must be complete INCLUDING a pit and its steep sides. The
+// The surface must be complete INCLUDING a pit and its steep sides. The
 // DTM-style top surface is sampled over an area that contains the whole pit; cells
 // next to the vertical sides have no single true height and are excluded from the
 // accuracy figures, but not from completeness.
@@ -327,12 +328,13 @@ TEST(Dense, PitWithSteepSidesIsComplete) {
 
   const double ax = 0.25, ay = 0.2, cell = 0.005;  // metres: area around the pit, grid cell
   const int nx = static_cast<int>(2 * ax / cell) + 1, ny = static_cast<int>(2 * ay / cell) + 1;
-  const HeightField hf = sample_top_surface(dir / "out" / "surface.vdb", -ax, -ay, cell, nx, ny);
+  const RasterGrid grid = RasterGrid::from_south_west_centre(-ax, -ay, cell, nx, ny);
+  const HeightRaster<double> hf = sample_top_surface(dir / "out" / "surface.vdb", grid);
   int cells = 0, covered = 0, pit_cells = 0, pit_covered = 0;
   std::vector<double> err, pit_err;
-  for (int j = 0; j < ny; ++j) {
-    for (int i = 0; i < nx; ++i) {
-      const double x = -ax + i * cell, y = -ay + j * cell, z = hf.at(i, j);
+  for (int row = 0; row < ny; ++row) {
+    for (int col = 0; col < nx; ++col) {
+      const double x = grid.x_centre(col), y = grid.y_centre(row), z = hf.at(col, row);
       const bool pit = in_pit(x, y);
       ++cells;
       pit_cells += pit;
@@ -429,7 +431,7 @@ double edge_gross_share(const Scene& scene, double sigma_colour) {
   return band > 0 ? static_cast<double>(gross) / band : 1.0;
 }
 
-// Issue 5: stones' edges in the trench are depth edges where the DTM must not bleed
+// Stones' edges in the trench are depth edges where the DTM must not bleed
 // the stone top onto the soil beside it.
 TEST(Dense, BilateralWeightsKeepStoneEdgesSharp) {
   constexpr double kMaxGrossShare = 0.08;  // of the pixels within kBand of an edge (plain NCC: ~0.10)
@@ -448,7 +450,7 @@ TEST(Dense, BilateralWeightsKeepStoneEdgesSharp) {
 // Share of the reference view's pixels on the scene (ground or block top, not the
 // grazing vertical faces) whose depth is within kAccurate of the truth.
 double accurate_share(const Scene& scene, const PatchMatchOptions& pm) {
-  constexpr double kAccurate = 0.003;  // metres: the issue's median height target
+  constexpr double kAccurate = 0.003;  // metres: the median height target
   const ReferenceDepth ref = reference_depth(scene, pm);
   const dense::PinholeCamera& cam = ref.cam;
   const dense::DepthMap& map = ref.map;
@@ -469,7 +471,7 @@ double accurate_share(const Scene& scene, const PatchMatchOptions& pm) {
   return seen > 0 ? static_cast<double>(accurate) / seen : 0.0;
 }
 
-// Issue 5 (time): the half-resolution pass must let 2 full-resolution sweeps do
+// Time: the half-resolution pass must let 2 full-resolution sweeps do
 // what 4 sweeps from random planes do, and must be what makes the difference.
 TEST(Dense, CoarseToFineNeedsFewerFullResolutionSweeps) {
   constexpr double kMaxLoss = 0.02;  // share of pixels, coarse-to-fine vs 4 full sweeps
@@ -584,7 +586,11 @@ TEST(Dense, SmallFloatingPiecesOfTheFusedBandAreRemoved) {
   volume.integrate(kFloaterRef, render_plane(kFloaterRef, true), grey);
   for (const auto& cam : kFloaterNeighbours) volume.integrate(cam, render_plane(cam, false), grey);
   volume.finalise(0.2);
-  auto top_at_origin = [&] { return volume.top_surface(0.0, 0.0, kFloaterVoxel, 1, 1).z.at(0); };
+  // The height of one cell centred at (x, y).
+  auto top_at = [&](double x, double y) {
+    return volume.top_surface(RasterGrid::from_south_west_centre(x, y, kFloaterVoxel, 1, 1)).z.at(0);
+  };
+  auto top_at_origin = [&] { return top_at(0.0, 0.0); };
   ASSERT_NEAR(top_at_origin(), kFloaterHeight, kFloaterVoxel) << "the floater should be the uppermost surface first";
   EXPECT_EQ(volume.remove_small_components(0), 0u);
   const std::size_t before = volume.active_voxels();
@@ -593,7 +599,7 @@ TEST(Dense, SmallFloatingPiecesOfTheFusedBandAreRemoved) {
   EXPECT_GT(removed, 0u);
   EXPECT_LT(double(removed), kFloaterPieceFraction * double(before));
   EXPECT_NEAR(top_at_origin(), 0.0, kFloaterVoxel) << "the floor under the floater should be the top surface now";
-  EXPECT_NEAR(volume.top_surface(0.2, 0.1, kFloaterVoxel, 1, 1).z.at(0), 0.0, kFloaterVoxel);
+  EXPECT_NEAR(top_at(0.2, 0.1), 0.0, kFloaterVoxel);
 }
 
 // The fused surface states its height uncertainty per cell from the agreement of
@@ -616,7 +622,7 @@ TEST(Dense, FusedHeightsCarryTheUncertaintyOfTheirDepthMaps) {
       volume.integrate(cams[k], m, grey);
     }
     volume.finalise(0.2);
-    const HeightField hf = volume.top_surface(-0.05, -0.05, 0.01, 11, 11);
+    const HeightRaster<double> hf = volume.top_surface(RasterGrid::from_south_west_centre(-0.05, -0.05, 0.01, 11, 11));
     EXPECT_TRUE(hf.has_sigma());
     std::vector<double> s;
     for (std::size_t c = 0; c < hf.z.size(); ++c)

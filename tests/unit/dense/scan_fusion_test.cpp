@@ -55,16 +55,16 @@ struct Errors {
 };
 
 // |fused - truth| over the cells of the square, away from the block's vertical sides.
-Errors height_errors(const HeightField& hf) {
+Errors height_errors(const HeightRaster<double>& hf) {
   std::vector<double> e;
   std::size_t cells = 0;
-  for (int j = 0; j < hf.ny; ++j)
-    for (int i = 0; i < hf.nx; ++i) {
-      const double x = hf.x0 + i * hf.cell, y = hf.y0 + j * hf.cell;
-      if (std::abs(std::abs(x) - kBlockHalf) < 0.01 || std::abs(std::abs(y) - kBlockHalf) < 0.01) continue;
-      ++cells;
-      if (std::isfinite(hf.at(i, j))) e.push_back(std::abs(hf.at(i, j) - truth(x, y)));
-    }
+  for (std::size_t c = 0; c < hf.z.size(); ++c) {
+    const Eigen::Vector2d p = hf.grid.centre(c);
+    const double x = p.x(), y = p.y();
+    if (std::abs(std::abs(x) - kBlockHalf) < 0.01 || std::abs(std::abs(y) - kBlockHalf) < 0.01) continue;
+    ++cells;
+    if (std::isfinite(hf.z[c])) e.push_back(std::abs(hf.z[c] - truth(x, y)));
+  }
   Errors r;
   if (e.empty()) return r;
   std::sort(e.begin(), e.end());
@@ -85,7 +85,7 @@ TEST(ScanFusion, TwoStationsOfABlockOnAPlaneGiveItsSurfaceToTheMillimetre) {
   EXPECT_GT(f.points, 100000u);
   EXPECT_GT(f.weight, 0);
   volume.finalise(0.2);
-  const HeightField hf = volume.top_surface(-0.3, -0.3, 0.005, 121, 121);
+  const HeightRaster<double> hf = volume.top_surface(RasterGrid::from_south_west_centre(-0.3, -0.3, 0.005, 121, 121));
   const Errors e = height_errors(hf);
   EXPECT_LT(e.median, kHeightMedianTol);
   EXPECT_LT(e.p95, kHeightP95Tol);
@@ -105,9 +105,11 @@ TEST(ScanFusion, OneStationLeavesTheBlocksShadowUnseen) {
   volume.finalise(0.2);
   // The plane just east of the block is in its shadow from the west (the block is
   // 8 cm tall, the station 1.5 m up 0.8 m away: the shadow is ~4 cm long).
-  const HeightField shadow = volume.top_surface(kBlockHalf + 0.015, -0.05, 0.005, 1, 21);
+  const HeightRaster<double> shadow =
+      volume.top_surface(RasterGrid::from_south_west_centre(kBlockHalf + 0.015, -0.05, 0.005, 1, 21));
   for (double z : shadow.z) EXPECT_FALSE(std::isfinite(z) && std::abs(z) < 0.003) << z;
-  const HeightField lit = volume.top_surface(-kBlockHalf - 0.03, -0.05, 0.005, 1, 21);
+  const HeightRaster<double> lit =
+      volume.top_surface(RasterGrid::from_south_west_centre(-kBlockHalf - 0.03, -0.05, 0.005, 1, 21));
   for (double z : lit.z) EXPECT_NEAR(z, 0.0, 0.002);
 }
 
@@ -140,7 +142,8 @@ TEST(ScanFusion, WeightsFollowTheNoiseOfScansAndDepthMaps) {
     volume.integrate(cam, plane_depth(cam, kPhotoOffset), grey);
     dense::fuse_scans(volume, {in_memory(scan_points(station, scan_sigma, 4), station, scan_sigma)}, kUnitSigma);
     volume.finalise(0.2);
-    const HeightField hf = volume.top_surface(-0.3, 0.15, 0.01, 20, 10);  // the plane, clear of the block
+    // The plane, clear of the block.
+    const HeightRaster<double> hf = volume.top_surface(RasterGrid::from_south_west_centre(-0.3, 0.15, 0.01, 20, 10));
     std::vector<double> z;
     for (double v : hf.z)
       if (std::isfinite(v)) z.push_back(v);

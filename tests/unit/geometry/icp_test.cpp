@@ -9,7 +9,7 @@
 namespace strata {
 namespace {
 
-constexpr double kTranslationTolerance = 1e-3;  // metres: the bar, 1 mm
+constexpr double kTranslationTolerance = 1e-3;  // metres: the registration bar, 1 mm
 constexpr double kRotationTolerance = 1e-3;     // radians: 1 mrad
 constexpr double kCoarseYawTolerance = 0.05;    // radians: inside ICP's basin, well under the 10 degree step
 

@@ -28,7 +28,7 @@ using test::SyntheticScene;
 // --- tolerances ------------------------------------------------------------------
 // A marker seen in ~8 photos with 0.2 px noise at ~1.5 mm/px triangulates to well
 // under 1 mm; the photo block itself is good to about a millimetre: a check marker
-// within 5 mm (the acceptance figure) is a real measurement, not luck.
+// within 5 mm (the georeference acceptance, docs/georeference.md) is a real measurement, not luck.
 constexpr double kCheckTolM = 0.005;
 // Camera centres against the truth after georeferencing (absolute, no alignment).
 constexpr double kCentreTolM = 0.005;
@@ -229,7 +229,7 @@ TEST(Georeference, OptionsAndSigmasAreValidated) {
 }
 
 // The whole chain on a noisy layer: incremental SfM in an arbitrary frame, then the
-// georeference; absolute accuracy against the truth (the acceptance figures).
+// georeference; absolute accuracy against the truth (the acceptance figures of docs/georeference.md).
 TEST(Georeference, EndToEndFromIncrementalReconstruction) {
   const SyntheticScene& sc = scene();
   IncrementalSummary sfm;

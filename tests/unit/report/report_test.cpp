@@ -228,20 +228,13 @@ void process_layer(Project& p, const std::string& layer, double base, bool produ
 void add_volumes(Project& p) {
   Database& db = p.db();
   const auto u = require_unit(db, "101");
-  HeightField t;
-  t.x0 = -kHalfX + 0.01;
-  t.y0 = -kHalfY + 0.01;
-  t.cell = 0.02;
-  t.nx = 99;
-  t.ny = 74;
-  for (int j = 0; j < t.ny; ++j) {
-    for (int i = 0; i < t.nx; ++i) {
-      const double x = t.x0 + i * t.cell, y = t.y0 + j * t.cell;
-      t.z.push_back(surface(x, y, 0) - surface(x, y, -0.1));
-    }
+  Dtm t = Dtm::empty(RasterGrid::from_south_west_centre(-kHalfX + 0.01, -kHalfY + 0.01, 0.02, 99, 74));
+  for (std::size_t c = 0; c < t.z.size(); ++c) {
+    const Eigen::Vector2d q = t.grid.centre(c);
+    t.z[c] = float(surface(q.x(), q.y(), 0) - surface(q.x(), q.y(), -0.1));
   }
   fs::create_directories(p.dir() / "products/volume");
-  write_float_geotiff(p.dir() / "products/volume/thickness_101.tif", dtm_from_height_field(t),
+  write_float_geotiff(p.dir() / "products/volume/thickness_101.tif", t,
                       {describe_crs("EPSG:32636").wkt, kOrigin}, {.description = "thickness of 101", .unit = "m"},
                       {.cog = false});
   Transaction tx(db);

@@ -66,7 +66,7 @@ LayerSurface layer(const std::string& name, const std::string& unit, const fs::p
   LayerSurface l;
   l.layer = name;
   l.unit = unit;
-  l.z = sample_top_surface(vdb, 0.5 * kCell, 0.5 * kCell, kCell, kN, kN);
+  l.z = sample_top_surface(vdb, RasterGrid::from_south_west_centre(0.5 * kCell, 0.5 * kCell, kCell, kN, kN));
   l.z.sigma.assign(l.z.z.size(), 0.001);
   l.noise_m = 0.001;
   return l;
