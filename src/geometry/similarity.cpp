@@ -35,8 +35,11 @@ double planar_spread_ratio(const std::vector<Eigen::Vector3d>& points) {
   return s(0) > 0 ? s(1) / s(0) : 0.0;
 }
 
-Similarity3 fit_similarity(const std::vector<Eigen::Vector3d>& src,
-                           const std::vector<Eigen::Vector3d>& dst, double min_spread_ratio) {
+namespace {
+
+// Umeyama's least-squares fit, with or without the scale.
+Similarity3 fit_umeyama(const std::vector<Eigen::Vector3d>& src, const std::vector<Eigen::Vector3d>& dst,
+                        double min_spread_ratio, bool with_scale) {
   STRATA_CHECK(src.size() == dst.size());
   if (src.size() < 3) {
     throw InputError(fmt::format(
@@ -54,13 +57,25 @@ Similarity3 fit_similarity(const std::vector<Eigen::Vector3d>& src,
     a.col(i) = src[i];
     b.col(i) = dst[i];
   }
-  const Eigen::Matrix4d T = Eigen::umeyama(a, b, true);
+  const Eigen::Matrix4d T = Eigen::umeyama(a, b, with_scale);
   Similarity3 s;
   const Eigen::Matrix3d sR = T.topLeftCorner<3, 3>();
-  s.scale = std::cbrt(sR.determinant());
+  s.scale = with_scale ? std::cbrt(sR.determinant()) : 1.0;
   s.R = sR / s.scale;
   s.t = T.topRightCorner<3, 1>();
   return s;
+}
+
+}  // namespace
+
+Similarity3 fit_similarity(const std::vector<Eigen::Vector3d>& src, const std::vector<Eigen::Vector3d>& dst,
+                           double min_spread_ratio) {
+  return fit_umeyama(src, dst, min_spread_ratio, true);
+}
+
+Similarity3 fit_rigid(const std::vector<Eigen::Vector3d>& src, const std::vector<Eigen::Vector3d>& dst,
+                      double min_spread_ratio) {
+  return fit_umeyama(src, dst, min_spread_ratio, false);
 }
 
 Similarity3 fit_similarity_weighted(const std::vector<Eigen::Vector3d>& src,

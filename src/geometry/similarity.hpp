@@ -25,6 +25,11 @@ Similarity3 fit_similarity(const std::vector<Eigen::Vector3d>& src,
                            const std::vector<Eigen::Vector3d>& dst,
                            double min_spread_ratio = 0.02);
 
+// The same without the scale (scale = 1): a rigid motion, for an instrument that
+// measures in metres (a laser scanner).
+Similarity3 fit_rigid(const std::vector<Eigen::Vector3d>& src, const std::vector<Eigen::Vector3d>& dst,
+                      double min_spread_ratio = 0.02);
+
 // Weighted least-squares similarity with a standard deviation per point and axis:
 // minimises sum_i sum_a ((s R src_i + t - dst_i)_a / sigma_i,a)^2 by Gauss-Newton
 // (7 parameters: log-scale, a rotation increment, translation) from the Umeyama fit.

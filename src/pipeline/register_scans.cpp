@@ -282,17 +282,27 @@ TargetRegistrationResult register_scan_on_targets(Project& project, const std::s
     throw InputError(fmt::format("{}: {}: the targets of {} fit with a scale of {:.5f}, not 1 within {}: their "
                                  "coordinates are not in metres, or names are mismatched. Nothing was changed",
                                  kStage, scan.name, file, fit.fit.scale, options.max_scale_error));
-  std::vector<Eigen::Vector3d> inlier_points;
+  // The scanner measures in metres: the pose is the rigid motion fitted to the inliers
+  // (a free scale would only absorb their noise); the similarity's scale stays a check.
+  std::vector<Eigen::Vector3d> inlier_scanner, inlier_site;
   for (std::size_t i = 0; i < pairs.names.size(); ++i) {
-    r.targets.push_back({pairs.names[i], fit.residual_m[i], bool(fit.inlier[i])});
-    if (fit.inlier[i]) inlier_points.push_back(pairs.site[i]);
+    if (!fit.inlier[i]) continue;
+    inlier_scanner.push_back(pairs.scanner[i]);
+    inlier_site.push_back(pairs.site[i]);
+  }
+  const Similarity3 rigid = fit_rigid(inlier_scanner, inlier_site);
+  double sum2 = 0;
+  for (std::size_t i = 0; i < pairs.names.size(); ++i) {
+    const double residual = (rigid.apply(pairs.scanner[i]) - pairs.site[i]).norm();
+    r.targets.push_back({pairs.names[i], residual, bool(fit.inlier[i])});
+    if (fit.inlier[i]) sum2 += residual * residual;
   }
   r.scale = fit.fit.scale;
-  r.rms_m = fit.rms_m;
   r.inliers = fit.inliers;
-  std::tie(r.sigma_translation_m, r.sigma_rotation_rad) = pose_sigmas(inlier_points, fit.rms_m);
-  r.pose.topLeftCorner<3, 3>() = fit.fit.scale * fit.fit.R;
-  r.pose.topRightCorner<3, 1>() = fit.fit.t;
+  r.rms_m = std::sqrt(sum2 / double(r.inliers));
+  std::tie(r.sigma_translation_m, r.sigma_rotation_rad) = pose_sigmas(inlier_site, r.rms_m);
+  r.pose.topLeftCorner<3, 3>() = rigid.R;
+  r.pose.topRightCorner<3, 1>() = rigid.t;
   for (const TargetResidual& t : r.targets) {
     if (!t.inlier)
       log::warn("{}: {}: target {} is {:.1f} mm from its marker, beyond the {:.1f} mm gate: left out", kStage,

@@ -86,7 +86,7 @@ struct TargetResidual {
 struct TargetRegistrationResult {
   ScanRecord scan;                                     // as stored after the registration
   Eigen::Matrix4d pose = Eigen::Matrix4d::Identity();  // scanner frame -> site frame
-  double scale = 1;                                    // of the fitted similarity
+  double scale = 1;                                    // of the robust similarity: a check; the pose is rigid
   double gate_m = 0;
   double rms_m = 0;                                    // over the inliers
   std::size_t inliers = 0;

@@ -183,7 +183,9 @@ TEST(ScanRegisterCli, AScanIsPlacedOnItsTargetsAndBadTargetFilesAreRefused) {
   for (const auto& t : q["targets"]) {
     const bool swapped = t["name"] == "M2" || t["name"] == "M5";
     EXPECT_EQ(t["inlier"].get<bool>(), !swapped) << t;
-    if (swapped) EXPECT_GT(t["residual_m"].get<double>(), 0.4) << t;
+    if (swapped) {
+      EXPECT_GT(t["residual_m"].get<double>(), 0.4) << t;
+    }
   }
   EXPECT_EQ(q["unmatched"], nlohmann::json::array({"T9"}));
   EXPECT_NEAR(q["scale"].get<double>(), 1.0, 0.005);
