@@ -64,13 +64,22 @@ std::string scans_table(const fs::path& gpkg) {
   return out;
 }
 
+// A project with its origin fixed, unit 101 and layer L1.
+void make_site(const std::string& site) {
+  for (const auto& args : std::vector<std::vector<std::string>>{
+           {"-q", "init", site, "--crs", "EPSG:32636", "--origin", "734000,4174000,1400"},
+           {"-q", "unit", "add", site, "101"},
+           {"-q", "layer", "add", site, "L1", "--unit", "101"}}) {
+    const CommandResult r = run_strata(args);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+  }
+}
+
 TEST(ScanRegisterCli, AnUnregisteredScanIsPlacedByIcpAndAFlatOneIsRefused) {
   ScratchDir dir("scan_register");
   const std::string site = (dir / "site").string();
   auto ok = [](const CommandResult& r) { ASSERT_EQ(r.exit_code, 0) << r.err; };
-  ok(run_strata({"-q", "init", site, "--crs", "EPSG:32636", "--origin", "734000,4174000,1400"}));
-  ok(run_strata({"-q", "unit", "add", site, "101"}));
-  ok(run_strata({"-q", "layer", "add", site, "L1", "--unit", "101"}));
+  make_site(site);
 
   // The reference surface: station A at its true pose, fused.
   const Station a{{10.0, 9.5, 1.7}, 0.5};
@@ -142,9 +151,7 @@ TEST(ScanRegisterCli, AScanIsPlacedOnItsTargetsAndBadTargetFilesAreRefused) {
   ScratchDir dir("scan_register_targets");
   const std::string site = (dir / "site").string();
   auto ok = [](const CommandResult& r) { ASSERT_EQ(r.exit_code, 0) << r.err; };
-  ok(run_strata({"-q", "init", site, "--crs", "EPSG:32636", "--origin", "734000,4174000,1400"}));
-  ok(run_strata({"-q", "unit", "add", site, "101"}));
-  ok(run_strata({"-q", "layer", "add", site, "L1", "--unit", "101"}));
+  make_site(site);
   std::string markers = "name,E,N,Z,sigma,kind\n";
   for (const auto& [name, p] : kMarkers)
     markers += fmt::format("{},{:.4f},{:.4f},{:.4f},0.002,control\n", name, 734000 + p.x(), 4174000 + p.y(),
