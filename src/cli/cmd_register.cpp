@@ -1,5 +1,5 @@
-// strata register scan: unregistered range scans placed in the site frame by ICP
-// against a photogrammetric surface (docs/range.md, "Registration").
+// strata register scan: unregistered range scans placed in the site frame on surveyed
+// targets, or by ICP against a photogrammetric surface (docs/range.md, "Registration").
 #include "cli/commands.hpp"
 #include "cli/common.hpp"
 #include "pipeline/register_scans.hpp"
@@ -37,6 +37,35 @@ nlohmann::json registration_json(const LayerRegistrationSummary& s) {
   return out;
 }
 
+nlohmann::json registration_json(const TargetRegistrationResult& r) {
+  nlohmann::json pose = nlohmann::json::array();
+  for (int k = 0; k < 16; ++k) pose.push_back(r.pose(k / 4, k % 4));
+  nlohmann::json targets = nlohmann::json::array();
+  for (const TargetResidual& t : r.targets)
+    targets.push_back({{"name", t.name}, {"residual_m", t.residual_m}, {"inlier", t.inlier}});
+  return {{"scan", r.scan.name},
+          {"method", "targets"},
+          {"transform", pose},
+          {"scale", r.scale},
+          {"rms_m", r.rms_m},
+          {"inliers", r.inliers},
+          {"gate_m", r.gate_m},
+          {"sigma_translation_m", r.sigma_translation_m},
+          {"sigma_rotation_rad", r.sigma_rotation_rad},
+          {"targets", targets},
+          {"unmatched", r.unmatched},
+          {"seconds", r.seconds}};
+}
+
+void print_registration(const TargetRegistrationResult& r) {
+  fmt::print("{}: registered on {} of {} targets: RMS {:.2f} mm, scale {:.5f}, sigma {:.2f} mm / {:.3f} mrad\n",
+             r.scan.name, r.inliers, r.targets.size(), 1000 * r.rms_m, r.scale, 1000 * r.sigma_translation_m,
+             1000 * r.sigma_rotation_rad);
+  for (const TargetResidual& t : r.targets)
+    fmt::print("  {}: {:.1f} mm{}\n", t.name, 1000 * t.residual_m, t.inlier ? "" : " (left out)");
+  fmt::print("run 'strata process' to fuse it into the layer's surface\n");
+}
+
 void print_registration(const LayerRegistrationSummary& s) {
   fmt::print("layer {}: {} scan(s) registered against the surface of layer {}\n", s.layer, s.scans.size(),
              s.reference_layer);
@@ -48,6 +77,16 @@ void print_registration(const LayerRegistrationSummary& s) {
   fmt::print("run 'strata process' to fuse them into the layer's surface\n");
 }
 
+// Opens the project under its write lock, registers, and prints the result.
+template <class Register>
+void run_registration(const std::string& dir, bool json, Register&& register_scans) {
+  const ProjectLock lock = lock_project(dir);
+  Project p = Project::open(dir);
+  const auto result = register_scans(p);
+  if (json) fmt::print("{}\n", registration_json(result).dump(2));
+  else print_registration(result);
+}
+
 }  // namespace
 
 void register_registration_commands(CLI::App& app) {
@@ -55,16 +94,20 @@ void register_registration_commands(CLI::App& app) {
   reg->require_subcommand(1);
   auto* cmd = reg->add_subcommand(
       "scan",
-      "register a layer's unregistered scans by robust point-to-plane ICP against a photogrammetric\n"
-      "surface: the layer's own (run 'strata process' on its photos first) or, with --against previous,\n"
-      "the previous layer's, whose ground outside the trench has not changed. The scanner is taken to\n"
-      "be levelled (z up within a few degrees): the rotation about the vertical is searched, then ICP.\n"
-      "Each scan becomes 'transform' with its residual RMS, inlier share and pose sigma; when any scan\n"
-      "cannot be registered, nothing is changed.");
+      "register a layer's unregistered scans in the site frame. With --targets, one scan (--scan) on\n"
+      "the surveyed markers its scanner measured: a similarity fitted robustly to the targets named like\n"
+      "the markers (blunders left out and listed). Otherwise by robust point-to-plane ICP against a\n"
+      "photogrammetric surface: the layer's own (run 'strata process' on its photos first) or, with\n"
+      "--against previous, the previous layer's, whose ground outside the trench has not changed; the\n"
+      "scanner is taken to be levelled (z up within a few degrees): the rotation about the vertical is\n"
+      "searched, then ICP. Each scan becomes 'transform' with its residual RMS, inlier share and pose\n"
+      "sigma; when any scan cannot be registered, nothing is changed.");
   auto dir = std::make_shared<std::string>();
   auto layer = std::make_shared<std::string>();
   auto scan = std::make_shared<std::string>();
   auto against = std::make_shared<std::string>("layer");
+  auto targets = std::make_shared<std::string>();
+  auto target_sigma = std::make_shared<double>(TargetRegistrationOptions{}.target_sigma_m);
   auto json = std::make_shared<bool>(false);
   cmd->add_option("DIR", *dir, "project folder")->required();
   cmd->add_option("--layer", *layer, "the layer whose scans to register")->required();
@@ -73,17 +116,33 @@ void register_registration_commands(CLI::App& app) {
                   "the reference surface: layer (the layer's own photo surface, the default) or previous "
                   "(the layer recorded before it)")
       ->check(CLI::IsMember({"layer", "previous"}));
+  auto* targets_opt = cmd->add_option(
+      "--targets", *targets,
+      "the scanner's measurements of surveyed markers: CSV name,x,y,z (metres, scanner frame), each\n"
+      "named like its marker; needs --scan");
+  targets_opt->needs(cmd->get_option("--scan"))->check(CLI::ExistingFile);
+  cmd->add_option("--target-sigma", *target_sigma, "metres: a target centre as the scanner measures it, one sigma")
+      ->needs(targets_opt)
+      ->check(CLI::PositiveNumber);
+  cmd->get_option("--against")->excludes(targets_opt);
   cmd->add_flag("--json", *json, "print the registration figures as JSON");
-  cmd->footer("Example: strata register scan site --layer L4");
+  cmd->footer(
+      "Examples:\n"
+      "  strata register scan site --layer L4\n"
+      "  strata register scan site --layer L4 --scan S1.ply --targets S1_targets.csv");
   cmd->callback([=] {
+    if (!targets->empty()) {
+      TargetRegistrationOptions options;
+      options.scan = *scan;
+      options.targets = *targets;
+      options.target_sigma_m = *target_sigma;
+      run_registration(*dir, *json, [&](Project& p) { return register_scan_on_targets(p, *layer, options); });
+      return;
+    }
     ScanRegistrationOptions options;
     options.against = *against == "previous" ? RegistrationReference::previous : RegistrationReference::layer;
     if (!scan->empty()) options.scan = *scan;
-    const ProjectLock lock = lock_project(*dir);
-    Project p = Project::open(*dir);
-    const LayerRegistrationSummary s = register_layer_scans(p, *layer, options);
-    if (*json) fmt::print("{}\n", registration_json(s).dump(2));
-    else print_registration(s);
+    run_registration(*dir, *json, [&](Project& p) { return register_layer_scans(p, *layer, options); });
   });
 }
 

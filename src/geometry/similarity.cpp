@@ -5,8 +5,13 @@
 #include <Eigen/Geometry>
 #include <Eigen/SVD>
 
+#include <fmt/format.h>
+
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <optional>
+#include <random>
 
 namespace strata {
 
@@ -30,8 +35,11 @@ double planar_spread_ratio(const std::vector<Eigen::Vector3d>& points) {
   return s(0) > 0 ? s(1) / s(0) : 0.0;
 }
 
-Similarity3 fit_similarity(const std::vector<Eigen::Vector3d>& src,
-                           const std::vector<Eigen::Vector3d>& dst, double min_spread_ratio) {
+namespace {
+
+// Umeyama's least-squares fit, with or without the scale.
+Similarity3 fit_umeyama(const std::vector<Eigen::Vector3d>& src, const std::vector<Eigen::Vector3d>& dst,
+                        double min_spread_ratio, bool with_scale) {
   STRATA_CHECK(src.size() == dst.size());
   if (src.size() < 3) {
     throw InputError(fmt::format(
@@ -49,13 +57,25 @@ Similarity3 fit_similarity(const std::vector<Eigen::Vector3d>& src,
     a.col(i) = src[i];
     b.col(i) = dst[i];
   }
-  const Eigen::Matrix4d T = Eigen::umeyama(a, b, true);
+  const Eigen::Matrix4d T = Eigen::umeyama(a, b, with_scale);
   Similarity3 s;
   const Eigen::Matrix3d sR = T.topLeftCorner<3, 3>();
-  s.scale = std::cbrt(sR.determinant());
+  s.scale = with_scale ? std::cbrt(sR.determinant()) : 1.0;
   s.R = sR / s.scale;
   s.t = T.topRightCorner<3, 1>();
   return s;
+}
+
+}  // namespace
+
+Similarity3 fit_similarity(const std::vector<Eigen::Vector3d>& src, const std::vector<Eigen::Vector3d>& dst,
+                           double min_spread_ratio) {
+  return fit_umeyama(src, dst, min_spread_ratio, true);
+}
+
+Similarity3 fit_rigid(const std::vector<Eigen::Vector3d>& src, const std::vector<Eigen::Vector3d>& dst,
+                      double min_spread_ratio) {
+  return fit_umeyama(src, dst, min_spread_ratio, false);
 }
 
 Similarity3 fit_similarity_weighted(const std::vector<Eigen::Vector3d>& src,
@@ -101,6 +121,89 @@ Similarity3 fit_similarity_weighted(const std::vector<Eigen::Vector3d>& src,
     if (d.cwiseAbs().maxCoeff() < kStepTolerance * std::max(1.0, s.t.norm())) break;
   }
   return s;
+}
+
+namespace {
+
+// Residuals of every pair under `s`, and which lie within the gate.
+RobustSimilarity score(const Similarity3& s, const std::vector<Eigen::Vector3d>& src,
+                       const std::vector<Eigen::Vector3d>& dst, double gate_m) {
+  RobustSimilarity r;
+  r.fit = s;
+  r.inlier.assign(src.size(), false);
+  r.residual_m.resize(src.size());
+  double sum2 = 0;
+  for (std::size_t i = 0; i < src.size(); ++i) {
+    r.residual_m[i] = (s.apply(src[i]) - dst[i]).norm();
+    if (r.residual_m[i] <= gate_m) {
+      r.inlier[i] = true;
+      ++r.inliers;
+      sum2 += r.residual_m[i] * r.residual_m[i];
+    }
+  }
+  r.rms_m = r.inliers > 0 ? std::sqrt(sum2 / double(r.inliers)) : 0.0;
+  return r;
+}
+
+bool better(const RobustSimilarity& a, const RobustSimilarity& b) {
+  return a.inliers != b.inliers ? a.inliers > b.inliers : a.rms_m < b.rms_m;
+}
+
+// The triples to try: all of them when there are few enough, else a fixed-seed sample.
+std::vector<std::array<std::size_t, 3>> triples(std::size_t n) {
+  constexpr std::size_t kMaxTriples = 20000;
+  std::vector<std::array<std::size_t, 3>> out;
+  if (n * (n - 1) * (n - 2) / 6 <= kMaxTriples) {
+    for (std::size_t a = 0; a < n; ++a)
+      for (std::size_t b = a + 1; b < n; ++b)
+        for (std::size_t c = b + 1; c < n; ++c) out.push_back({a, b, c});
+    return out;
+  }
+  std::mt19937_64 rng(0x5EED5u);
+  std::uniform_int_distribution<std::size_t> pick(0, n - 1);
+  while (out.size() < kMaxTriples) {
+    const std::size_t a = pick(rng), b = pick(rng), c = pick(rng);
+    if (a != b && b != c && a != c) out.push_back({a, b, c});
+  }
+  return out;
+}
+
+}  // namespace
+
+RobustSimilarity fit_similarity_robust(const std::vector<Eigen::Vector3d>& src,
+                                       const std::vector<Eigen::Vector3d>& dst, double gate_m,
+                                       double min_spread_ratio) {
+  STRATA_CHECK(src.size() == dst.size());
+  STRATA_CHECK(gate_m > 0);
+  if (src.size() < 3)
+    throw InputError(fmt::format("a similarity needs at least 3 point pairs, {} given", src.size()));
+  std::optional<RobustSimilarity> best;
+  for (const auto& t : triples(src.size())) {
+    const std::vector<Eigen::Vector3d> a = {src[t[0]], src[t[1]], src[t[2]]};
+    const std::vector<Eigen::Vector3d> b = {dst[t[0]], dst[t[1]], dst[t[2]]};
+    if (std::min(planar_spread_ratio(a), planar_spread_ratio(b)) < min_spread_ratio) continue;
+    RobustSimilarity r = score(fit_similarity(a, b, min_spread_ratio), src, dst, gate_m);
+    if (!best || better(r, *best)) best = std::move(r);
+  }
+  if (!best || best->inliers < 3)
+    throw InputError(fmt::format("no three of the {} point pairs agree on one similarity within {:.0f} mm (or "
+                                 "they lie on a line)",
+                                 src.size(), 1000 * gate_m));
+  // Least squares on the inliers, re-gated until the set is stable (at most a few rounds).
+  for (int round = 0; round < 10; ++round) {
+    std::vector<Eigen::Vector3d> a, b;
+    for (std::size_t i = 0; i < src.size(); ++i) {
+      if (!best->inlier[i]) continue;
+      a.push_back(src[i]);
+      b.push_back(dst[i]);
+    }
+    RobustSimilarity r = score(fit_similarity(a, b, min_spread_ratio), src, dst, gate_m);
+    const bool same = r.inlier == best->inlier;
+    if (r.inliers < 3) break;
+    best = std::move(r);
+    if (same) break;
+  }
+  return *best;
 }
 
 }  // namespace strata

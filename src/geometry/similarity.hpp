@@ -25,6 +25,11 @@ Similarity3 fit_similarity(const std::vector<Eigen::Vector3d>& src,
                            const std::vector<Eigen::Vector3d>& dst,
                            double min_spread_ratio = 0.02);
 
+// The same without the scale (scale = 1): a rigid motion, for an instrument that
+// measures in metres (a laser scanner).
+Similarity3 fit_rigid(const std::vector<Eigen::Vector3d>& src, const std::vector<Eigen::Vector3d>& dst,
+                      double min_spread_ratio = 0.02);
+
 // Weighted least-squares similarity with a standard deviation per point and axis:
 // minimises sum_i sum_a ((s R src_i + t - dst_i)_a / sigma_i,a)^2 by Gauss-Newton
 // (7 parameters: log-scale, a rotation increment, translation) from the Umeyama fit.
@@ -36,6 +41,24 @@ Similarity3 fit_similarity_weighted(const std::vector<Eigen::Vector3d>& src,
                                     const std::vector<Eigen::Vector3d>& dst,
                                     const std::vector<Eigen::Vector3d>& sigma,
                                     double min_spread_ratio = 0.02);
+
+// A similarity fitted to pairs that may hold blunders (a target given another's name,
+// a disturbed marker). Every triple of pairs (all of them up to 20,000 triples, else
+// as many drawn with a fixed seed) proposes a fit; the one that brings the most pairs
+// within `gate_m` of their partner wins (ties: the smaller RMS over them), then a
+// least-squares fit on those inliers, re-gated until the set no longer changes.
+// Throws InputError when fewer than 3 pairs are given, or no well-spread triple
+// (planar_spread_ratio >= min_spread_ratio) brings 3 pairs within the gate.
+struct RobustSimilarity {
+  Similarity3 fit;
+  std::vector<bool> inlier;         // per pair
+  std::vector<double> residual_m;   // |fit(src_i) - dst_i| per pair, metres
+  std::size_t inliers = 0;
+  double rms_m = 0;                 // over the inliers, metres
+};
+RobustSimilarity fit_similarity_robust(const std::vector<Eigen::Vector3d>& src,
+                                       const std::vector<Eigen::Vector3d>& dst, double gate_m,
+                                       double min_spread_ratio = 0.02);
 
 // Ratio of the second to the first singular value of a centred point set:
 // 0 for collinear points, about 1 for well spread ones.

@@ -3,15 +3,21 @@
 #include "core/error.hpp"
 #include "core/log.hpp"
 #include "core/resources.hpp"
+#include "importers/scans/scan_targets.hpp"
 #include "pipeline/dense_layer.hpp"
 #include "pipeline/scan_points.hpp"
 #include "project/database.hpp"
 #include "project/records.hpp"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <map>
+#include <tuple>
+#include <utility>
 
 namespace fs = std::filesystem;
 
@@ -85,6 +91,38 @@ std::string refusal(const ScanRecord& s, const IcpSummary& fit, const ScanRegist
   return {};
 }
 
+// The box of the scan's points under `pose` (scanner frame -> site frame).
+ScanBounds bounds_under(const std::vector<Eigen::Vector3d>& raw, const Eigen::Matrix4d& pose) {
+  ScanBounds box{Eigen::Vector3d::Constant(INFINITY), Eigen::Vector3d::Constant(-INFINITY)};
+  for (const auto& p : raw) {
+    const Eigen::Vector3d q = pose.topLeftCorner<3, 3>() * p + pose.topRightCorner<3, 1>();
+    box.min = box.min.cwiseMin(q);
+    box.max = box.max.cwiseMax(q);
+  }
+  return box;
+}
+
+// The layer and its scans to register: `name`, or every unregistered one. Refuses a
+// scan whose pose came with its file (its own CRS or transform): strata registers
+// only unregistered scans or re-registers its own.
+std::pair<LayerRecord, std::vector<ScanRecord>> scans_to_register(Database& db, const std::string& layer_name,
+                                                                  const std::optional<std::string>& name) {
+  const auto layer = find_layer(db, layer_name);
+  if (!layer) throw InputError(fmt::format("{}: no layer '{}' in the project", kStage, layer_name));
+  std::vector<ScanRecord> todo;
+  for (const ScanRecord& s : list_scans(db, layer->id)) {
+    if (name ? s.name == *name : s.registration == ScanRegistration::unregistered) todo.push_back(s);
+  }
+  if (name && todo.empty())
+    throw InputError(fmt::format("{}: layer {} has no scan named '{}'", kStage, layer_name, *name));
+  if (name && todo[0].registration != ScanRegistration::unregistered && !todo[0].fit)
+    throw InputError(fmt::format("{}: {} is already registered ({}), by the file's own CRS or transform; "
+                                 "strata registers only unregistered scans or re-registers its own",
+                                 kStage, todo[0].name, to_string(todo[0].registration)));
+  if (todo.empty()) throw InputError(fmt::format("{}: layer {} has no unregistered scan", kStage, layer_name));
+  return {*layer, std::move(todo)};
+}
+
 ScanRegistrationResult register_one(Project& project, const ScanRecord& s, const OrientedPoints& surface,
                                     const std::vector<Eigen::Vector3d>& surface_raw,
                                     const ScanRegistrationOptions& options) {
@@ -98,20 +136,26 @@ ScanRegistrationResult register_one(Project& project, const ScanRecord& s, const
   r.coarse = coarse_yaw_search(thin, surface_raw, options.coarse);
   r.icp = register_point_to_plane(thin, surface, r.coarse.pose, options.icp);
   r.pose = r.icp.pose.matrix();
-  ScanBounds box{Eigen::Vector3d::Constant(INFINITY), Eigen::Vector3d::Constant(-INFINITY)};
-  for (const auto& p : raw) {
-    const Eigen::Vector3d q = r.icp.pose * p;
-    box.min = box.min.cwiseMin(q);
-    box.max = box.max.cwiseMax(q);
-  }
   r.scan.registration = ScanRegistration::transform;
   r.scan.transform = r.pose;
-  r.scan.bounds = box;
+  r.scan.bounds = bounds_under(raw, r.pose);
   r.seconds = sw.seconds();
   return r;
 }
 
 }  // namespace
+
+void TargetRegistrationOptions::validate() const {
+  auto need = [](bool ok, const char* field, const char* what) {
+    if (!ok) throw InputError(fmt::format("{}: {} must be {}", kStage, field, what));
+  };
+  need(!scan.empty(), "scan", "given (--scan NAME: the targets belong to one scan)");
+  need(!targets.empty(), "targets", "a file");
+  need(target_sigma_m > 0, "target_sigma_m", "> 0 (metres)");
+  need(gate_sigmas > 0, "gate_sigmas", "> 0");
+  need(min_gate_m > 0, "min_gate_m", "> 0 (metres)");
+  need(max_scale_error > 0 && max_scale_error < 1, "max_scale_error", "in (0, 1)");
+}
 
 void ScanRegistrationOptions::validate() const {
   auto need = [](bool ok, const char* field, const char* what) {
@@ -130,23 +174,11 @@ LayerRegistrationSummary register_layer_scans(Project& project, const std::strin
                                               const ScanRegistrationOptions& options) {
   options.validate();
   Database& db = project.db();
-  const auto layer = find_layer(db, layer_name);
-  if (!layer) throw InputError(fmt::format("{}: no layer '{}' in the project", kStage, layer_name));
-  std::vector<ScanRecord> todo;
-  for (const ScanRecord& s : list_scans(db, layer->id)) {
-    if (options.scan ? s.name == *options.scan : s.registration == ScanRegistration::unregistered) todo.push_back(s);
-  }
-  if (options.scan && todo.empty())
-    throw InputError(fmt::format("{}: layer {} has no scan named '{}'", kStage, layer_name, *options.scan));
-  if (options.scan && todo[0].registration != ScanRegistration::unregistered && !todo[0].fit)
-    throw InputError(fmt::format("{}: {} is already registered ({}), by the file's own CRS or transform; "
-                                 "strata registers only unregistered scans or re-registers its own",
-                                 kStage, todo[0].name, to_string(todo[0].registration)));
-  if (todo.empty()) throw InputError(fmt::format("{}: layer {} has no unregistered scan", kStage, layer_name));
+  const auto [layer, todo] = scans_to_register(db, layer_name, options.scan);
 
   LayerRegistrationSummary out;
   out.layer = layer_name;
-  const LayerRecord ref = options.against == RegistrationReference::layer ? *layer : previous_layer(db, *layer);
+  const LayerRecord ref = options.against == RegistrationReference::layer ? layer : previous_layer(db, layer);
   out.reference_layer = ref.name;
   const std::vector<Eigen::Vector3d> raw = surface_points(project, ref, layer_name);
   const std::vector<Eigen::Vector3d> thin = voxel_subsample(raw, options.surface_voxel_m);
@@ -171,6 +203,126 @@ LayerRegistrationSummary register_layer_scans(Project& project, const std::strin
     set_scan_registered(db, r.scan.id, r.pose, *r.scan.bounds, *r.scan.fit);
   tx.commit();
   return out;
+}
+
+namespace {
+
+// The scanner-frame targets paired with the surveyed markers of the same name (site
+// frame); names without a marker go to `unmatched`.
+struct TargetPairs {
+  std::vector<std::string> names;
+  std::vector<Eigen::Vector3d> scanner, site;
+  double largest_marker_sigma_m = 0;
+  std::vector<std::string> unmatched;
+};
+
+TargetPairs pair_targets(Project& project, const std::vector<ScanTarget>& targets) {
+  std::map<std::string, MarkerRecord> markers;
+  for (MarkerRecord& m : list_markers(project.db())) markers.emplace(m.name, std::move(m));
+  const Eigen::Vector3d origin = project.site().origin;
+  TargetPairs out;
+  for (const ScanTarget& t : targets) {
+    const auto it = markers.find(t.name);
+    if (it == markers.end()) {
+      out.unmatched.push_back(t.name);
+      continue;
+    }
+    out.names.push_back(t.name);
+    out.scanner.push_back(t.scanner);
+    out.site.push_back(it->second.position - origin);
+    out.largest_marker_sigma_m = std::max(out.largest_marker_sigma_m, it->second.sigma.norm());
+  }
+  return out;
+}
+
+// First-order pose sigmas of a fit on `points` (site frame) with residual RMS `rms`.
+std::pair<double, double> pose_sigmas(const std::vector<Eigen::Vector3d>& points, double rms) {
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for (const auto& p : points) c += p;
+  c /= double(points.size());
+  double spread2 = 0;
+  for (const auto& p : points) spread2 += (p - c).squaredNorm();
+  return {rms / std::sqrt(double(points.size())), spread2 > 0 ? rms / std::sqrt(spread2) : INFINITY};
+}
+
+}  // namespace
+
+TargetRegistrationResult register_scan_on_targets(Project& project, const std::string& layer_name,
+                                                  const TargetRegistrationOptions& options) {
+  options.validate();
+  const Stopwatch sw;
+  Database& db = project.db();
+  const ScanRecord scan = scans_to_register(db, layer_name, options.scan).second.front();
+  const std::string file = options.targets.filename().string();
+  if (!project.site().origin_set)
+    throw InputError(fmt::format("{}: {}: the site has no surveyed markers yet: import them first (strata import "
+                                 "markers), the targets are matched to them by name",
+                                 kStage, scan.name));
+  const TargetPairs pairs = pair_targets(project, read_scan_targets(options.targets));
+  if (pairs.names.size() < 3)
+    throw InputError(fmt::format("{}: {}: {} of the {} targets in {} name a surveyed marker, at least 3 needed{}",
+                                 kStage, scan.name, pairs.names.size(), pairs.names.size() + pairs.unmatched.size(),
+                                 options.targets.string(),
+                                 pairs.unmatched.empty()
+                                     ? std::string()
+                                     : fmt::format(" (no marker named {})", fmt::join(pairs.unmatched, ", "))));
+  TargetRegistrationResult r;
+  r.scan = scan;
+  r.unmatched = pairs.unmatched;
+  r.gate_m = std::max(options.min_gate_m, options.gate_sigmas * std::hypot(options.target_sigma_m,
+                                                                            pairs.largest_marker_sigma_m));
+  RobustSimilarity fit;
+  try {
+    fit = fit_similarity_robust(pairs.scanner, pairs.site, r.gate_m);
+  } catch (const InputError& e) {
+    throw InputError(fmt::format("{}: {}: cannot register it on the targets of {}: {}. Nothing was changed",
+                                 kStage, scan.name, file, e.what()));
+  }
+  if (std::abs(fit.fit.scale - 1) > options.max_scale_error)
+    throw InputError(fmt::format("{}: {}: the targets of {} fit with a scale of {:.5f}, not 1 within {}: their "
+                                 "coordinates are not in metres, or names are mismatched. Nothing was changed",
+                                 kStage, scan.name, file, fit.fit.scale, options.max_scale_error));
+  // The scanner measures in metres: the pose is the rigid motion fitted to the inliers
+  // (a free scale would only absorb their noise); the similarity's scale stays a check.
+  std::vector<Eigen::Vector3d> inlier_scanner, inlier_site;
+  for (std::size_t i = 0; i < pairs.names.size(); ++i) {
+    if (!fit.inlier[i]) continue;
+    inlier_scanner.push_back(pairs.scanner[i]);
+    inlier_site.push_back(pairs.site[i]);
+  }
+  const Similarity3 rigid = fit_rigid(inlier_scanner, inlier_site);
+  double sum2 = 0;
+  for (std::size_t i = 0; i < pairs.names.size(); ++i) {
+    const double residual = (rigid.apply(pairs.scanner[i]) - pairs.site[i]).norm();
+    r.targets.push_back({pairs.names[i], residual, bool(fit.inlier[i])});
+    if (fit.inlier[i]) sum2 += residual * residual;
+  }
+  r.scale = fit.fit.scale;
+  r.inliers = fit.inliers;
+  r.rms_m = std::sqrt(sum2 / double(r.inliers));
+  std::tie(r.sigma_translation_m, r.sigma_rotation_rad) = pose_sigmas(inlier_site, r.rms_m);
+  r.pose.topLeftCorner<3, 3>() = rigid.R;
+  r.pose.topRightCorner<3, 1>() = rigid.t;
+  for (const TargetResidual& t : r.targets) {
+    if (!t.inlier)
+      log::warn("{}: {}: target {} is {:.1f} mm from its marker, beyond the {:.1f} mm gate: left out", kStage,
+                scan.name, t.name, 1000 * t.residual_m, 1000 * r.gate_m);
+  }
+  if (!r.unmatched.empty())
+    log::warn("{}: {}: no surveyed marker named {}: left out", kStage, scan.name, fmt::join(r.unmatched, ", "));
+
+  const std::vector<Eigen::Vector3d> raw =
+      read_points(project.dir() / scan.media_path, shifted_by(Eigen::Vector3d::Zero()));
+  r.scan.registration = ScanRegistration::transform;
+  r.scan.transform = r.pose;
+  r.scan.bounds = bounds_under(raw, r.pose);
+  r.scan.fit = ScanFit{"targets", file, r.rms_m, double(r.inliers) / double(r.targets.size()),
+                       r.sigma_translation_m, r.sigma_rotation_rad};
+  Transaction tx(db);
+  set_scan_registered(db, r.scan.id, r.pose, *r.scan.bounds, *r.scan.fit);
+  tx.commit();
+  r.seconds = sw.seconds();
+  return r;
 }
 
 }  // namespace strata

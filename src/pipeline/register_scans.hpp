@@ -1,14 +1,17 @@
 #pragma once
 // The registration controller (docs/range.md, "Registration"): a layer's unregistered
-// range scans placed in the site frame by a coarse yaw search and robust
-// point-to-plane ICP (geometry/icp.hpp) against a photogrammetric surface: the
-// layer's own (products/<layer>/dense/points.ply) or the previous layer's, whose
+// range scans placed in the site frame, either on surveyed targets that the scanner
+// measured (a robust similarity, geometry/similarity.hpp), or by a coarse yaw search
+// and robust point-to-plane ICP (geometry/icp.hpp) against a photogrammetric surface:
+// the layer's own (products/<layer>/dense/points.ply) or the previous layer's, whose
 // ground outside the trench has not changed. Every scan is fitted and checked before
 // anything is written; then all are stored in one transaction, or none.
 #include "geometry/icp.hpp"
+#include "geometry/similarity.hpp"
 #include "project/project.hpp"
 #include "project/scan_records.hpp"
 
+#include <filesystem>
 #include <optional>
 #include <string>
 #include <vector>
@@ -57,5 +60,50 @@ struct LayerRegistrationSummary {
 // above its noise): the message names the scan, which check failed and what to do.
 LayerRegistrationSummary register_layer_scans(Project& project, const std::string& layer,
                                               const ScanRegistrationOptions& options);
+
+// Registration on targets: the scanner's own measurements of surveyed markers (sphere
+// or checkerboard centres, named like the markers), read by importers/scans/scan_targets.
+struct TargetRegistrationOptions {
+  std::string scan;                 // the scan, by file name (required)
+  std::filesystem::path targets;    // name,x,y,z in metres, scanner frame
+  double target_sigma_m = 0.002;    // metres: a target centre as the scanner's software finds it
+  // A pair is an inlier within gate_sigmas x sqrt(target sigma^2 + the largest marker
+  // sigma^2 of the pairs), and never less than min_gate_m.
+  double gate_sigmas = 3.0;
+  double min_gate_m = 0.005;
+  // A scanner measures in metres to about 1e-4; a fitted scale further from 1 than
+  // this means other units or mismatched names.
+  double max_scale_error = 0.005;
+  void validate() const;  // throws InputError naming the field
+};
+
+struct TargetResidual {
+  std::string name;
+  double residual_m = 0;  // |pose(scanner) - surveyed|, metres
+  bool inlier = false;
+};
+
+struct TargetRegistrationResult {
+  ScanRecord scan;                                     // as stored after the registration
+  Eigen::Matrix4d pose = Eigen::Matrix4d::Identity();  // scanner frame -> site frame
+  double scale = 1;                                    // of the robust similarity: a check; the pose is rigid
+  double gate_m = 0;
+  double rms_m = 0;                                    // over the inliers
+  std::size_t inliers = 0;
+  std::vector<TargetResidual> targets;                 // every target matched to a marker, file order
+  std::vector<std::string> unmatched;                  // targets with no surveyed marker of that name
+  // First-order pose sigmas from the inliers' RMS: translation rms / sqrt(n) at their
+  // centroid, rotation rms / sqrt(sum of squared distances to it).
+  double sigma_translation_m = 0;
+  double sigma_rotation_rad = 0;
+  double seconds = 0;
+};
+
+// Registers one scan of the layer on its targets and stores it as 'transform' with the
+// fit (registered_by 'targets'). Throws InputError, the database unchanged, when the
+// scan is unknown or was registered by its file's own CRS or transform, fewer than 3
+// targets name a surveyed marker, no 3 of them agree, or the scale is off.
+TargetRegistrationResult register_scan_on_targets(Project& project, const std::string& layer,
+                                                  const TargetRegistrationOptions& options);
 
 }  // namespace strata

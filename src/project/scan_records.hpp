@@ -29,10 +29,10 @@ struct ScanBounds {
 
 // How strata itself registered a scan (schema 11; docs/range.md, "Registration").
 struct ScanFit {
-  std::string method;            // 'icp-layer' (its layer's photo surface) or 'icp-previous'
-  std::string against;           // name of the layer whose surface was the reference
-  double rms_m = 0;              // RMS point-to-plane residual of the inliers, metres
-  double inlier_share = 0;       // 0..1
+  std::string method;            // 'icp-layer' (its layer's photo surface), 'icp-previous' or 'targets'
+  std::string against;           // the layer whose surface was the reference, or the target file's name
+  double rms_m = 0;              // RMS residual of the inliers (point to plane, or target), metres
+  double inlier_share = 0;       // 0..1, of the thinned scan's points or of the matched targets
   double sigma_translation_m = 0;  // pose sigma, largest axis, metres
   double sigma_rotation_rad = 0;   // pose sigma, largest axis, radians
 };

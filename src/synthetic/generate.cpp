@@ -126,9 +126,23 @@ UnitVolume removed_volume(const synthetic::HeightGrid& before, const synthetic::
   return r;
 }
 
+// The markers a station measured as targets, in its scanner's frame, as
+// 'strata register scan --targets' reads them.
+void write_scan_targets(const fs::path& file, const std::vector<synthetic::TargetObservation>& targets,
+                        const std::string& layer, std::size_t station, double sigma_m) {
+  synthetic::TextFile t(file);
+  t.out() << fmt::format("# markers measured as targets by the scanner of {} station {}: scanner frame, metres, "
+                         "{:.1f} mm noise per axis\nname,x,y,z\n",
+                         layer, station, 1000 * sigma_m);
+  for (const auto& m : targets)
+    t.out() << fmt::format("{},{:.4f},{:.4f},{:.4f}\n", m.name, m.scanner.x(), m.scanner.y(), m.scanner.z());
+  t.close();
+}
+
 // The simulated laser scans of layer k: per station, scans/L<k>/S<n>.ply in the
 // scanner's frame, its true pose S<n>_pose.txt (scanner -> site frame, the 4x4 that
-// 'strata import scan --transform' reads) and a line of scans.csv.
+// 'strata import scan --transform' reads), the markers it measured as targets
+// S<n>_targets.csv, and a line of scans.csv.
 void write_layer_scans(const synthetic::Scene& scene, int k, const fs::path& dir, std::vector<std::string>& lines,
                        SyntheticExcavationSummary& summary) {
   using namespace synthetic;
@@ -153,6 +167,9 @@ void write_layer_scans(const synthetic::Scene& scene, int k, const fs::path& dir
     for (int r = 0; r < 4; ++r)
       t.out() << fmt::format("{:.12f} {:.12f} {:.12f} {:.12f}\n", m(r, 0), m(r, 1), m(r, 2), m(r, 3));
     t.close();
+    write_scan_targets(dir / "scans" / layer / (name + "_targets.csv"),
+                       observe_scan_targets(scene, k, stations[s], mix64(o.seed * 7013 + std::uint64_t(k) * 37 + s)),
+                       layer, s + 1, o.scans.target_sigma_m);
     const Eigen::Vector3d c = stations[s].origin + origin;
     lines.push_back(fmt::format("{},{},{},{},{:.4f},{:.4f},{:.4f},{:.6f},{}", layer, ply.string(), pose.string(),
                                 o.scans.sigma_m, c.x(), c.y(), c.z(), stations[s].yaw, scan.points.size()));
@@ -496,8 +513,13 @@ void write_site_json(const synthetic::Scene& scene, const SyntheticExcavationOpt
                   {"check", site.check_markers},
                   {"survey_sigma_m", site.survey_sigma}};
   if (o.scans.enabled)
-    j["scans"] = {{"csv", "scans.csv"},          {"stations", o.scans.stations}, {"step_mrad", o.scans.step_mrad},
-                  {"sigma_m", o.scans.sigma_m}, {"height_m", o.scans.height_m}, {"crop_margin_m", o.scans.crop_margin_m}};
+    j["scans"] = {{"csv", "scans.csv"},
+                  {"stations", o.scans.stations},
+                  {"step_mrad", o.scans.step_mrad},
+                  {"sigma_m", o.scans.sigma_m},
+                  {"height_m", o.scans.height_m},
+                  {"crop_margin_m", o.scans.crop_margin_m},
+                  {"target_sigma_m", o.scans.target_sigma_m}};
   j["generator"] = {{"name", "strata synth"}, {"version", "0.1.0"}};
   TextFile json(path);
   json.out() << j.dump(2) << "\n";
@@ -579,6 +601,8 @@ void SyntheticExcavationOptions::validate() const {
   require(scans.stations >= 2 && scans.stations <= 3, "scans.stations", scans.stations, "2..3");
   require(scans.step_mrad >= 0.5 && scans.step_mrad <= 20, "scans.step_mrad", scans.step_mrad, "0.5..20 mrad");
   require(scans.sigma_m >= 0 && scans.sigma_m <= 0.05, "scans.sigma_m", scans.sigma_m, "0..0.05 m");
+  require(scans.target_sigma_m >= 0 && scans.target_sigma_m <= 0.05, "scans.target_sigma_m", scans.target_sigma_m,
+          "0..0.05 m");
   require(scans.height_m >= 0.5 && scans.height_m <= 3, "scans.height_m", scans.height_m, "0.5..3 m");
   require(scans.crop_margin_m >= 0 && scans.crop_margin_m <= 1, "scans.crop_margin_m", scans.crop_margin_m,
           "0..1 m (inside the scene's fine grid)");

@@ -125,4 +125,25 @@ SimulatedScan simulate_scan(const Scene& scene, int layer, const ScanStation& st
   return scan;
 }
 
+std::vector<TargetObservation> observe_scan_targets(const Scene& scene, int layer, const ScanStation& station,
+                                                    std::uint64_t seed) {
+  constexpr double kMaxIncidence = 75.0 * std::numbers::pi / 180.0;  // from the print's normal (vertical)
+  constexpr double kOccluderClearance = 0.01;  // metres: a hit this much short of the centre hides it
+  const double sigma = scene.options().scans.target_sigma_m;
+  const Eigen::Matrix3d R = station.scanner_to_site().topLeftCorner<3, 3>();
+  Rng rng(mix64(seed ^ 0x7A26E75ull));
+  std::vector<TargetObservation> out;
+  for (const MarkerTarget& m : scene.markers()) {
+    const Eigen::Vector3d d = m.centre - station.origin;
+    const double range = d.norm();
+    const Eigen::Vector3d dir = d / range;
+    if (range > kMaxRange || std::acos(std::clamp(-dir.z(), -1.0, 1.0)) > kMaxIncidence) continue;
+    const RayHit hit = cast_ray(scene, layer, station.origin, dir);
+    if (hit.where != RayHit::Where::sky && hit.t < range - kOccluderClearance) continue;
+    const Eigen::Vector3d noise(rng.normal(), rng.normal(), rng.normal());
+    out.push_back({m.name, R.transpose() * d + sigma * noise});
+  }
+  return out;
+}
+
 }  // namespace strata::synthetic

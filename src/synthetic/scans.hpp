@@ -13,6 +13,7 @@
 #include <Eigen/Core>
 
 #include <cstdint>
+#include <string>
 #include <vector>
 
 namespace strata::synthetic {
@@ -40,5 +41,16 @@ struct SimulatedScan {
 // scans.crop_margin_m), keeping the hits inside that footprint. Deterministic for
 // a seed, whatever the thread count.
 SimulatedScan simulate_scan(const Scene& scene, int layer, const ScanStation& station, std::uint64_t seed);
+
+// The markers the station's scanner measures as registration targets: those whose
+// centre it sees (nothing on the ray before it, within range, the print at most 75
+// degrees from facing the scanner), in the scanner frame with Gaussian noise of
+// scans.target_sigma_m per axis. Deterministic for a seed.
+struct TargetObservation {
+  std::string name;
+  Eigen::Vector3d scanner = Eigen::Vector3d::Zero();  // metres, scanner frame
+};
+std::vector<TargetObservation> observe_scan_targets(const Scene& scene, int layer, const ScanStation& station,
+                                                    std::uint64_t seed);
 
 }  // namespace strata::synthetic

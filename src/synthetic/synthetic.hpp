@@ -84,6 +84,7 @@ struct SyntheticExcavationOptions {
     double sigma_m = 0.003;        // metres, range noise, one sigma, Gaussian along the ray
     double height_m = 1.5;         // metres, scanner centre above the ground at the station
     double crop_margin_m = 0.3;    // metres: points kept over the trench and this far around it
+    double target_sigma_m = 0.002; // metres, per axis: a marker's centre as the scanner's software finds it
   } scans;
 
   // Throws InputError naming the first invalid field and its value.

@@ -3,15 +3,19 @@
 // ground from another station, imported without a pose in its own frame, is placed
 // by the coarse yaw search and ICP near its true pose, stored as 'transform' with its
 // fit, and fused. A scan of flat ground alone is refused and the database is
-// unchanged.
+// unchanged. A scan registered on the surveyed markers its scanner measured: blunders
+// named and left out, wrong units and too few known names refused.
 #include "support/box_scan.hpp"
 #include "support/test_support.hpp"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 #include <sqlite3.h>
 
 #include <Eigen/Geometry>
+
+#include <random>
 
 namespace strata::test {
 namespace {
@@ -60,13 +64,22 @@ std::string scans_table(const fs::path& gpkg) {
   return out;
 }
 
+// A project with its origin fixed, unit 101 and layer L1.
+void make_site(const std::string& site) {
+  for (const auto& args : std::vector<std::vector<std::string>>{
+           {"-q", "init", site, "--crs", "EPSG:32636", "--origin", "734000,4174000,1400"},
+           {"-q", "unit", "add", site, "101"},
+           {"-q", "layer", "add", site, "L1", "--unit", "101"}}) {
+    const CommandResult r = run_strata(args);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+  }
+}
+
 TEST(ScanRegisterCli, AnUnregisteredScanIsPlacedByIcpAndAFlatOneIsRefused) {
   ScratchDir dir("scan_register");
   const std::string site = (dir / "site").string();
   auto ok = [](const CommandResult& r) { ASSERT_EQ(r.exit_code, 0) << r.err; };
-  ok(run_strata({"-q", "init", site, "--crs", "EPSG:32636", "--origin", "734000,4174000,1400"}));
-  ok(run_strata({"-q", "unit", "add", site, "101"}));
-  ok(run_strata({"-q", "layer", "add", site, "L1", "--unit", "101"}));
+  make_site(site);
 
   // The reference surface: station A at its true pose, fused.
   const Station a{{10.0, 9.5, 1.7}, 0.5};
@@ -113,6 +126,84 @@ TEST(ScanRegisterCli, AnUnregisteredScanIsPlacedByIcpAndAFlatOneIsRefused) {
   EXPECT_NE(refused.err.find("degenerate"), std::string::npos) << refused.err;
   EXPECT_NE(refused.err.find("--transform"), std::string::npos) << refused.err;
   EXPECT_EQ(scans_table(gpkg), before);
+}
+
+// Surveyed markers around the block (site frame) and the scanner's measurements of
+// them (its frame, 2 mm of noise); `scale` multiplies the measurements (1000: a file
+// in millimetres).
+const std::vector<std::pair<std::string, Eigen::Vector3d>> kMarkers = {
+    {"M1", {10.45, 9.45, 0.2}}, {"M2", {11.55, 9.45, 0.2}}, {"M3", {11.55, 10.55, 0.2}},
+    {"M4", {10.45, 10.55, 0.2}}, {"M5", {11.0, 9.45, 0.2}}, {"M6", {11.05, 9.95, 0.32}}};
+
+std::string targets_csv(const Station& s, const std::vector<std::string>& names, double scale, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> noise(0.0, 0.002);
+  std::string out = "name,x,y,z\n";
+  for (std::size_t i = 0; i < kMarkers.size() && i < names.size(); ++i) {
+    const Eigen::Vector3d p = s.R().transpose() * (kMarkers[i].second - s.origin) +
+                              Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
+    out += fmt::format("{},{:.5f},{:.5f},{:.5f}\n", names[i], scale * p.x(), scale * p.y(), scale * p.z());
+  }
+  return out;
+}
+
+TEST(ScanRegisterCli, AScanIsPlacedOnItsTargetsAndBadTargetFilesAreRefused) {
+  ScratchDir dir("scan_register_targets");
+  const std::string site = (dir / "site").string();
+  auto ok = [](const CommandResult& r) { ASSERT_EQ(r.exit_code, 0) << r.err; };
+  make_site(site);
+  std::string markers = "name,E,N,Z,sigma,kind\n";
+  for (const auto& [name, p] : kMarkers)
+    markers += fmt::format("{},{:.4f},{:.4f},{:.4f},0.002,control\n", name, 734000 + p.x(), 4174000 + p.y(),
+                           1400 + p.z());
+  write_text(dir / "markers.csv", markers);
+  ok(run_strata({"-q", "import", "markers", site, (dir / "markers.csv").string()}));
+  const Station b{{10.6, 8.9, 1.6}, 2.0944};
+  write_scan(dir / "b.xyz", kScene, b, 0.3, 2.1, 8);
+  ok(run_strata({"-q", "import", "scan", site, "--layer", "L1", "--sigma", "0.002", (dir / "b.xyz").string()}));
+  const fs::path gpkg = dir / "site" / "project.gpkg";
+  const std::string before = scans_table(gpkg);
+  auto refused = [&](const std::vector<std::string>& names, double scale, const std::string& why) {
+    write_text(dir / "bad.csv", targets_csv(b, names, scale, 3));
+    const CommandResult r = run_strata({"-q", "register", "scan", site, "--layer", "L1", "--scan", "b.xyz",
+                                        "--targets", (dir / "bad.csv").string()});
+    EXPECT_NE(r.exit_code, 0);
+    EXPECT_NE(r.err.find(why), std::string::npos) << r.err;
+    EXPECT_EQ(scans_table(gpkg), before);
+  };
+  refused({"M1", "M2", "M3", "M4", "M5", "M6"}, 1000, "not in metres");
+  refused({"M1", "X2", "M3", "X4"}, 1, "2 of the 4 targets");
+  refused({"M1", "M2", "M3", "M4", "M1"}, 1, "target 'M1' is listed again (first on line 2)");
+  const CommandResult no_scan =
+      run_strata({"-q", "register", "scan", site, "--layer", "L1", "--targets", (dir / "bad.csv").string()});
+  EXPECT_NE(no_scan.exit_code, 0);
+  EXPECT_NE(no_scan.err.find("--scan"), std::string::npos) << no_scan.err;
+
+  // M2 and M5 with each other's names, and T9 that no marker is called.
+  write_text(dir / "targets.csv", targets_csv(b, {"M1", "M5", "M3", "M4", "M2", "M6"}, 1, 4) + "T9,1,2,3\n");
+  const CommandResult r = run_strata({"-q", "register", "scan", site, "--layer", "L1", "--scan", "b.xyz",
+                                      "--targets", (dir / "targets.csv").string(), "--json"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto q = nlohmann::json::parse(r.out);
+  EXPECT_EQ(q["method"], "targets");
+  EXPECT_EQ(q["inliers"].get<int>(), 4);
+  for (const auto& t : q["targets"]) {
+    const bool swapped = t["name"] == "M2" || t["name"] == "M5";
+    EXPECT_EQ(t["inlier"].get<bool>(), !swapped) << t;
+    if (swapped) {
+      EXPECT_GT(t["residual_m"].get<double>(), 0.4) << t;
+    }
+  }
+  EXPECT_EQ(q["unmatched"], nlohmann::json::array({"T9"}));
+  EXPECT_NEAR(q["scale"].get<double>(), 1.0, 0.005);
+  EXPECT_LT(q["rms_m"].get<double>(), 0.006);
+  Eigen::Matrix4d m;
+  for (int k = 0; k < 16; ++k) m(k / 4, k % 4) = q["transform"][k].get<double>();
+  // Four targets of 2 mm over a metre: a few millimetres at the station 1 m away.
+  EXPECT_LT((m.topRightCorner<3, 1>() - b.origin).norm(), 0.008) << m;
+  const Eigen::Matrix3d sR = m.topLeftCorner<3, 3>();
+  EXPECT_LT(Eigen::AngleAxisd(b.R().transpose() * sR / std::cbrt(sR.determinant())).angle(), 0.008) << m;
+  EXPECT_NE(scans_table(gpkg).find("targets|targets.csv|"), std::string::npos) << scans_table(gpkg);
 }
 
 }  // namespace
