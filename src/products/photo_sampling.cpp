@@ -93,15 +93,16 @@ bool Projector::project(const Eigen::Vector3d& X, Eigen::Vector2d& px, double& d
   return true;
 }
 
-DepthBuffer::DepthBuffer(const Intrinsics& K, double scale)
+DepthBuffer::DepthBuffer(const Intrinsics& K, double scale, bool keep_faces)
     : width_(std::max(1, int(std::ceil(K.width * scale)))),
       height_(std::max(1, int(std::ceil(K.height * scale)))),
       scale_(scale),
       fx_(K.fx),
-      depth_(std::size_t(width_) * height_, kNoDepth) {}
+      depth_(std::size_t(width_) * height_, kNoDepth),
+      faces_(keep_faces ? std::size_t(width_) * height_ : 0, kNoFace) {}
 
 void DepthBuffer::draw_triangle(const Eigen::Vector2d& pa, const Eigen::Vector2d& pb, const Eigen::Vector2d& pc,
-                                double da, double db, double dc) {
+                                double da, double db, double dc, int face) {
   const double ax = to_buffer(pa.x()), ay = to_buffer(pa.y());
   const double bx = to_buffer(pb.x()), by = to_buffer(pb.y());
   const double cx = to_buffer(pc.x()), cy = to_buffer(pc.y());
@@ -121,8 +122,10 @@ void DepthBuffer::draw_triangle(const Eigen::Vector2d& pa, const Eigen::Vector2d
       const double wc = 1.0 - wa - wb;
       if (wa < eps || wb < eps || wc < eps) continue;
       const float z = float(1.0 / (wa * ia + wb * ib + wc * ic));
-      float& dst = depth_[std::size_t(y) * width_ + x];
-      dst = std::min(dst, z);
+      const std::size_t i = std::size_t(y) * width_ + x;
+      if (z >= depth_[i]) continue;
+      depth_[i] = z;
+      if (!faces_.empty()) faces_[i] = face;
     }
   }
 }

@@ -63,16 +63,25 @@ struct Projector {
 // Depth along the view (metres) of the nearest surface per buffer pixel, the
 // buffer being the photo scaled by `scale` in (0, 1]. Triangles are given by their
 // photo pixel positions and depths; depth is interpolated as 1/z
-// (perspective-correct).
+// (perspective-correct). With `keep_faces` it also records which triangle is the
+// nearest per buffer pixel (the `face` given to draw_triangle), for rendering.
 class DepthBuffer {
  public:
   static constexpr float kNoDepth = std::numeric_limits<float>::infinity();
+  static constexpr int kNoFace = -1;
 
-  DepthBuffer(const Intrinsics& K, double scale);
+  DepthBuffer(const Intrinsics& K, double scale, bool keep_faces = false);
   void draw_triangle(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& c, double da,
-                     double db, double dc);
+                     double db, double dc, int face = kNoFace);
   // Nearest depth at photo pixel (x, y) (the buffer pixel holding it, clamped).
   float at(double x, double y) const;
+  int width() const { return width_; }
+  int height() const { return height_; }
+  // The nearest triangle at buffer pixel (bx, by); kNoFace where none was drawn or
+  // without keep_faces.
+  int face(int bx, int by) const { return faces_.empty() ? kNoFace : faces_[std::size_t(by) * width_ + bx]; }
+  // The photo pixel at the centre of buffer pixel b (inverse of the buffer mapping).
+  double to_photo(int b) const { return (b + 0.5) / scale_ - 0.5; }
   // Metres of surface one buffer pixel spans at depth d (its own uncertainty).
   double footprint_m(double d) const { return d / (fx_ * scale_); }
   double scale() const { return scale_; }
@@ -82,6 +91,7 @@ class DepthBuffer {
   int width_ = 0, height_ = 0;
   double scale_ = 1, fx_ = 1;
   std::vector<float> depth_;
+  std::vector<int> faces_;  // empty without keep_faces
 };
 
 }  // namespace strata
