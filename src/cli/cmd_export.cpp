@@ -12,11 +12,14 @@
 #include "importers/mesh/ply_mesh.hpp"
 #include "pipeline/alignment_store.hpp"
 #include "pipeline/products_layer.hpp"
+#include "products/model_check.hpp"
 #include "products/texture_atlas.hpp"
 #include "project/project.hpp"
 #include "project/records.hpp"
+#include "volume/site_volumes.hpp"
 
 #include <fmt/format.h>
+#include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <cctype>
@@ -25,6 +28,8 @@
 
 namespace strata::cli {
 namespace {
+
+namespace fs = std::filesystem;
 
 // What every per-layer export takes: the project, the layer, where to write.
 struct LayerExportArgs {
@@ -76,12 +81,12 @@ struct TexturedModel {
   MeshTexture texture;
 };
 
-TexturedModel texture_layer_mesh(Project& p, const std::string& layer, const DenseMesh& mesh, const TextureArgs& t) {
+TexturedModel texture_layer_mesh(const std::vector<OrthoView>& views, const DenseMesh& mesh, const TextureArgs& t) {
   TextureOptions o;
   o.atlas_size_px = t.atlas_size_px;
   TextureSummary s;
   TexturedModel out;
-  out.textured = build_texture_atlas(mesh, layer_ortho_views(p, layer), o, &s);
+  out.textured = build_texture_atlas(mesh, views, o, &s);
   out.texture.uv = out.textured.uv;
   out.texture.face_image = out.textured.face_atlas;
   out.texture.mime_type = t.jpeg_quality > 0 ? "image/jpeg" : "image/png";
@@ -91,6 +96,81 @@ TexturedModel texture_layer_mesh(Project& p, const std::string& layer, const Den
             s.textured_faces, s.faces, s.views_used, s.views, s.charts, s.atlases, o.atlas_size_px, s.texel_scale,
             1000 * s.median_texel_m, 100 * s.seam_fraction, s.seconds);
   return out;
+}
+
+// --check-photos: the textured model rendered from some of its own photos' cameras
+// and compared with them (products.model_check).
+struct CheckArgs {
+  int photos = 0;          // photos to render from, spread over the layer's; 0: no check
+  double scale = 1.0;      // rendered pixels per photo pixel
+  std::string outline;     // FILE: trench outline (default: the one 'strata volume --outline' kept)
+  std::string images_dir;  // DIR: rendered and difference images as PNG
+  bool json = false;
+};
+
+// `n` of `views`, spread evenly over the set (the middle of n equal slices).
+std::vector<OrthoView> spread_views(const std::vector<OrthoView>& views, int n) {
+  std::vector<OrthoView> out;
+  const std::size_t count = std::min(views.size(), std::size_t(n));
+  for (std::size_t k = 0; k < count; ++k) out.push_back(views[(2 * k + 1) * views.size() / (2 * count)]);
+  return out;
+}
+
+std::vector<Eigen::Vector2d> check_region(Project& p, const CheckArgs& c) {
+  const fs::path kept = p.dir() / kTrenchOutlineFile;
+  if (!c.outline.empty()) return read_footprint(c.outline, p.site().origin);
+  if (fs::exists(kept)) return read_footprint(kept, p.site().origin);
+  return {};
+}
+
+std::string describe(const ColourDifference& d) {
+  return fmt::format("{} px, |render - photo| median {:.0f} {:.0f} {:.0f} (mean {:.1f}), p90 {:.0f} {:.0f} {:.0f} "
+                     "(mean {:.1f}) grey levels (R G B)",
+                     d.pixels, d.median[0], d.median[1], d.median[2], d.median_mean, d.p90[0], d.p90[1], d.p90[2],
+                     d.p90_mean);
+}
+
+nlohmann::ordered_json difference_json(const ColourDifference& d) {
+  return {{"pixels", d.pixels}, {"median", d.median}, {"p90", d.p90}, {"median_mean", d.median_mean},
+          {"p90_mean", d.p90_mean}};
+}
+
+void write_check_images(const PhotoCheck& c, const fs::path& dir) {
+  fs::create_directories(dir);
+  const std::string stem = fs::path(c.view).stem().string();
+  for (const auto& [suffix, image] : {std::pair{"render", &c.rendered}, std::pair{"difference", &c.difference}}) {
+    const fs::path file = dir / fmt::format("{}_{}.png", stem, suffix);
+    write_bytes_atomically(file, "export model --check-images", encode_texture_image(*image, 0));
+  }
+}
+
+void check_textured_model_command(Project& p, const TexturedMesh& model, const std::vector<OrthoView>& views,
+                                  const CheckArgs& c) {
+  ModelCheckOptions o;
+  o.scale = c.scale;
+  o.region = check_region(p, c);
+  o.images = !c.images_dir.empty();
+  const ModelCheckSummary sum = check_textured_model(model, spread_views(views, c.photos), o);
+  const bool region = !o.region.empty();
+  nlohmann::ordered_json photos = nlohmann::ordered_json::array();
+  for (const PhotoCheck& pc : sum.photos) {
+    if (o.images) write_check_images(pc, c.images_dir);
+    photos.push_back({{"photo", pc.view}, {"all", difference_json(pc.all)}, {"untextured_pixels", pc.untextured_pixels},
+                      {"seconds", pc.seconds}});
+    if (region) photos.back()["trench"] = difference_json(pc.inside);
+    log::info("check {}: {}{}, {:.1f} s", pc.view, describe(pc.all),
+              region ? fmt::format("; in the trench {}", describe(pc.inside)) : "", pc.seconds);
+  }
+  log::info("check, {} photos: {}", sum.photos.size(), describe(sum.all));
+  if (region) log::info("check, {} photos, in the trench: {}", sum.photos.size(), describe(sum.inside));
+  if (o.images) log::info("check: rendered and difference images in {}", c.images_dir);
+  if (c.json) {
+    nlohmann::ordered_json j = {{"photos_checked", sum.photos.size()}, {"scale", o.scale}, {"all", difference_json(sum.all)}};
+    if (region) j["trench"] = difference_json(sum.inside);
+    j["seconds"] = sum.seconds;
+    j["photos"] = photos;
+    fmt::print("{}\n", j.dump(2));
+  }
 }
 
 // The file formats of `export model`, by the extension of --out.
@@ -106,13 +186,17 @@ ModelFormat model_format(const std::string& out) {
 
 // One layer's mesh (`mesh`, site frame) as .glb or .obj, textured or vertex-coloured.
 void write_layer_model(Project& p, const std::string& layer, const DenseMesh& mesh, const std::string& out,
-                       ModelFormat format, const TextureArgs& t) {
+                       ModelFormat format, const TextureArgs& t, const CheckArgs& check) {
   const SiteInfo site = p.site();
   ExportFrame frame;
   frame.site_origin = site.origin;
   frame.crs = site.crs;
   std::optional<TexturedModel> tex;
-  if (t.texture) tex = texture_layer_mesh(p, layer, mesh, t);
+  std::vector<OrthoView> views;
+  if (t.texture) {
+    views = layer_ortho_views(p, layer);
+    tex = texture_layer_mesh(views, mesh, t);
+  }
   const DenseMesh& written = tex ? tex->textured.mesh : mesh;
   const MeshTexture* texture = tex ? &tex->texture : nullptr;
   const std::string what = fmt::format("{} vertices, {} faces{}", written.vertices.size(), written.faces.size(),
@@ -122,12 +206,13 @@ void write_layer_model(Project& p, const std::string& layer, const DenseMesh& me
     log::info("wrote {} ({}; local origin E {:.0f} N {:.0f} Z {:.0f}, x = E, y = N, z = up){}", out, what,
               files.origin.x(), files.origin.y(), files.origin.z(),
               files.mtl.empty() ? "" : fmt::format(", {} and {} atlas image(s)", files.mtl.string(), files.images.size()));
-    return;
+  } else {
+    GltfMesh gm{layer, &written};
+    gm.texture = texture;
+    write_glb(out, std::span<const GltfMesh>(&gm, 1), frame);
+    log::info("wrote {} ({})", out, what);
   }
-  GltfMesh gm{layer, &written};
-  gm.texture = texture;
-  write_glb(out, std::span<const GltfMesh>(&gm, 1), frame);
-  log::info("wrote {} ({})", out, what);
+  if (tex && check.photos > 0) check_textured_model_command(p, tex->textured, views, check);
 }
 
 void register_model_command(CLI::App& exp) {
@@ -155,6 +240,13 @@ void register_model_command(CLI::App& exp) {
       "site's axes (x = E, y = N, z = up; origin, CRS and axes in the comment lines at the top):\n"
       "'v x y z r g b' vertex colours and vn normals, or with --texture vt, FILE.mtl and the\n"
       "atlases as FILE_atlasK.jpg (.png with --jpeg-quality 0) beside it.\n"
+      "--check-photos N (with --texture): the textured model rendered from N of the layer's\n"
+      "photos, spread over the set, with each photo's own pose and lens, and compared with\n"
+      "that photo: pixels compared, median and 90th percentile of |render - photo| per\n"
+      "channel (grey levels 0-255) and of their mean, over the whole model and over the\n"
+      "trench (--check-outline, default the outline 'strata volume --outline' kept);\n"
+      "--check-images DIR writes PHOTO_render.png and PHOTO_difference.png (|difference| x 4)\n"
+      "for each, to look at seams; --json prints the figures (docs/model.md, Textures).\n"
       "Not yet: textures in the site model, the site model as OBJ.\n"
       "Needs the layers' dense meshes ('strata process DIR --layer L --until dense').");
   const auto a = add_layer_export_options(cmd, "output file, .glb or .obj", "the layer (default: the whole site)");
@@ -168,8 +260,21 @@ void register_model_command(CLI::App& exp) {
   cmd->add_option("--atlas-size", t->atlas_size_px, "side of a square texture atlas, texels (64-16384)")
       ->check(CLI::Range(64, 16384))
       ->capture_default_str();
+  const auto check = std::make_shared<CheckArgs>();
+  cmd->add_option("--check-photos", check->photos,
+                  "with --texture: render the model from N of its photos and compare with them (0: no check)")
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--check-scale", check->scale, "rendered pixels per photo pixel for --check-photos, (0, 1]")
+      ->check(CLI::Range(0.01, 1.0))
+      ->capture_default_str();
+  cmd->add_option("--check-outline", check->outline,
+                  "FILE: trench outline (first polygon, site CRS) for the --check-photos figures in the trench")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--check-images", check->images_dir, "DIR: write the rendered and difference images of --check-photos");
+  cmd->add_flag("--json", check->json, "print the --check-photos figures as JSON on stdout");
   cmd->callback([=] {
     check_level_of_detail(*lod);
+    if (check->photos > 0 && !t->texture) throw InputError("--check-photos needs --texture (and --layer)");
     const ModelFormat format = model_format(a->out);
     if (a->layer.empty()) {
       if (t->texture) throw InputError("--texture needs --layer: the site model is not textured yet");
@@ -190,7 +295,7 @@ void register_model_command(CLI::App& exp) {
     const DenseMesh mesh = layer_mesh_at_level(
         site_frame_mesh(read_ply(checked_product_file(p, l, *product, a->dir)), p.site().origin), *lod, l.name,
         "export model");
-    write_layer_model(p, l.name, mesh, a->out, format, *t);
+    write_layer_model(p, l.name, mesh, a->out, format, *t, *check);
   });
 }
 
