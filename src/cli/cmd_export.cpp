@@ -108,11 +108,11 @@ struct CheckArgs {
   bool json = false;
 };
 
-// `n` of `views`, spread evenly over the set (the middle of n equal slices).
-std::vector<OrthoView> spread_views(const std::vector<OrthoView>& views, int n) {
-  std::vector<OrthoView> out;
+// `n` of `views` (their indices), spread evenly over the set (the middle of n equal slices).
+std::vector<int> spread_views(const std::vector<OrthoView>& views, int n) {
+  std::vector<int> out;
   const std::size_t count = std::min(views.size(), std::size_t(n));
-  for (std::size_t k = 0; k < count; ++k) out.push_back(views[(2 * k + 1) * views.size() / (2 * count)]);
+  for (std::size_t k = 0; k < count; ++k) out.push_back(int((2 * k + 1) * views.size() / (2 * count)));
   return out;
 }
 
@@ -150,22 +150,25 @@ void check_textured_model_command(Project& p, const TexturedMesh& model, const s
   o.scale = c.scale;
   o.region = check_region(p, c);
   o.images = !c.images_dir.empty();
-  const ModelCheckSummary sum = check_textured_model(model, spread_views(views, c.photos), o);
+  const ModelCheckSummary sum = check_textured_model(model, views, spread_views(views, c.photos), o);
   const bool region = !o.region.empty();
   nlohmann::ordered_json photos = nlohmann::ordered_json::array();
   for (const PhotoCheck& pc : sum.photos) {
     if (o.images) write_check_images(pc, c.images_dir);
-    photos.push_back({{"photo", pc.view}, {"all", difference_json(pc.all)}, {"untextured_pixels", pc.untextured_pixels},
-                      {"seconds", pc.seconds}});
+    photos.push_back({{"photo", pc.view}, {"all", difference_json(pc.all)}, {"own", difference_json(pc.own)},
+                      {"untextured_pixels", pc.untextured_pixels}, {"seconds", pc.seconds}});
     if (region) photos.back()["trench"] = difference_json(pc.inside);
-    log::info("check {}: {}{}, {:.1f} s", pc.view, describe(pc.all),
-              region ? fmt::format("; in the trench {}", describe(pc.inside)) : "", pc.seconds);
+    log::info("check {}: {}{}; on faces textured from this photo {}; {} px on untextured faces, {:.1f} s", pc.view,
+              describe(pc.all), region ? fmt::format("; in the trench {}", describe(pc.inside)) : "",
+              describe(pc.own), pc.untextured_pixels, pc.seconds);
   }
   log::info("check, {} photos: {}", sum.photos.size(), describe(sum.all));
+  log::info("check, {} photos, on faces textured from the photo itself: {}", sum.photos.size(), describe(sum.own));
   if (region) log::info("check, {} photos, in the trench: {}", sum.photos.size(), describe(sum.inside));
   if (o.images) log::info("check: rendered and difference images in {}", c.images_dir);
   if (c.json) {
-    nlohmann::ordered_json j = {{"photos_checked", sum.photos.size()}, {"scale", o.scale}, {"all", difference_json(sum.all)}};
+    nlohmann::ordered_json j = {{"photos_checked", sum.photos.size()}, {"scale", o.scale}, {"all", difference_json(sum.all)},
+                              {"own", difference_json(sum.own)}};
     if (region) j["trench"] = difference_json(sum.inside);
     j["seconds"] = sum.seconds;
     j["photos"] = photos;
@@ -243,8 +246,10 @@ void register_model_command(CLI::App& exp) {
       "--check-photos N (with --texture): the textured model rendered from N of the layer's\n"
       "photos, spread over the set, with each photo's own pose and lens, and compared with\n"
       "that photo: pixels compared, median and 90th percentile of |render - photo| per\n"
-      "channel (grey levels 0-255) and of their mean, over the whole model and over the\n"
-      "trench (--check-outline, default the outline 'strata volume --outline' kept);\n"
+      "channel (grey levels 0-255) and of their mean, over the whole model, over the\n"
+      "trench (--check-outline, default the outline 'strata volume --outline' kept) and on\n"
+      "the faces textured from that photo itself (the resampling alone; the rest adds the\n"
+      "colour differences between photos and their registration);\n"
       "--check-images DIR writes PHOTO_render.png and PHOTO_difference.png (|difference| x 4)\n"
       "for each, to look at seams; --json prints the figures (docs/model.md, Textures).\n"
       "Not yet: textures in the site model, the site model as OBJ.\n"

@@ -140,11 +140,17 @@ DepthBuffer face_buffer(const DenseMesh& m, const Camera& cam, double scale) {
 TextureImage black_image(int w, int h) { return TextureImage{w, h, std::vector<std::uint8_t>(std::size_t(w) * h * 3, 0)}; }
 
 struct PhotoSamples {
-  DifferenceSample all, inside;
+  DifferenceSample all, inside, own;
+
+  void append(const PhotoSamples& o) {
+    all.append(o.all);
+    inside.append(o.inside);
+    own.append(o.own);
+  }
 };
 
 // Renders the model from one view and compares it with its photo (see the header).
-PhotoCheck check_photo(const TexturedMesh& model, const OrthoView& view, const ModelCheckOptions& o,
+PhotoCheck check_photo(const TexturedMesh& model, const OrthoView& view, int view_index, const ModelCheckOptions& o,
                        PhotoSamples& samples) {
   const Stopwatch clock;
   PhotoCheck out;
@@ -186,10 +192,12 @@ PhotoCheck check_photo(const TexturedMesh& model, const OrthoView& view, const M
       }
       samples.all.add(diff);
       if (o.region.empty() || inside_polygon(o.region, X.head<2>())) samples.inside.add(diff);
+      if (model.face_view[std::size_t(f)] == view_index) samples.own.add(diff);
     }
   }
   out.all = summarise(samples.all);
   out.inside = summarise(samples.inside);
+  out.own = summarise(samples.own);
   out.seconds = clock.seconds();
   return out;
 }
@@ -197,7 +205,7 @@ PhotoCheck check_photo(const TexturedMesh& model, const OrthoView& view, const M
 }  // namespace
 
 ModelCheckSummary check_textured_model(const TexturedMesh& model, const std::vector<OrthoView>& views,
-                                       const ModelCheckOptions& options) {
+                                       const std::vector<int>& checked, const ModelCheckOptions& options) {
   options.validate();
   STRATA_CHECK(model.uv.size() == model.mesh.vertices.size() && model.face_atlas.size() == model.mesh.faces.size() &&
                    model.face_view.size() == model.mesh.faces.size(),
@@ -205,14 +213,16 @@ ModelCheckSummary check_textured_model(const TexturedMesh& model, const std::vec
   const Stopwatch clock;
   ModelCheckSummary out;
   PhotoSamples pooled;
-  for (const OrthoView& v : views) {
+  for (const int v : checked) {
+    if (v < 0 || std::size_t(v) >= views.size())
+      throw InputError(fmt::format("products.model_check: photo index {} is not one of the {} views", v, views.size()));
     PhotoSamples s;
-    out.photos.push_back(check_photo(model, v, options, s));
-    pooled.all.append(s.all);
-    pooled.inside.append(s.inside);
+    out.photos.push_back(check_photo(model, views[std::size_t(v)], v, options, s));
+    pooled.append(s);
   }
   out.all = summarise(std::move(pooled.all));
   out.inside = summarise(std::move(pooled.inside));
+  out.own = summarise(std::move(pooled.own));
   out.seconds = clock.seconds();
   return out;
 }

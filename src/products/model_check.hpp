@@ -47,6 +47,10 @@ struct PhotoCheck {
   std::string view;                   // the photo's name
   ColourDifference all;               // every textured pixel the model covers
   ColourDifference inside;            // those whose surface point is inside options.region (= all without one)
+  // Of `all`, the pixels on faces textured from this very photo: the resampling
+  // alone (the others add the colour difference between photos and their
+  // registration).
+  ColourDifference own;
   std::size_t untextured_pixels = 0;  // covered by faces no photo textures (the grey patch): not compared
   TextureImage rendered;              // with options.images: the render (black where no model), scale x photo size
   TextureImage difference;            // with options.images: |difference| x gain per channel, black where not compared
@@ -55,14 +59,15 @@ struct PhotoCheck {
 
 struct ModelCheckSummary {
   std::vector<PhotoCheck> photos;
-  ColourDifference all, inside;  // pooled over every photo's pixels
+  ColourDifference all, inside, own;  // pooled over every photo's pixels
   double seconds = 0;
 };
 
-// Renders `model` (build_texture_atlas's result, site frame) from each of `views`
-// and compares with its photo. Throws IoError when a photo cannot be read,
-// InputError for invalid options.
+// Renders `model` (build_texture_atlas's result, site frame, textured from `views`:
+// its face_view indexes them) from each of the views `checked` (indices into
+// `views`) and compares with its photo. Throws IoError when a photo cannot be
+// read, InputError for invalid options or an index out of range.
 ModelCheckSummary check_textured_model(const TexturedMesh& model, const std::vector<OrthoView>& views,
-                                       const ModelCheckOptions& options);
+                                       const std::vector<int>& checked, const ModelCheckOptions& options);
 
 }  // namespace strata
