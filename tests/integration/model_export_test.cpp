@@ -253,6 +253,13 @@ TEST(CliExportModel, TextureNeedsALayerAndItsAlignedPhotos) {
   EXPECT_EQ(lines(r.err), 1) << r.err;
   EXPECT_NE(r.err.find("strata process"), std::string::npos) << r.err;
   EXPECT_FALSE(fs::exists(dir / "l1.glb"));
+  // The photo check renders the texture: without it there is nothing to check.
+  r = run_strata({"export", "model", site.string(), "--layer", "L1", "--check-photos", "2", "--out",
+                  (dir / "l1.glb").string()});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(lines(r.err), 1) << r.err;
+  EXPECT_NE(r.err.find("--check-photos needs --texture"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir / "l1.glb"));
 }
 
 TEST(CliExportModel, SiteModelHasLayersAndMarkersAndRefusesAnUnprocessedProject) {
