@@ -119,24 +119,6 @@ bool ray_barycentric(const DenseMesh& m, const std::array<int, 3>& f, const Eige
   return true;
 }
 
-// The z-buffer of the model from the view, at `scale` of its photo, with the face per pixel.
-DepthBuffer face_buffer(const DenseMesh& m, const Camera& cam, double scale) {
-  const Projector proj(cam);
-  std::vector<Eigen::Vector2d> px(m.vertices.size());
-  std::vector<double> depth(m.vertices.size(), -1);
-  for (std::size_t i = 0; i < m.vertices.size(); ++i) {
-    if (!proj.project(m.vertices[i], px[i], depth[i])) depth[i] = -1;
-  }
-  DepthBuffer zbuf(cam.intrinsics, scale, true);
-  for (std::size_t fi = 0; fi < m.faces.size(); ++fi) {
-    const auto& f = m.faces[fi];
-    if (depth[std::size_t(f[0])] > 0 && depth[std::size_t(f[1])] > 0 && depth[std::size_t(f[2])] > 0)
-      zbuf.draw_triangle(px[std::size_t(f[0])], px[std::size_t(f[1])], px[std::size_t(f[2])], depth[std::size_t(f[0])],
-                         depth[std::size_t(f[1])], depth[std::size_t(f[2])], int(fi));
-  }
-  return zbuf;
-}
-
 TextureImage black_image(int w, int h) { return TextureImage{w, h, std::vector<std::uint8_t>(std::size_t(w) * h * 3, 0)}; }
 
 struct PhotoSamples {
@@ -158,7 +140,8 @@ PhotoCheck check_photo(const TexturedMesh& model, const OrthoView& view, int vie
   const Camera& cam = view.camera;
   const Intrinsics& K = cam.intrinsics;
   const PhotoPixels photo = load_photo(view, "products.model_check");
-  const DepthBuffer zbuf = face_buffer(model.mesh, cam, o.scale);
+  const DepthBuffer zbuf =
+      mesh_depth_buffer(model.mesh, project_vertices(model.mesh, Projector(cam)), K, o.scale, true);
   const int W = zbuf.width(), H = zbuf.height();
   if (o.images) out.rendered = out.difference = black_image(W, H);
   const Eigen::Vector3d C = cam.pose.centre();

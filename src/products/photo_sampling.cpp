@@ -136,4 +136,26 @@ float DepthBuffer::at(double x, double y) const {
   return depth_[std::size_t(by) * width_ + bx];
 }
 
+ProjectedVertices project_vertices(const DenseMesh& m, const Projector& proj) {
+  ProjectedVertices v;
+  v.px.resize(m.vertices.size());
+  v.depth.assign(m.vertices.size(), -1);
+  for (std::size_t i = 0; i < m.vertices.size(); ++i) {
+    if (!proj.project(m.vertices[i], v.px[i], v.depth[i])) v.depth[i] = -1;
+  }
+  return v;
+}
+
+DepthBuffer mesh_depth_buffer(const DenseMesh& m, const ProjectedVertices& v, const Intrinsics& K, double scale,
+                              bool keep_faces) {
+  DepthBuffer zbuf(K, scale, keep_faces);
+  for (std::size_t fi = 0; fi < m.faces.size(); ++fi) {
+    const auto& f = m.faces[fi];
+    if (!v.in_view(f)) continue;
+    const std::size_t a = std::size_t(f[0]), b = std::size_t(f[1]), c = std::size_t(f[2]);
+    zbuf.draw_triangle(v.px[a], v.px[b], v.px[c], v.depth[a], v.depth[b], v.depth[c], int(fi));
+  }
+  return zbuf;
+}
+
 }  // namespace strata

@@ -6,6 +6,7 @@
 // from a photo's viewpoint for the occlusion test. Internal to strata_products:
 // this header includes OpenCV.
 #include "geometry/camera.hpp"
+#include "geometry/mesh.hpp"
 #include "products/orthophoto.hpp"
 
 #include <Eigen/Core>
@@ -93,5 +94,21 @@ class DepthBuffer {
   std::vector<float> depth_;
   std::vector<int> faces_;  // empty without keep_faces
 };
+
+// A mesh's vertices projected into a view: photo pixels and depth along the view
+// (metres; -1 where the projector rejects the vertex).
+struct ProjectedVertices {
+  std::vector<Eigen::Vector2d> px;
+  std::vector<double> depth;
+  bool in_view(const std::array<int, 3>& f) const {
+    return depth[std::size_t(f[0])] > 0 && depth[std::size_t(f[1])] > 0 && depth[std::size_t(f[2])] > 0;
+  }
+};
+ProjectedVertices project_vertices(const DenseMesh& m, const Projector& proj);
+
+// The z-buffer of the mesh's faces whose corners all project, at `scale` of the
+// photo; with keep_faces, the face index per buffer pixel.
+DepthBuffer mesh_depth_buffer(const DenseMesh& m, const ProjectedVertices& v, const Intrinsics& K, double scale,
+                              bool keep_faces = false);
 
 }  // namespace strata

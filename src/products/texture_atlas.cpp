@@ -102,16 +102,9 @@ void score_view(const DenseMesh& m, const FaceGeometry& g, const OrthoView& view
   const Intrinsics& K = view.camera.intrinsics;
   const Projector proj(view.camera);
   const Eigen::Vector3d C = view.camera.pose.centre();
-  std::vector<Eigen::Vector2d> px(m.vertices.size());
-  std::vector<double> depth(m.vertices.size(), -1);
-  for (std::size_t i = 0; i < m.vertices.size(); ++i) {
-    if (!proj.project(m.vertices[i], px[i], depth[i])) depth[i] = -1;
-  }
-  DepthBuffer zbuf(K, o.depth_buffer_scale);
-  for (const auto& f : m.faces) {
-    if (depth[f[0]] > 0 && depth[f[1]] > 0 && depth[f[2]] > 0)
-      zbuf.draw_triangle(px[f[0]], px[f[1]], px[f[2]], depth[f[0]], depth[f[1]], depth[f[2]]);
-  }
+  const ProjectedVertices projected = project_vertices(m, proj);
+  const std::vector<Eigen::Vector2d>& px = projected.px;
+  const DepthBuffer zbuf = mesh_depth_buffer(m, projected, K, o.depth_buffer_scale);
   const double cos_max = std::cos(o.max_view_angle_deg * M_PI / 180.0);
   auto inside = [&](const Eigen::Vector2d& p) {
     return p.x() >= o.border_px && p.y() >= o.border_px && p.x() <= K.width - 1 - o.border_px &&
@@ -119,7 +112,7 @@ void score_view(const DenseMesh& m, const FaceGeometry& g, const OrthoView& view
   };
   for (std::size_t fi = 0; fi < m.faces.size(); ++fi) {
     const auto& f = m.faces[fi];
-    if (!(depth[f[0]] > 0 && depth[f[1]] > 0 && depth[f[2]] > 0)) continue;
+    if (!projected.in_view(f)) continue;
     if (!inside(px[f[0]]) || !inside(px[f[1]]) || !inside(px[f[2]])) continue;
     const Eigen::Vector3d X = (m.vertices[f[0]] + m.vertices[f[1]] + m.vertices[f[2]]) / 3.0;
     const double cos_t = g.normal[fi].dot((C - X).normalized());
