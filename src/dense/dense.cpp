@@ -15,6 +15,7 @@
 #include "dense/dense.hpp"
 #include "dense/internal.hpp"
 #include "exporters/mesh/mesh_writers.hpp"
+#include "geometry/polygon.hpp"
 
 #include <fmt/format.h>
 
@@ -60,18 +61,6 @@ std::vector<Eigen::Vector2d> convex_hull(std::vector<Eigen::Vector2d> p) {
   }
   h.resize(k - 1);
   return h;
-}
-
-bool inside_polygon(const std::vector<Eigen::Vector2d>& poly, const Eigen::Vector2d& q) {
-  bool in = false;  // even-odd crossing rule
-  for (std::size_t i = 0, j = poly.size() - 1; i < poly.size(); j = i++) {
-    const auto &a = poly[i], &b = poly[j];
-    if ((a.y() > q.y()) != (b.y() > q.y()) &&
-        q.x() < (b.x() - a.x()) * (q.y() - a.y()) / (b.y() - a.y()) + a.x()) {
-      in = !in;
-    }
-  }
-  return in;
 }
 
 // The coarsest depth-map scale (0.25, 0.5, 1) whose ground sampling distance at the
@@ -487,7 +476,7 @@ void measure_completeness(const QualityOptions& q, const Reconstruction& rec, co
   std::size_t inside = 0, covered = 0;
   for (int row = 0; row < ny; ++row) {
     for (int col = 0; col < nx; ++col) {
-      if (!inside_polygon(area, {grid.x_centre(col), grid.y_centre(row)})) continue;
+      if (!inside_polygon(area, grid.x_centre(col), grid.y_centre(row))) continue;
       ++inside;
       if (hf.valid(col, row)) ++covered;
     }

@@ -3,6 +3,7 @@
 #include "core/error.hpp"
 #include "core/resources.hpp"
 #include "core/statistics.hpp"
+#include "geometry/polygon.hpp"
 #include "products/photo_sampling.hpp"
 
 #include <Eigen/Geometry>
@@ -25,18 +26,6 @@ void ModelCheckOptions::validate() const {
 }
 
 namespace {
-
-// Even-odd rule (Jordan curve theorem, ray cast along +x).
-bool inside_polygon(const std::vector<Eigen::Vector2d>& poly, const Eigen::Vector2d& p) {
-  bool in = false;
-  for (std::size_t i = 0, j = poly.size() - 1; i < poly.size(); j = i++) {
-    const Eigen::Vector2d& a = poly[i];
-    const Eigen::Vector2d& b = poly[j];
-    if ((a.y() > p.y()) != (b.y() > p.y()) && p.x() < a.x() + (p.y() - a.y()) * (b.x() - a.x()) / (b.y() - a.y()))
-      in = !in;
-  }
-  return in;
-}
 
 // The per-pixel |difference| of one set of pixels, integer grey levels.
 struct DifferenceSample {
@@ -174,7 +163,7 @@ PhotoCheck check_photo(const TexturedMesh& model, const OrthoView& view, int vie
           out.difference.rgb[i + std::size_t(k)] = std::uint8_t(std::min(255.0, std::round(diff[k] * o.difference_gain)));
       }
       samples.all.add(diff);
-      if (o.region.empty() || inside_polygon(o.region, X.head<2>())) samples.inside.add(diff);
+      if (o.region.empty() || inside_polygon(o.region, X.x(), X.y())) samples.inside.add(diff);
       if (model.face_view[std::size_t(f)] == view_index) samples.own.add(diff);
     }
   }

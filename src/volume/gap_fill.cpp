@@ -3,6 +3,7 @@
 // and the distance of every filled cell to measured data (its uncertainty).
 #include "core/error.hpp"
 #include "core/log.hpp"
+#include "geometry/polygon.hpp"
 #include "volume/connected_components.hpp"
 #include "volume/distance_transform.hpp"
 #include "volume/volume.hpp"

@@ -2,6 +2,7 @@
 // measures, closed meshes, and the Harris-matrix check.
 #include "core/error.hpp"
 #include "core/log.hpp"
+#include "geometry/polygon.hpp"
 #include "core/statistics.hpp"
 #include "stratigraphy/harris_matrix.hpp"
 #include "volume/connected_components.hpp"
@@ -264,19 +265,6 @@ void settle_interval(UnitMeasures& m) {
   m.interval_low_m3 = m.volume_m3 - z * m.volume_sigma_m3;
   m.interval_high_m3 = m.volume_m3 + z * m.volume_sigma_m3;
   m.advice = volume_advice(m);
-}
-
-bool inside_polygon(const std::vector<Eigen::Vector2d>& poly, double x, double y) {
-  bool in = false;
-  for (std::size_t i = 0, j = poly.size() - 1; i < poly.size(); j = i++) {
-    const auto& a = poly[i];
-    const auto& b = poly[j];
-    if ((a.y() > y) != (b.y() > y)) {
-      const double xc = a.x() + (y - a.y()) * (b.x() - a.x()) / (b.y() - a.y());
-      if (x < xc) in = !in;
-    }
-  }
-  return in;
 }
 
 double sample_height(const HeightRaster<double>& f, double x, double y) {

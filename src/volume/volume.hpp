@@ -30,9 +30,6 @@ namespace strata {
 
 class HarrisMatrix;
 
-// Whether (x, y) lies inside the polygon (even-odd rule; closed or open ring).
-bool inside_polygon(const std::vector<Eigen::Vector2d>& poly, double x, double y);
-
 // Bilinear height at (x, y) in the site frame from the four surrounding cell
 // centres; when some of them are NaN, the nearest centre (NaN when it is NaN);
 // NaN outside the raster.
