@@ -91,14 +91,31 @@ std::string refusal(const ScanRecord& s, const IcpSummary& fit, const ScanRegist
   return {};
 }
 
-// The box of the scan's points under `pose` (scanner frame -> site frame).
-ScanBounds bounds_under(const std::vector<Eigen::Vector3d>& raw, const Eigen::Matrix4d& pose) {
-  ScanBounds box{Eigen::Vector3d::Constant(INFINITY), Eigen::Vector3d::Constant(-INFINITY)};
-  for (const auto& p : raw) {
+// The box of scanner-frame points under `pose` (scanner frame -> site frame), grown.
+void grow_under(ScanBounds& box, const std::vector<Eigen::Vector3d>& points, const Eigen::Matrix4d& pose) {
+  for (const auto& p : points) {
     const Eigen::Vector3d q = pose.topLeftCorner<3, 3>() * p + pose.topRightCorner<3, 1>();
     box.min = box.min.cwiseMin(q);
     box.max = box.max.cwiseMax(q);
   }
+}
+
+ScanBounds empty_bounds() { return {Eigen::Vector3d::Constant(INFINITY), Eigen::Vector3d::Constant(-INFINITY)}; }
+
+ScanBounds bounds_under(const std::vector<Eigen::Vector3d>& raw, const Eigen::Matrix4d& pose) {
+  ScanBounds box = empty_bounds();
+  grow_under(box, raw, pose);
+  return box;
+}
+
+// The same from the scan's file, chunk by chunk: the points are not kept (a
+// terrestrial scan may hold tens of millions).
+ScanBounds bounds_under(const fs::path& file, const Eigen::Matrix4d& pose) {
+  ScanBounds box = empty_bounds();
+  read_scan_points(file, shifted_by(Eigen::Vector3d::Zero()),
+                   [&](const std::vector<Eigen::Vector3d>& points, const std::vector<Eigen::Vector3f>&) {
+                     grow_under(box, points, pose);
+                   });
   return box;
 }
 
@@ -311,11 +328,9 @@ TargetRegistrationResult register_scan_on_targets(Project& project, const std::s
   if (!r.unmatched.empty())
     log::warn("{}: {}: no surveyed marker named {}: left out", kStage, scan.name, fmt::join(r.unmatched, ", "));
 
-  const std::vector<Eigen::Vector3d> raw =
-      read_points(project.dir() / scan.media_path, shifted_by(Eigen::Vector3d::Zero()));
   r.scan.registration = ScanRegistration::transform;
   r.scan.transform = r.pose;
-  r.scan.bounds = bounds_under(raw, r.pose);
+  r.scan.bounds = bounds_under(project.dir() / scan.media_path, r.pose);
   r.scan.fit = ScanFit{"targets", file, r.rms_m, double(r.inliers) / double(r.targets.size()),
                        r.sigma_translation_m, r.sigma_rotation_rad};
   Transaction tx(db);
