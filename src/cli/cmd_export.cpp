@@ -64,8 +64,8 @@ void export_site_model(const std::string& dir, const std::string& out, int lod) 
   frame.site_origin = info.origin;
   frame.crs = info.crs;
   write_glb(out, site.scene, frame);
-  log::info("wrote {} ({} layers, {} units, {} markers, {} cameras)", out, site.layers, site.units, site.markers,
-            site.cameras);
+  log::info("wrote {} ({} layers, {} units, {} markers, {} finds, {} cameras)", out, site.layers, site.units,
+            site.markers, site.finds, site.cameras);
 }
 
 struct TextureArgs {

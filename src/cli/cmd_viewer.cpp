@@ -138,8 +138,8 @@ void export_viewer(const ViewerArgs& a) {
     if (!out) throw IoError(fmt::format("export viewer: {}: cannot write (disk full?)", tmp.string()));
   }
   staged.swap_in();
-  log::info("wrote {} ({} layers, {} units, {} markers, {} cameras; model {:.1f} MB)", a.out, site.layers, site.units,
-            site.markers, site.cameras, double(glb.size()) / 1e6);
+  log::info("wrote {} ({} layers, {} units, {} markers, {} finds, {} cameras; model {:.1f} MB)", a.out, site.layers,
+            site.units, site.markers, site.finds, site.cameras, double(glb.size()) / 1e6);
 }
 
 }  // namespace

@@ -5,7 +5,9 @@
 #include "core/log.hpp"
 #include "dense/dense_mesh.hpp"
 #include "pipeline/alignment_store.hpp"
+#include "project/find_records.hpp"
 #include "project/records.hpp"
+#include "volume/finds.hpp"
 #include "volume/site_volumes.hpp"
 #include "volume/volume.hpp"
 
@@ -164,6 +166,42 @@ void add_markers(Project& p, SiteScene& site) {
   }
 }
 
+// The finds at their surveyed points, with their record and, when `strata volume` has
+// written the voxel model, the unit whose solid holds each one (as `strata finds`).
+void add_finds(Project& p, const std::string& command, SiteScene& site) {
+  const std::vector<FindRecord> finds = list_finds(p.db());
+  if (finds.empty()) return;
+  std::vector<FindPlacement> placed;
+  bool checked = true;
+  try {
+    placed = check_project_finds(p, FindCheckOptions{}).finds;
+  } catch (const InputError& e) {  // no voxel model yet: the record alone
+    log::info("{}: finds without their geometric unit ({})", command, e.what());
+    checked = false;
+    for (const FindRecord& f : finds) placed.push_back({f, std::nullopt, std::nullopt, false});
+  }
+  const Eigen::Vector3d origin = p.site().origin;
+  for (const FindPlacement& pl : placed) {
+    const FindRecord& f = pl.find;
+    GltfNode n;
+    n.name = "find " + f.id;
+    n.position = f.position - origin;
+    nlohmann::ordered_json extras = {{"find", f.id},
+                                     {"recorded_unit", f.unit},
+                                     {"type", f.type},
+                                     {"description", f.description},
+                                     {"site_crs", {f.position.x(), f.position.y(), f.position.z()}}};
+    if (checked) {
+      extras["geometric_unit"] = pl.geometric_unit ? nlohmann::ordered_json(*pl.geometric_unit) : nullptr;
+      extras["distance_m"] = pl.distance_m ? nlohmann::ordered_json(*pl.distance_m) : nullptr;
+      extras["conflict"] = pl.conflict;
+    }
+    n.extras_json = extras.dump();
+    site.scene.nodes.push_back(std::move(n));
+    ++site.finds;
+  }
+}
+
 // The registered photos of every georeferenced layer, top layer first.
 void add_cameras(Project& p, const std::vector<LayerRecord>& layers, const std::string& command, SiteScene& site) {
   for (const auto& l : layers) {
@@ -199,6 +237,7 @@ SiteScene build_site_scene(Project& p, const std::string& dir, const SiteSceneOp
   add_layer_meshes(p, layers, dir, options, site);
   if (options.only_layer.empty()) add_unit_solids(p, layers, options.command, site);
   add_markers(p, site);
+  add_finds(p, options.command, site);
   add_cameras(p, layers, options.command, site);
   return site;
 }

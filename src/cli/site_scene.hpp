@@ -20,7 +20,7 @@ namespace strata::cli {
 struct SiteScene {
   std::deque<DenseMesh> meshes;
   GltfScene scene;
-  std::size_t layers = 0, units = 0, markers = 0, cameras = 0;  // nodes of each kind
+  std::size_t layers = 0, units = 0, markers = 0, finds = 0, cameras = 0;  // nodes of each kind
 
   void add_mesh(std::string name, DenseMesh mesh, std::optional<std::array<double, 4>> colour,
                 std::string extras_json = "");
@@ -36,7 +36,10 @@ struct SiteSceneOptions {
   std::string command = "export model";  // names the command in warnings and errors
 };
 
-// Layer meshes (top first), unit solids, markers, cameras of the project in `dir`.
+// Layer meshes (top first), unit solids, markers, finds, cameras of the project in `dir`.
+// Finds are nodes "find ID" at their point with extras {find, recorded_unit, type,
+// description, site_crs: [E, N, Z]} and, when the voxel model exists, geometric_unit,
+// distance_m and conflict (as `strata finds --json`).
 // Throws InputError when no layer has a dense mesh yet.
 SiteScene build_site_scene(Project& p, const std::string& dir, const SiteSceneOptions& options);
 
