@@ -52,50 +52,26 @@ std::string lower_extension(const std::string& path) {
   return ext;
 }
 
-// The whole site in one .glb: layer meshes (at level of detail `lod`), unit solids,
-// markers, cameras.
-void export_site_model(const std::string& dir, const std::string& out, int lod) {
+struct TextureArgs : ModelTextureArgs {
+  bool texture = false;
+};
+
+// The whole site in one .glb: layer meshes (at level of detail `lod`, textured when
+// asked), unit solids, markers, finds, cameras.
+void export_site_model(const std::string& dir, const std::string& out, int lod, const TextureArgs& t) {
   Project p = Project::open(dir);
   SiteSceneOptions options;
   options.lod = lod;
+  if (t.texture) options.texture = t;
   const SiteScene site = build_site_scene(p, dir, options);
   const SiteInfo info = p.site();
   ExportFrame frame;
   frame.site_origin = info.origin;
   frame.crs = info.crs;
   write_glb(out, site.scene, frame);
-  log::info("wrote {} ({} layers, {} units, {} markers, {} finds, {} cameras)", out, site.layers, site.units,
-            site.markers, site.finds, site.cameras);
-}
-
-struct TextureArgs {
-  bool texture = false;
-  int jpeg_quality = 90;  // 0: PNG
-  int atlas_size_px = 4096;
-};
-
-// The layer mesh textured from its aligned photos (products.texture), as the model
-// writers take it.
-struct TexturedModel {
-  TexturedMesh textured;
-  MeshTexture texture;
-};
-
-TexturedModel texture_layer_mesh(const std::vector<OrthoView>& views, const DenseMesh& mesh, const TextureArgs& t) {
-  TextureOptions o;
-  o.atlas_size_px = t.atlas_size_px;
-  TextureSummary s;
-  TexturedModel out;
-  out.textured = build_texture_atlas(mesh, views, o, &s);
-  out.texture.uv = out.textured.uv;
-  out.texture.face_image = out.textured.face_atlas;
-  out.texture.mime_type = t.jpeg_quality > 0 ? "image/jpeg" : "image/png";
-  for (const TextureImage& im : out.textured.atlases) out.texture.images.push_back(encode_texture_image(im, t.jpeg_quality));
-  log::info("texture: {} of {} faces from {} of {} photos, {} charts in {} atlas(es) of {} px, {:.2f} texels per photo "
-            "pixel, median texel {:.2f} mm, seams on {:.1f} % of edges, {:.1f} s",
-            s.textured_faces, s.faces, s.views_used, s.views, s.charts, s.atlases, o.atlas_size_px, s.texel_scale,
-            1000 * s.median_texel_m, 100 * s.seam_fraction, s.seconds);
-  return out;
+  log::info("wrote {} ({} layers{}, {} units, {} markers, {} finds, {} cameras)", out, site.layers,
+            t.texture ? fmt::format(" of which {} textured", site.textured_layers) : "", site.units, site.markers,
+            site.finds, site.cameras);
 }
 
 // --check-photos: the textured model rendered from some of its own photos' cameras
@@ -198,7 +174,7 @@ void write_layer_model(Project& p, const std::string& layer, const DenseMesh& me
   std::vector<OrthoView> views;
   if (t.texture) {
     views = layer_ortho_views(p, layer);
-    tex = texture_layer_mesh(views, mesh, t);
+    tex = texture_layer_mesh(views, mesh, t, layer);
   }
   const DenseMesh& written = tex ? tex->textured.mesh : mesh;
   const MeshTexture* texture = tex ? &tex->texture : nullptr;
@@ -234,9 +210,10 @@ void register_model_command(CLI::App& exp) {
       "in extras), the surveyed markers (nodes 'marker M') and every layer's aligned cameras\n"
       "(nodes 'camera L/IMAGE' with a glTF perspective camera). Reads the project only.\n"
       "With --layer L: that layer's dense mesh alone, its vertex colours and normals.\n"
-      "--texture (with --layer): the mesh textured from the layer's aligned photos instead of\n"
-      "vertex colours: each face from its best unoccluded photo, packed into square atlases\n"
-      "embedded as JPEG (docs/model.md, Textures).\n"
+      "--texture: every layer mesh (or with --layer, that one) textured from the layer's aligned\n"
+      "photos instead of vertex colours: each face from its best unoccluded photo, packed into\n"
+      "square atlases embedded as JPEG (docs/model.md, Textures); a layer without aligned photos\n"
+      "keeps its vertex colours. Needs the photos on disk.\n"
       "--lod N: level of detail, each layer mesh simplified to about faces / 4^N (0: the fused\n"
       "mesh; colours and normals kept; refused when fewer than 100 faces would remain).\n"
       "--out FILE.obj (with --layer): Wavefront OBJ relative to the same local origin, in the\n"
@@ -252,13 +229,13 @@ void register_model_command(CLI::App& exp) {
       "colour differences between photos and their registration);\n"
       "--check-images DIR writes PHOTO_render.png and PHOTO_difference.png (|difference| x 4)\n"
       "for each, to look at seams; --json prints the figures (docs/model.md, Textures).\n"
-      "Not yet: textures in the site model, the site model as OBJ.\n"
+      "Unit solids are simplified with the layers (--lod). Not yet: the site model as OBJ.\n"
       "Needs the layers' dense meshes ('strata process DIR --layer L --until dense').");
   const auto a = add_layer_export_options(cmd, "output file, .glb or .obj", "the layer (default: the whole site)");
   const auto lod = std::make_shared<int>(0);
   cmd->add_option("--lod", *lod, "level of detail: 0 the fused mesh, N about faces / 4^N")->capture_default_str();
   const auto t = std::make_shared<TextureArgs>();
-  cmd->add_flag("--texture", t->texture, "texture the layer mesh from its photos (needs --layer and the aligned photos)");
+  cmd->add_flag("--texture", t->texture, "texture the layer meshes from their aligned photos (the photos must be on disk)");
   cmd->add_option("--jpeg-quality", t->jpeg_quality, "atlas JPEG quality, 1-100; 0 writes PNG (lossless, larger)")
       ->check(CLI::Range(0, 100))
       ->capture_default_str();
@@ -279,15 +256,16 @@ void register_model_command(CLI::App& exp) {
   cmd->add_flag("--json", check->json, "print the --check-photos figures as JSON on stdout");
   cmd->callback([=] {
     check_level_of_detail(*lod);
-    if (check->photos > 0 && !t->texture) throw InputError("--check-photos needs --texture (and --layer)");
+    if (check->photos > 0 && (!t->texture || a->layer.empty())) {
+      throw InputError("--check-photos needs --texture and --layer (it checks one layer's textured model)");
+    }
     const ModelFormat format = model_format(a->out);
     if (a->layer.empty()) {
-      if (t->texture) throw InputError("--texture needs --layer: the site model is not textured yet");
       if (format == ModelFormat::obj) {
         throw InputError(fmt::format("--out {}: OBJ holds one layer's mesh, give --layer; the site model (unit "
                                      "solids, markers, cameras) is written as .glb", a->out));
       }
-      export_site_model(a->dir, a->out, *lod);
+      export_site_model(a->dir, a->out, *lod, *t);
       return;
     }
     Project p = Project::open(a->dir);

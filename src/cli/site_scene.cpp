@@ -5,6 +5,7 @@
 #include "core/log.hpp"
 #include "dense/dense_mesh.hpp"
 #include "pipeline/alignment_store.hpp"
+#include "pipeline/products_layer.hpp"
 #include "project/find_records.hpp"
 #include "project/records.hpp"
 #include "volume/finds.hpp"
@@ -21,14 +22,37 @@
 namespace strata::cli {
 
 void SiteScene::add_mesh(std::string name, DenseMesh mesh, std::optional<std::array<double, 4>> colour,
-                         std::string extras_json) {
+                         std::string extras_json, std::optional<MeshTexture> texture) {
   meshes.push_back(std::move(mesh));
-  scene.meshes.push_back({name, &meshes.back(), colour});
+  GltfMesh gm{name, &meshes.back(), colour};
+  if (texture) {
+    textures.push_back(std::move(*texture));
+    gm.texture = &textures.back();
+  }
+  scene.meshes.push_back(std::move(gm));
   GltfNode n;
   n.name = std::move(name);
   n.mesh = int(scene.meshes.size()) - 1;
   n.extras_json = std::move(extras_json);
   scene.nodes.push_back(std::move(n));
+}
+
+TexturedModel texture_layer_mesh(const std::vector<OrthoView>& views, const DenseMesh& mesh, const ModelTextureArgs& t,
+                                 const std::string& layer) {
+  TextureOptions o;
+  o.atlas_size_px = t.atlas_size_px;
+  TextureSummary s;
+  TexturedModel out;
+  out.textured = build_texture_atlas(mesh, views, o, &s);
+  out.texture.uv = out.textured.uv;
+  out.texture.face_image = out.textured.face_atlas;
+  out.texture.mime_type = t.jpeg_quality > 0 ? "image/jpeg" : "image/png";
+  for (const TextureImage& im : out.textured.atlases) out.texture.images.push_back(encode_texture_image(im, t.jpeg_quality));
+  log::info("layer {}: texture: {} of {} faces from {} of {} photos, {} charts in {} atlas(es) of {} px, {:.2f} texels "
+            "per photo pixel, median texel {:.2f} mm, seams on {:.1f} % of edges, {:.1f} s",
+            layer, s.textured_faces, s.faces, s.views_used, s.views, s.charts, s.atlases, o.atlas_size_px,
+            s.texel_scale, 1000 * s.median_texel_m, 100 * s.seam_fraction, s.seconds);
+  return out;
 }
 
 // The file of a product the dense stage recorded, refused when it has gone or changed
@@ -104,7 +128,27 @@ std::array<double, 4> unit_colour(std::size_t index) {
   return rgba;
 }
 
-// Every layer's dense mesh, top layer first, simplified when larger than the options allow.
+// The photos a layer mesh is textured from: its aligned photos, or none (with a warning)
+// when the layer has no alignment.
+std::vector<OrthoView> texture_views(Project& p, const LayerRecord& l, const std::string& command) {
+  if (!load_alignment(p.db(), l)) {
+    log::warn("{}: layer {} has no aligned photos (a range-scan layer?): vertex colours, not textured", command, l.name);
+    return {};
+  }
+  return layer_ortho_views(p, l.name);
+}
+
+// Faces a mesh is simplified to for the options: faces / 4^lod and at most max_layer_faces;
+// never below kMinLevelOfDetailFaces, nor above the faces it has.
+std::size_t simplified_faces(std::size_t faces, const SiteSceneOptions& options) {
+  std::size_t target = faces;
+  for (int k = 0; k < options.lod; ++k) target /= 4;
+  if (options.max_layer_faces > 0) target = std::min(target, options.max_layer_faces);
+  return std::min(faces, std::max(target, kMinLevelOfDetailFaces));
+}
+
+// Every layer's dense mesh, top layer first, simplified when larger than the options allow,
+// textured from its photos when asked.
 void add_layer_meshes(Project& p, const std::vector<LayerRecord>& layers, const std::string& dir,
                       const SiteSceneOptions& options, SiteScene& site) {
   const Eigen::Vector3d origin = p.site().origin;
@@ -121,7 +165,15 @@ void add_layer_meshes(Project& p, const std::vector<LayerRecord>& layers, const 
                 mesh.faces.size(), options.max_layer_faces);
       mesh = simplify_mesh(mesh, options.max_layer_faces);
     }
-    site.add_mesh("layer " + l.name, std::move(mesh), std::nullopt);
+    const std::string name = "layer " + l.name;
+    const std::vector<OrthoView> views = options.texture ? texture_views(p, l, options.command) : std::vector<OrthoView>{};
+    if (!views.empty()) {
+      TexturedModel t = texture_layer_mesh(views, mesh, *options.texture, l.name);
+      site.add_mesh(name, std::move(t.textured.mesh), std::nullopt, "", std::move(t.texture));
+      ++site.textured_layers;
+    } else {
+      site.add_mesh(name, std::move(mesh), std::nullopt);
+    }
     ++site.layers;
   }
 }
@@ -129,8 +181,9 @@ void add_layer_meshes(Project& p, const std::vector<LayerRecord>& layers, const 
 // The unit solids as `strata volume` computes them (default options, the kept trench
 // outline). load_site_model writes only when given a new outline file, which the
 // default options never are: the export stays read-only.
-void add_unit_solids(Project& p, const std::vector<LayerRecord>& layers, const std::string& command,
+void add_unit_solids(Project& p, const std::vector<LayerRecord>& layers, const SiteSceneOptions& options,
                      SiteScene& site) {
+  const std::string& command = options.command;
   const auto with_surface = std::count_if(layers.begin(), layers.end(), [&](const LayerRecord& l) {
     return find_product(p.db(), l.id, "surface") || find_product(p.db(), l.id, "dtm");
   });
@@ -143,6 +196,13 @@ void add_unit_solids(Project& p, const std::vector<LayerRecord>& layers, const s
     const UnitSolid& s = model.solids[i];
     DenseMesh mesh = unit_solid_mesh(s);
     if (mesh.faces.empty()) continue;  // a unit dug nowhere on the grid
+    // Flat tops and walls of grid cells collapse well; the edge collapse keeps the solid closed.
+    const std::size_t target = simplified_faces(mesh.faces.size(), options);
+    if (target < mesh.faces.size()) {
+      const std::size_t before = mesh.faces.size();
+      mesh = simplify_mesh(mesh, target);
+      log::info("{}: unit {}: solid of {} faces simplified to {}", command, s.unit, before, mesh.faces.size());
+    }
     const nlohmann::ordered_json extras = {{"unit", s.unit},
                                            {"volume_m3", s.measures.volume_m3},
                                            {"interval_m3", {s.measures.interval_low_m3, s.measures.interval_high_m3}}};
@@ -235,7 +295,7 @@ SiteScene build_site_scene(Project& p, const std::string& dir, const SiteSceneOp
   }
   SiteScene site;
   add_layer_meshes(p, layers, dir, options, site);
-  if (options.only_layer.empty()) add_unit_solids(p, layers, options.command, site);
+  if (options.only_layer.empty()) add_unit_solids(p, layers, options, site);
   add_markers(p, site);
   add_finds(p, options.command, site);
   add_cameras(p, layers, options.command, site);

@@ -4,6 +4,7 @@
 #include "exporters/gltf/gltf_writer.hpp"
 #include "geometry/mesh.hpp"
 #include "importers/mesh/ply_mesh.hpp"
+#include "products/texture_atlas.hpp"
 #include "project/project.hpp"
 #include "project/records.hpp"
 
@@ -16,14 +17,32 @@
 
 namespace strata::cli {
 
-// The scene and the meshes it points to (a deque: adding a mesh must not move the others).
+// How layer meshes are textured from their photos (products.texture) in a model or viewer.
+struct ModelTextureArgs {
+  int jpeg_quality = 90;     // atlas JPEG quality, [1, 100]; 0: PNG
+  int atlas_size_px = 4096;  // side of a square atlas, texels
+};
+
+// A layer mesh textured from its photos, as the model writers take it.
+struct TexturedModel {
+  TexturedMesh textured;  // the mesh, its UVs and the atlases as pixels (for --check-photos)
+  MeshTexture texture;    // the same UVs with the atlases encoded
+};
+
+// Logs the texture's summary, naming `layer`. Throws as build_texture_atlas.
+TexturedModel texture_layer_mesh(const std::vector<OrthoView>& views, const DenseMesh& mesh, const ModelTextureArgs& t,
+                                 const std::string& layer);
+
+// The scene and the meshes and textures it points to (deques: adding one must not move the others).
 struct SiteScene {
   std::deque<DenseMesh> meshes;
+  std::deque<MeshTexture> textures;
   GltfScene scene;
   std::size_t layers = 0, units = 0, markers = 0, finds = 0, cameras = 0;  // nodes of each kind
+  std::size_t textured_layers = 0;
 
   void add_mesh(std::string name, DenseMesh mesh, std::optional<std::array<double, 4>> colour,
-                std::string extras_json = "");
+                std::string extras_json = "", std::optional<MeshTexture> texture = std::nullopt);
 };
 
 struct SiteSceneOptions {
@@ -32,11 +51,15 @@ struct SiteSceneOptions {
   // Faces per layer mesh; larger meshes are simplified (CGAL edge collapse, colours and
   // normals carried). 0: keep every face.
   std::size_t max_layer_faces = 0;
+  // Set: every layer with an aligned photo set is textured from its photos (the others,
+  // e.g. a layer recorded by range scans alone, keep their vertex colours).
+  std::optional<ModelTextureArgs> texture;
   std::string only_layer;  // "": every layer and the unit solids; else this layer alone (no unit solids)
   std::string command = "export model";  // names the command in warnings and errors
 };
 
 // Layer meshes (top first), unit solids, markers, finds, cameras of the project in `dir`.
+// Unit solids are simplified like the layers: to faces / 4^lod and to max_layer_faces.
 // Finds are nodes "find ID" at their point with extras {find, recorded_unit, type,
 // description, site_crs: [E, N, Z]} and, when the voxel model exists, geometric_unit,
 // distance_m and conflict (as `strata finds --json`).

@@ -2,7 +2,8 @@
 // (its truth rasters as the layer surfaces, no photogrammetry), its voxel model
 // from `strata volume`, the planted finds imported from the generator's finds.csv;
 // `strata finds --json` must put every find in its true unit and flag exactly the
-// planted contradictions, with exit status 1.
+// planted contradictions, with exit status 1; the site model carries the same verdicts.
+#include "support/recorded_mesh.hpp"
 #include "support/test_support.hpp"
 
 #include <gtest/gtest.h>
@@ -94,6 +95,39 @@ TEST(Finds, SyntheticFindsLandInTheirTrueUnitAndPlantedContradictionsConflict) {
   EXPECT_EQ(right, int(truth.size()));
   EXPECT_EQ(flagged, planted);
   EXPECT_EQ(planted, 2);
+
+  // The site model (a recorded dense mesh stands in for the processed layer it needs)
+  // holds every find as node 'find ID' at its surveyed point, with the verdict above.
+  DenseMesh ground;
+  ground.vertices = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+  ground.faces = {{0, 1, 2}};
+  record_dense_mesh(site, read_rows(synth / "layers.csv").at(0).at("layer"), ground);
+  const CommandResult model = run_strata({"export", "model", s, "--out", (dir / "site.glb").string()});
+  ASSERT_EQ(model.exit_code, 0) << model.err;
+  EXPECT_NE(model.err.find("14 finds"), std::string::npos) << model.err;
+  const nlohmann::json glb = glb_json(dir / "site.glb");
+  ASSERT_TRUE(glb.is_object());
+  std::map<std::string, nlohmann::json> nodes;
+  for (const auto& n : glb.at("nodes")) {
+    const std::string name = n.value("name", "");
+    if (name.rfind("find ", 0) == 0) nodes[name.substr(5)] = n;
+  }
+  ASSERT_EQ(nodes.size(), list.size());
+  for (const auto& f : list) {
+    const nlohmann::json& n = nodes.at(f.at("id").get<std::string>());
+    const nlohmann::json& x = n.at("extras");
+    EXPECT_EQ(x.at("find"), f.at("id"));
+    EXPECT_EQ(x.at("recorded_unit"), f.at("recorded_unit"));
+    EXPECT_EQ(x.at("geometric_unit"), f.at("geometric_unit"));
+    EXPECT_EQ(x.at("conflict"), f.at("conflict"));
+    EXPECT_NEAR(x.at("distance_m").get<double>(), f.at("distance_m").get<double>(), 1e-9);
+    // Marker-like nodes sit at their absolute site position in glTF axes (x = E, y = Z, z = -N).
+    const auto& t = n.at("translation");
+    EXPECT_NEAR(t.at(0).get<double>(), f.at("E").get<double>(), 1e-4);
+    EXPECT_NEAR(-t.at(2).get<double>(), f.at("N").get<double>(), 1e-4);
+    EXPECT_NEAR(t.at(1).get<double>(), f.at("Z").get<double>(), 1e-4);
+    EXPECT_NEAR(x.at("site_crs").at(0).get<double>(), f.at("E").get<double>(), 1e-6);
+  }
 
   // A wide tolerance accepts the contradictions (exit 0); the text table lists all.
   const CommandResult wide = run_strata({"finds", s, "--tolerance", "1"});
