@@ -212,8 +212,11 @@ void register_model_command(CLI::App& exp) {
       "With --layer L: that layer's dense mesh alone, its vertex colours and normals.\n"
       "--texture: every layer mesh (or with --layer, that one) textured from the layer's aligned\n"
       "photos instead of vertex colours: each face from its best unoccluded photo, packed into\n"
-      "square atlases embedded as JPEG (docs/model.md, Textures); a layer without aligned photos\n"
-      "keeps its vertex colours. Needs the photos on disk.\n"
+      "square atlases embedded as JPEG (docs/model.md, Textures), each photo's colours scaled by\n"
+      "its gains (one per channel, fitted over the faces several photos see, so that seams\n"
+      "between photos of different exposure do not show; --no-colour-gains leaves the photos'\n"
+      "colours as they are); a layer without aligned photos keeps its vertex colours. Needs the\n"
+      "photos on disk.\n"
       "--lod N: level of detail, each layer mesh simplified to about faces / 4^N (0: the fused\n"
       "mesh; colours and normals kept; refused when fewer than 100 faces would remain).\n"
       "--out FILE.obj (with --layer): Wavefront OBJ relative to the same local origin, in the\n"
@@ -242,6 +245,8 @@ void register_model_command(CLI::App& exp) {
   cmd->add_option("--atlas-size", t->atlas_size_px, "side of a square texture atlas, texels (64-16384)")
       ->check(CLI::Range(64, 16384))
       ->capture_default_str();
+  cmd->add_flag("--no-colour-gains{false}", t->colour_gains,
+                "with --texture: each photo's colours as taken, without the gains fitted between photos");
   const auto check = std::make_shared<CheckArgs>();
   cmd->add_option("--check-photos", check->photos,
                   "with --texture: render the model from N of its photos and compare with them (0: no check)")

@@ -18,6 +18,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 
 namespace strata::cli {
 
@@ -41,6 +42,7 @@ TexturedModel texture_layer_mesh(const std::vector<OrthoView>& views, const Dens
                                  const std::string& layer) {
   TextureOptions o;
   o.atlas_size_px = t.atlas_size_px;
+  o.colour_balance = t.colour_gains;
   TextureSummary s;
   TexturedModel out;
   out.textured = build_texture_atlas(mesh, views, o, &s);
@@ -52,6 +54,16 @@ TexturedModel texture_layer_mesh(const std::vector<OrthoView>& views, const Dens
             "per photo pixel, median texel {:.2f} mm, seams on {:.1f} % of edges, {:.1f} s",
             layer, s.textured_faces, s.faces, s.views_used, s.views, s.charts, s.atlases, o.atlas_size_px,
             s.texel_scale, 1000 * s.median_texel_m, 100 * s.seam_fraction, s.seconds);
+  if (o.colour_balance && !s.gains.empty()) {
+    double lo = std::numeric_limits<double>::infinity(), hi = 0;
+    for (const auto& g : s.gains) {
+      lo = std::min({lo, g[0], g[1], g[2]});
+      hi = std::max({hi, g[0], g[1], g[2]});
+    }
+    log::info("layer {}: texture: colour gains {:.3f}-{:.3f} fitted on {} overlaps; RMS of log colour ratios between "
+              "photos {:.3f} before, {:.3f} after", layer, lo, hi, s.balance_overlaps, s.balance_rms_before,
+              s.balance_rms_after);
+  }
   return out;
 }
 

@@ -21,6 +21,7 @@ namespace strata::cli {
 struct ModelTextureArgs {
   int jpeg_quality = 90;     // atlas JPEG quality, [1, 100]; 0: PNG
   int atlas_size_px = 4096;  // side of a square atlas, texels
+  bool colour_gains = true;  // per-photo colour gains fitted over the faces several photos see
 };
 
 // A layer mesh textured from its photos, as the model writers take it.

@@ -6,9 +6,9 @@
 #include "core/progress.hpp"
 #include "core/resources.hpp"
 #include "core/statistics.hpp"
+#include "products/colour_gains.hpp"
 #include "products/photo_sampling.hpp"
 
-#include <Eigen/Cholesky>
 #include <Eigen/Dense>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -21,7 +21,6 @@
 #include <exception>
 #include <limits>
 #include <mutex>
-#include <unordered_map>
 
 namespace strata {
 
@@ -176,72 +175,27 @@ struct Candidates {
   }
 };
 
-// Per-photo, per-channel log gains x_v minimising
-//   sum over overlapping pairs (a, b) and shared cells of (x_a + ln I_a - x_b - ln I_b)^2
-// plus a weak pull of every x_v towards 0 that fixes the gauge (mean gain ~ 1).
+// Per-photo, per-channel gains fitted over every pair of candidate views of a cell
+// (fit_colour_gains, shared with the texture atlas).
 void balance_gains(const Candidates& cand, int n_views, OrthoSummary& s, std::vector<std::array<double, 3>>& gains) {
-  struct Acc {
-    double n = 0;
-    std::array<double, 3> sum{}, sum2{};
-  };
-  std::unordered_map<std::uint64_t, Acc> pairs;
+  ColourOverlaps overlaps;
   const std::size_t cells = cand.view.size() / cand.k;
   for (std::size_t i = 0; i < cells; ++i) {
     const std::size_t base = i * cand.k;
     for (int p = 0; p < cand.k; ++p) {
       const int a = cand.view[base + p];
       if (a < 0) break;
-      const std::uint8_t* ca = &cand.rgb[(base + p) * 3];
-      if (*std::min_element(ca, ca + 3) < 8 || *std::max_element(ca, ca + 3) > 250) continue;  // dark or clipped
       for (int q = p + 1; q < cand.k; ++q) {
         const int b = cand.view[base + q];
         if (b < 0) break;
-        const std::uint8_t* cb = &cand.rgb[(base + q) * 3];
-        if (*std::min_element(cb, cb + 3) < 8 || *std::max_element(cb, cb + 3) > 250) continue;
-        const bool swap = a > b;
-        Acc& acc = pairs[(std::uint64_t(swap ? b : a) << 32) | std::uint64_t(swap ? a : b)];
-        acc.n += 1;
-        for (int ch = 0; ch < 3; ++ch) {
-          double r = std::log(double(ca[ch])) - std::log(double(cb[ch]));
-          if (swap) r = -r;
-          acc.sum[ch] += r;
-          acc.sum2[ch] += r * r;
-        }
+        overlaps.add(a, &cand.rgb[(base + p) * 3], b, &cand.rgb[(base + q) * 3]);
       }
     }
   }
-  gains.assign(std::size_t(n_views), {1.0, 1.0, 1.0});
-  double total_n = 0, before2 = 0, after2 = 0;
-  for (int ch = 0; ch < 3; ++ch) {
-    Eigen::MatrixXd A = Eigen::MatrixXd::Zero(n_views, n_views);
-    Eigen::VectorXd rhs = Eigen::VectorXd::Zero(n_views);
-    for (const auto& [key, acc] : pairs) {
-      const int a = int(key >> 32), b = int(key & 0xffffffffu);
-      // Mean of ln I_a - ln I_b over the pair's cells: want x_a - x_b = -mean.
-      const double m = acc.sum[ch] / acc.n;
-      A(a, a) += acc.n;
-      A(b, b) += acc.n;
-      A(a, b) -= acc.n;
-      A(b, a) -= acc.n;
-      rhs(a) -= acc.n * m;
-      rhs(b) += acc.n * m;
-    }
-    const double lambda = 1e-3 * std::max(1.0, A.diagonal().mean());
-    A.diagonal().array() += lambda;
-    const Eigen::VectorXd x = A.ldlt().solve(rhs);
-    for (int v = 0; v < n_views; ++v) gains[std::size_t(v)][std::size_t(ch)] = std::exp(x(v));
-    for (const auto& [key, acc] : pairs) {
-      const int a = int(key >> 32), b = int(key & 0xffffffffu);
-      const double d = x(a) - x(b);
-      before2 += acc.sum2[ch];
-      after2 += acc.sum2[ch] + 2 * d * acc.sum[ch] + acc.n * d * d;
-      if (ch == 0) total_n += acc.n;
-    }
-  }
-  if (total_n > 0) {
-    s.balance_rms_before = std::sqrt(before2 / (3 * total_n));
-    s.balance_rms_after = std::sqrt(std::max(0.0, after2) / (3 * total_n));
-  }
+  const ColourGains fit = fit_colour_gains(overlaps, n_views);
+  gains = fit.gains;
+  s.balance_rms_before = fit.rms_before;
+  s.balance_rms_after = fit.rms_after;
 }
 
 // Separable box filter of radius r over a w x h float image, in place.

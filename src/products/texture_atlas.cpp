@@ -3,6 +3,7 @@
 #include "core/error.hpp"
 #include "core/resources.hpp"
 #include "core/statistics.hpp"
+#include "products/colour_gains.hpp"
 #include "products/photo_sampling.hpp"
 
 #include <opencv2/imgcodecs.hpp>
@@ -67,15 +68,17 @@ FaceGeometry face_geometry(const DenseMesh& m) {
   return g;
 }
 
-// Best views of every face, best first.
+// Best views of every face, best first, with the face's mean colour in each.
 struct FaceCandidates {
   int k = 0;
   std::vector<int> view;  // kNoView = empty slot
   std::vector<float> score;
-  std::vector<float> texel_m;  // ground size of one photo pixel on the face, metres
+  std::vector<float> texel_m;     // ground size of one photo pixel on the face, metres
+  std::vector<std::uint8_t> rgb;  // 3 per slot: the photo's mean at the face's test points (colour balance only)
 
-  FaceCandidates(std::size_t faces, int k_) : k(k_), view(faces * k_, kNoView), score(faces * k_, 0), texel_m(faces * k_, 0) {}
-  void insert(std::size_t f, int v, float s, float px_m) {
+  FaceCandidates(std::size_t faces, int k_)
+      : k(k_), view(faces * k_, kNoView), score(faces * k_, 0), texel_m(faces * k_, 0), rgb(faces * k_ * 3, 0) {}
+  void insert(std::size_t f, int v, float s, float px_m, const std::array<std::uint8_t, 3>& c) {
     const std::size_t base = f * k;
     int pos = k;
     while (pos > 0 && (view[base + pos - 1] == kNoView || score[base + pos - 1] < s)) --pos;
@@ -84,10 +87,12 @@ struct FaceCandidates {
       view[base + j] = view[base + j - 1];
       score[base + j] = score[base + j - 1];
       texel_m[base + j] = texel_m[base + j - 1];
+      std::copy_n(&rgb[(base + j - 1) * 3], 3, &rgb[(base + j) * 3]);
     }
     view[base + pos] = v;
     score[base + pos] = s;
     texel_m[base + pos] = px_m;
+    std::copy(c.begin(), c.end(), &rgb[(base + pos) * 3]);
   }
 };
 
@@ -105,6 +110,8 @@ void score_view(const DenseMesh& m, const FaceGeometry& g, const OrthoView& view
   const ProjectedVertices projected = project_vertices(m, proj);
   const std::vector<Eigen::Vector2d>& px = projected.px;
   const DepthBuffer zbuf = mesh_depth_buffer(m, projected, K, o.depth_buffer_scale);
+  // The photo itself only for the colour balance: a face's colour in each candidate view.
+  const PhotoPixels photo = o.colour_balance ? load_photo(view, "products.texture") : PhotoPixels{};
   const double cos_max = std::cos(o.max_view_angle_deg * M_PI / 180.0);
   auto inside = [&](const Eigen::Vector2d& p) {
     return p.x() >= o.border_px && p.y() >= o.border_px && p.x() <= K.width - 1 - o.border_px &&
@@ -122,6 +129,7 @@ void score_view(const DenseMesh& m, const FaceGeometry& g, const OrthoView& view
     const double tan_t = std::sqrt(std::max(0.0, 1.0 - cos_t * cos_t)) / std::max(cos_t, 1e-3);
     bool visible = true;
     double d_centre = 0;
+    std::array<double, 3> colour_sum = {0, 0, 0};
     for (const auto& w : kTestPoints) {
       const Eigen::Vector3d P = w[0] * m.vertices[f[0]] + w[1] * m.vertices[f[1]] + w[2] * m.vertices[f[2]];
       Eigen::Vector2d p;
@@ -136,12 +144,19 @@ void score_view(const DenseMesh& m, const FaceGeometry& g, const OrthoView& view
         visible = false;
         break;
       }
+      if (o.colour_balance) {
+        std::uint8_t c[3];
+        photo.sample(p.x(), p.y(), 1.0, c);
+        for (int k = 0; k < 3; ++k) colour_sum[std::size_t(k)] += c[k];
+      }
     }
     if (!visible) continue;
+    std::array<std::uint8_t, 3> colour{};
+    for (int k = 0; k < 3; ++k) colour[std::size_t(k)] = std::uint8_t(std::lround(colour_sum[std::size_t(k)] / kTestPoints.size()));
     const Eigen::Vector2d e1 = px[f[1]] - px[f[0]], e2 = px[f[2]] - px[f[0]];
     const double area_px = 0.5 * std::abs(e1.x() * e2.y() - e1.y() * e2.x());
     if (!(area_px > 0)) continue;
-    cand.insert(fi, v, float(area_px * cos_t), float(d_centre / (K.fx * cos_t)));
+    cand.insert(fi, v, float(area_px * cos_t), float(d_centre / (K.fx * cos_t)), colour);
   }
 }
 
@@ -176,6 +191,22 @@ std::vector<int> smooth_labels(const FaceCandidates& cand, const FaceGeometry& g
     if (changed == 0) break;
   }
   return label;
+}
+
+// Gains per view and channel from the candidate views of every face several photos
+// see: each pair of candidates is one overlap of the orthophoto's solver.
+ColourGains face_colour_gains(const FaceCandidates& cand, int n_views) {
+  ColourOverlaps overlaps;
+  const std::size_t faces = cand.view.size() / std::size_t(cand.k);
+  for (std::size_t f = 0; f < faces; ++f) {
+    const std::size_t base = f * cand.k;
+    for (int p = 0; p < cand.k && cand.view[base + p] != kNoView; ++p) {
+      for (int q = p + 1; q < cand.k && cand.view[base + q] != kNoView; ++q) {
+        overlaps.add(cand.view[base + p], &cand.rgb[(base + p) * 3], cand.view[base + q], &cand.rgb[(base + q) * 3]);
+      }
+    }
+  }
+  return fit_colour_gains(overlaps, n_views);
 }
 
 struct Chart {
@@ -320,7 +351,8 @@ struct Page {
 };
 
 void fill_chart(const Chart& c, const std::unordered_map<int, Eigen::Vector2d>& px, const DenseMesh& m,
-                const Camera& cam, const PhotoPixels& photo, int gutter, double scale, Page& page) {
+                const Camera& cam, const PhotoPixels& photo, const std::array<double, 3>& gain, int gutter,
+                double scale, Page& page) {
   const Projector proj(cam);
   const int W = page.image.width;
   const double footprint = 1.0 / scale;  // photo pixels per texel
@@ -351,7 +383,11 @@ void fill_chart(const Chart& c, const std::unordered_map<int, Eigen::Vector2d>& 
         Eigen::Vector2d p;
         double depth;
         if (!proj.project(X, p, depth)) continue;
-        photo.sample(p.x(), p.y(), footprint, &page.image.rgb[3 * t]);
+        std::uint8_t* texel = &page.image.rgb[3 * t];
+        photo.sample(p.x(), p.y(), footprint, texel);
+        for (int k = 0; k < 3; ++k) {
+          texel[k] = std::uint8_t(std::clamp(std::lround(texel[k] * gain[std::size_t(k)]), 0L, 255L));
+        }
         page.covered[t] = 1;
       }
     }
@@ -413,8 +449,9 @@ int fit_charts(std::vector<Chart>& charts, ChartPixels& pixels, const DenseMesh&
 // The atlas pages: each chart's texels from its photo, then the grey patch of the
 // untextured faces (their mean vertex colour, or mid grey), then the gutters.
 std::vector<Page> paint_atlases(const std::vector<Chart>& charts, const ChartPixels& pixels, const Chart& grey,
-                                const DenseMesh& m, const std::vector<OrthoView>& views, const TextureOptions& o,
-                                int pages, double scale) {
+                                const DenseMesh& m, const std::vector<OrthoView>& views,
+                                const std::vector<std::array<double, 3>>& gains, const TextureOptions& o, int pages,
+                                double scale) {
   std::vector<Page> atlas(static_cast<std::size_t>(pages));
   for (Page& p : atlas) {
     p.image.width = p.image.height = o.atlas_size_px;
@@ -429,8 +466,8 @@ std::vector<Page> paint_atlases(const std::vector<Chart>& charts, const ChartPix
     PhotoPixels photo = load_photo(views[std::size_t(v)], "products.texture");
     if (scale < 1) photo.build_pyramid(1.0 / scale);
     for (std::size_t i : idx)
-      fill_chart(charts[i], pixels[i], m, views[std::size_t(v)].camera, photo, o.gutter_px, scale,
-                 atlas[std::size_t(charts[i].page)]);
+      fill_chart(charts[i], pixels[i], m, views[std::size_t(v)].camera, photo, gains[std::size_t(v)], o.gutter_px,
+                 scale, atlas[std::size_t(charts[i].page)]);
   }
   std::array<std::uint8_t, 3> grey_rgb = {128, 128, 128};
   if (!grey.faces.empty() && !m.colours.empty()) {
@@ -532,6 +569,8 @@ TexturedMesh build_texture_atlas(const DenseMesh& m, const std::vector<OrthoView
   FaceCandidates cand(m.faces.size(), o.candidates);
   for (std::size_t v = 0; v < views.size(); ++v) score_view(m, g, views[v], int(v), o, cand);
   const std::vector<int> label = smooth_labels(cand, g, o);
+  const ColourGains gains = o.colour_balance ? face_colour_gains(cand, int(views.size()))
+                                             : fit_colour_gains(ColourOverlaps{}, int(views.size()));
 
   std::vector<Chart> charts = grow_charts(label, g);
   ChartPixels pixels;
@@ -548,11 +587,15 @@ TexturedMesh build_texture_atlas(const DenseMesh& m, const std::vector<OrthoView
   }
   double scale = 1;
   const int pages = fit_charts(charts, pixels, m, o, scale);
-  std::vector<Page> atlas = paint_atlases(charts, pixels, grey, m, views, o, pages, scale);
+  std::vector<Page> atlas = paint_atlases(charts, pixels, grey, m, views, gains.gains, o, pages, scale);
   TexturedMesh out = textured_output(charts, pixels, m, o, scale);
   for (Page& p : atlas) out.atlases.push_back(std::move(p.image));
   if (summary) {
     *summary = texture_summary(m, views, label, cand, g, charts.size() - (grey.faces.empty() ? 0 : 1), pages, scale);
+    summary->gains = gains.gains;
+    summary->balance_rms_before = gains.rms_before;
+    summary->balance_rms_after = gains.rms_after;
+    summary->balance_overlaps = gains.overlaps;
     summary->seconds = clock.seconds();
   }
   return out;

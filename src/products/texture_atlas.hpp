@@ -16,10 +16,17 @@
 //     cut-out of the photo; charts too large for one atlas are split in halves;
 //  4. packing: the charts' rectangles, each with a gutter, on shelves in square
 //     atlases; texel_scale shrinks until they fit in `max_atlases`;
-//  5. filling: each texel's surface point (barycentric in its face) is projected
-//     with the camera model, distortion included, and the photo sampled there
-//     (bilinear; a mipmap when a texel spans more than a photo pixel); the gutter
-//     is filled by dilating the charts, so that mipmapping does not bleed.
+//  5. colour gains: one gain per photo and channel, fitted by least squares on the
+//     log colour ratios of the candidate views of every face several photos see
+//     (each candidate's colour: the mean of the photo at the face's four test
+//     points), with a regulariser pulling the gains to 1 (fit_colour_gains, the
+//     orthophoto's solver), so that seams between charts from photos of different
+//     exposure do not show as steps of brightness;
+//  6. filling: each texel's surface point (barycentric in its face) is projected
+//     with the camera model, distortion included, the photo sampled there
+//     (bilinear; a mipmap when a texel spans more than a photo pixel) and its gain
+//     applied; the gutter is filled by dilating the charts, so that mipmapping does
+//     not bleed.
 // Faces no photo sees take a small grey patch (their vertex colours' mean).
 #include "dense/dense_mesh.hpp"
 #include "products/orthophoto.hpp"
@@ -45,6 +52,7 @@ struct TextureOptions {
   int candidates = 4;                // best views kept per face, [1, 16]
   double smoothness = 0.5;           // Potts weight against the relative score, >= 0
   int smoothing_iterations = 5;      // ICM sweeps, >= 0
+  bool colour_balance = true;        // per-photo colour gains fitted over the faces several photos see
   // Throws InputError naming the first invalid field.
   void validate() const;
 };
@@ -74,6 +82,10 @@ struct TextureSummary {
   std::vector<std::string> view_names;
   std::vector<std::size_t> faces_per_view;
   double seam_fraction = 0;        // share of interior edges between faces on different views
+  std::vector<std::array<double, 3>> gains;  // per view, RGB multiplicative (all 1 without colour_balance)
+  double balance_rms_before = 0;   // RMS of the log colour ratios between candidate views of a face, before gains
+  double balance_rms_after = 0;    //   and after
+  std::size_t balance_overlaps = 0;  // (face, pair of candidate views) the gains were fitted on
   double seconds = 0;
 };
 

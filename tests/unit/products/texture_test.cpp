@@ -9,6 +9,8 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include <cmath>
+#include <cstdio>
+#include <map>
 
 namespace strata {
 namespace {
@@ -105,6 +107,109 @@ TEST(TextureAtlas, SmallAtlasShrinksTheTexelScaleAndEncodes) {
   }
   o.gutter_px = 0;
   EXPECT_THROW(build_texture_atlas(s.mesh, s.views, o), InputError);
+}
+
+
+// The atlas colour at texture coordinate uv (glTF: (0, 0) the atlas's top-left corner), bilinear.
+std::array<double, 3> atlas_colour(const TextureImage& im, const Eigen::Vector2f& uv) {
+  const double x = uv.x() * im.width - 0.5, y = uv.y() * im.height - 0.5;
+  const int xi = std::clamp(int(std::floor(x)), 0, im.width - 2), yi = std::clamp(int(std::floor(y)), 0, im.height - 2);
+  const double ax = x - xi, ay = y - yi;
+  std::array<double, 3> out{};
+  for (int k = 0; k < 3; ++k) {
+    auto at = [&](int xx, int yy) { return double(im.rgb[(std::size_t(yy) * im.width + xx) * 3 + k]); };
+    out[std::size_t(k)] =
+        (1 - ay) * ((1 - ax) * at(xi, yi) + ax * at(xi + 1, yi)) + ay * ((1 - ax) * at(xi, yi + 1) + ax * at(xi + 1, yi + 1));
+  }
+  return out;
+}
+
+// The seam step: over every edge between two faces textured from different photos, the
+// atlas colour at the edge's midpoint read through each face's own chart, |difference|
+// averaged over the channels, then over the edges (grey levels). Both charts show the
+// same surface point, so what differs is the photos' exposure (and the resampling).
+struct SeamSteps {
+  double mean = 0;
+  std::size_t edges = 0;
+};
+SeamSteps seam_steps(const TexturedMesh& t) {
+  // Vertices are duplicated per chart: edges are matched by their corners' positions.
+  using Key = std::array<long, 6>;
+  auto key_of = [](const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+    auto q = [](double v) { return std::lround(v * 1e6); };  // micrometres
+    Key ka = {q(a.x()), q(a.y()), q(a.z()), q(b.x()), q(b.y()), q(b.z())};
+    const Key kb = {q(b.x()), q(b.y()), q(b.z()), q(a.x()), q(a.y()), q(a.z())};
+    return std::min(ka, kb);
+  };
+  struct Side {
+    int face;
+    Eigen::Vector2f uv_mid;
+  };
+  std::map<Key, std::vector<Side>> edges;
+  for (std::size_t f = 0; f < t.mesh.faces.size(); ++f) {
+    if (t.face_view[f] < 0) continue;
+    const auto& v = t.mesh.faces[f];
+    for (int k = 0; k < 3; ++k) {
+      const int a = v[std::size_t(k)], b = v[std::size_t((k + 1) % 3)];
+      edges[key_of(t.mesh.vertices[std::size_t(a)], t.mesh.vertices[std::size_t(b)])].push_back(
+          {int(f), 0.5f * (t.uv[std::size_t(a)] + t.uv[std::size_t(b)])});
+    }
+  }
+  SeamSteps s;
+  double sum = 0;
+  for (const auto& [key, sides] : edges) {
+    if (sides.size() != 2 || t.face_view[std::size_t(sides[0].face)] == t.face_view[std::size_t(sides[1].face)]) continue;
+    const auto c0 = atlas_colour(t.atlases[std::size_t(t.face_atlas[std::size_t(sides[0].face)])], sides[0].uv_mid);
+    const auto c1 = atlas_colour(t.atlases[std::size_t(t.face_atlas[std::size_t(sides[1].face)])], sides[1].uv_mid);
+    sum += (std::abs(c0[0] - c1[0]) + std::abs(c0[1] - c1[1]) + std::abs(c0[2] - c1[2])) / 3;
+    ++s.edges;
+  }
+  s.mean = s.edges ? sum / double(s.edges) : 0;
+  return s;
+}
+
+// Photo B 20 % brighter than photo A (A's pixels divided by 1.2, so that nothing clips):
+// without gains every seam between A's and B's charts is a step of about a sixth of the
+// floor's brightness; the gains fitted over the faces both see level it.
+TEST(TextureAtlas, ColourGainsLevelTheSeamsBetweenPhotosOfDifferentExposure) {
+  constexpr double kExposureRatio = 1.2;  // B / A
+  Scene s;
+  for (std::uint8_t& c : s.views[0].rgb) c = std::uint8_t(std::lround(c / kExposureRatio));
+  TextureOptions o = small_atlas();
+  o.colour_balance = false;
+  TextureSummary plain_sum, balanced_sum;
+  const SeamSteps plain = seam_steps(build_texture_atlas(s.mesh, s.views, o, &plain_sum));
+  o.colour_balance = true;
+  const SeamSteps balanced = seam_steps(build_texture_atlas(s.mesh, s.views, o, &balanced_sum));
+  ASSERT_EQ(plain.edges, balanced.edges);  // the gains change colours, not the view choice
+  // Seams exist where B takes over behind the box: enough edges to measure on.
+  constexpr std::size_t kMinSeamEdges = 20;
+  EXPECT_GE(plain.edges, kMinSeamEdges);
+  // Without gains: the floor's mean of about 110 grey levels x (1 - 1 / 1.2).
+  constexpr double kMinStepWithoutGains = 12;  // grey levels
+  EXPECT_GT(plain.mean, kMinStepWithoutGains);
+  // With them the step falls to the resampling's own (two bilinear resamplings of a
+  // field of about 2 grey levels per pixel, 8-bit rounding).
+  constexpr double kMaxStepWithGains = 3;  // grey levels
+  EXPECT_LT(balanced.mean, kMaxStepWithGains);
+  EXPECT_LT(balanced.mean, 0.25 * plain.mean);
+  // The fitted gains: B / A = 1 / 1.2 in every channel; the regulariser keeps their
+  // geometric mean at 1, so each moves half the way (in logs).
+  ASSERT_EQ(balanced_sum.gains.size(), 2u);
+  constexpr double kGainTolerance = 0.02;  // the faces' mean colours are 8-bit and resampled
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_NEAR(balanced_sum.gains[1][std::size_t(k)] / balanced_sum.gains[0][std::size_t(k)], 1 / kExposureRatio,
+                kGainTolerance) << k;
+    EXPECT_NEAR(balanced_sum.gains[0][std::size_t(k)] * balanced_sum.gains[1][std::size_t(k)], 1.0, kGainTolerance) << k;
+  }
+  EXPECT_GT(balanced_sum.balance_rms_before, std::log(kExposureRatio) * 0.8);
+  EXPECT_LT(balanced_sum.balance_rms_after, 0.25 * balanced_sum.balance_rms_before);
+  for (const auto& g : plain_sum.gains) EXPECT_EQ(g, (std::array<double, 3>{1, 1, 1}));
+  std::printf("seam step without gains %.2f, with gains %.2f grey levels over %zu edges; gains A %.4f %.4f %.4f, "
+              "B %.4f %.4f %.4f; RMS log ratio %.4f -> %.4f on %zu overlaps\n", plain.mean, balanced.mean,
+              plain.edges, balanced_sum.gains[0][0], balanced_sum.gains[0][1], balanced_sum.gains[0][2],
+              balanced_sum.gains[1][0], balanced_sum.gains[1][1], balanced_sum.gains[1][2],
+              balanced_sum.balance_rms_before, balanced_sum.balance_rms_after, balanced_sum.balance_overlaps);
 }
 
 }  // namespace
