@@ -5,10 +5,12 @@
 #include "core/error.hpp"
 #include "core/log.hpp"
 #include "core/staged_files.hpp"
+#include "dense/dense_mesh.hpp"
 
 #include <fmt/format.h>
 
 #include <cstdlib>
+#include <deque>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -87,6 +89,7 @@ html, body {{ margin: 0; height: 100%; overflow: hidden; font: 13px sans-serif; 
 <h3>Show</h3>
 <label><input type="checkbox" id="show-markers" checked> markers</label>
 <label><input type="checkbox" id="show-cameras"> cameras</label>
+<label><input type="checkbox" id="shade-layers"> shade layers (light the relief)</label>
 <h3>Section</h3>
 <label><input type="checkbox" id="section"> vertical section plane</label>
 <label>position <input type="range" id="section-pos" min="-1" max="1" step="0.001" value="0"></label>
@@ -97,19 +100,59 @@ html, body {{ margin: 0; height: 100%; overflow: hidden; font: 13px sans-serif; 
 <div id="readout">{crs}</div><div id="tip"></div><div id="status">loading</div>
 )HTML";
 
+// The embedded models: `first` shown as soon as it is decoded, `detail` (may be empty)
+// the full level of the layers `first` holds coarse.
+struct ViewerModels {
+  std::string first, detail;
+};
+
 std::string viewer_page(const std::string& title, const std::string& crs, const std::string& three_js,
-                        const std::string& glb) {
+                        const ViewerModels& models) {
+  const bool detail = !models.detail.empty();
   std::string html = fmt::format(fmt::runtime(kViewerHead), fmt::arg("title", title), fmt::arg("crs", crs));
   html += three_js;
-  html += "<script id=\"model\" type=\"application/octet-stream\">\n" + base64(glb) + "\n</script>\n";
-  html += "<script>\n" + std::string(kViewerJs) + "\n</script>\n</body></html>\n";
+  html += fmt::format("<script id=\"model\" type=\"application/octet-stream\" data-detail=\"{}\">\n",
+                      detail ? "yes" : "no") + base64(models.first) + "\n</script>\n";
+  html += "<script>\n" + std::string(kViewerJs) + "\n</script>\n";
+  // After the script: the browser runs it, and draws the coarse level, while it is
+  // still parsing this element.
+  if (detail) html += "<script id=\"model-detail\" type=\"application/octet-stream\">\n" + base64(models.detail) + "\n</script>\n";
+  html += "</body></html>\n";
   return html;
 }
 
 struct ViewerArgs {
   std::string dir, layer, out;
   std::size_t max_faces = 300000;
+  int coarse_lod = 2;  // level of detail shown first (faces / 4^N); 0: the full level only
 };
+
+// The coarse level of every layer mesh that has one (faces / 4^coarse_lod keeps at least
+// kMinLevelOfDetailFaces; textured meshes keep their level: simplification would lose
+// their UVs): `first` is the whole scene with those layers coarse, `detail` those layers
+// at full level.
+ViewerModels viewer_models(const SiteScene& site, int coarse_lod, const ExportFrame& frame, const std::string& out) {
+  GltfScene first = site.scene, detail;
+  std::deque<DenseMesh> coarse;  // stable addresses for the scene's pointers
+  for (const GltfNode& node : site.scene.nodes) {
+    if (coarse_lod == 0 || node.mesh < 0 || node.name.rfind("layer ", 0) != 0) continue;
+    GltfMesh& gm = first.meshes[std::size_t(node.mesh)];
+    const std::size_t faces = gm.mesh->faces.size(), target = faces >> (2 * coarse_lod);
+    if (gm.texture || target < kMinLevelOfDetailFaces) continue;
+    coarse.push_back(simplify_mesh(*gm.mesh, target));
+    gm.mesh = &coarse.back();
+    detail.meshes.push_back(site.scene.meshes[std::size_t(node.mesh)]);
+    GltfNode full = node;
+    full.mesh = int(detail.meshes.size()) - 1;
+    detail.nodes.push_back(std::move(full));
+    log::info("export viewer: {}: {} faces shown first (coarse level {}), then all {}", node.name,
+              coarse.back().faces.size(), coarse_lod, faces);
+  }
+  ViewerModels m;
+  m.first = encode_glb(first, frame, out);
+  if (!detail.nodes.empty()) m.detail = encode_glb(detail, frame, out);
+  return m;
+}
 
 void export_viewer(const ViewerArgs& a) {
   const std::string three_js = three_js_sources();  // read first: a missing package is refused before the slow part
@@ -123,23 +166,27 @@ void export_viewer(const ViewerArgs& a) {
   ExportFrame frame;
   frame.site_origin = info.origin;
   frame.crs = info.crs;
-  const std::string glb = encode_glb(site.scene, frame, a.out);
-  if (glb.size() > kLargeModelBytes) {
+  const ViewerModels models = viewer_models(site, a.coarse_lod, frame, a.out);
+  const std::size_t model_bytes = models.first.size() + models.detail.size();
+  if (model_bytes > kLargeModelBytes) {
     log::warn("export viewer: the embedded model is {:.0f} MB: browsers may be slow or run out of memory; lower "
-              "--max-faces (now {}) or view one --layer", double(glb.size()) / 1e6, a.max_faces);
+              "--max-faces (now {}) or view one --layer", double(model_bytes) / 1e6, a.max_faces);
   }
   const std::string title = fs::path(a.dir).filename().string() + (a.layer.empty() ? "" : " layer " + a.layer);
   StagedFiles staged("export viewer");
   const fs::path tmp = staged.add(a.out);
   {
     std::ofstream out(tmp, std::ios::binary);
-    out << viewer_page(title, info.crs, three_js, glb);
+    out << viewer_page(title, info.crs, three_js, models);
     out.close();
     if (!out) throw IoError(fmt::format("export viewer: {}: cannot write (disk full?)", tmp.string()));
   }
   staged.swap_in();
-  log::info("wrote {} ({} layers, {} units, {} markers, {} finds, {} cameras; model {:.1f} MB)", a.out, site.layers,
-            site.units, site.markers, site.finds, site.cameras, double(glb.size()) / 1e6);
+  log::info("wrote {} ({} layers, {} units, {} markers, {} finds, {} cameras; model {:.1f} MB{})", a.out, site.layers,
+            site.units, site.markers, site.finds, site.cameras, double(model_bytes) / 1e6,
+            models.detail.empty() ? ""
+                                  : fmt::format(": {:.1f} MB shown first, {:.1f} MB of full-level layers after",
+                                                double(models.first.size()) / 1e6, double(models.detail.size()) / 1e6));
 }
 
 }  // namespace
@@ -150,13 +197,23 @@ void register_viewer_command(CLI::App& exp) {
       "the site model (as 'export model' builds it) in one self-contained HTML page that opens\n"
       "in any browser offline: three.js inlined from Debian's libjs-three, the model embedded.\n"
       "Layers and units toggle, unit volumes on hover, markers named, a movable vertical section\n"
-      "plane, and a measuring tool showing site CRS coordinates and distances. Layer meshes above\n"
-      "--max-faces are simplified first (colours and normals kept). See docs/model.md.");
+      "plane, and a measuring tool showing site CRS coordinates and distances (a click on a\n"
+      "marker gives its surveyed coordinates). Layers show their photo colours unlit ('shade\n"
+      "layers' lights them). Layer meshes above --max-faces are simplified first (colours and\n"
+      "normals kept); each layer is shown first at a coarse level (--coarse-lod, faces / 4^N),\n"
+      "replaced by the full one once the browser has decoded it (both are in the page).\n"
+      "URL parameters: ?hide=layer%20L2,markers starts those switched off; ?shade=1 lights the\n"
+      "layers. See docs/model.md (Viewer).");
   auto a = std::make_shared<ViewerArgs>();
   cmd->add_option("DIR", a->dir, "project folder")->required();
   cmd->add_option("--layer", a->layer, "only this layer's mesh (default: every layer)");
   cmd->add_option("--out", a->out, "output file, .html")->required();
   cmd->add_option("--max-faces", a->max_faces, "faces per layer mesh at most (simplified above; 0: keep all)")
+      ->capture_default_str();
+  cmd->add_option("--coarse-lod", a->coarse_lod,
+                  "level shown first while the full one loads: faces / 4^N (0: the full level only; a layer "
+                  "whose level would keep fewer than 100 faces has none)")
+      ->check(CLI::Range(0, 8))
       ->capture_default_str();
   cmd->callback([=] { export_viewer(*a); });
 }

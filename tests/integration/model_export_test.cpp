@@ -10,8 +10,11 @@
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdlib>
 #include <cstring>
 #include <regex>
@@ -50,18 +53,18 @@ fs::path project_with_layer(const test::ScratchDir& dir) {
   return site;
 }
 
-void record_dense_mesh(const fs::path& site, const DenseMesh& m) {
+void record_dense_mesh(const fs::path& site, const DenseMesh& m, const std::string& layer = "L1") {
   Project p = Project::open(site);
-  const LayerRecord l = require_layer(p.db(), "L1");
+  const LayerRecord l = require_layer(p.db(), layer);
   ExportFrame frame;
   frame.site_origin = kSiteOrigin;
   frame.crs = "EPSG:32636";
-  fs::create_directories(site / "products" / "L1" / "dense");
-  write_ply(site / "products" / "L1" / "dense" / "mesh.ply", m, frame);
+  fs::create_directories(site / "products" / layer / "dense");
+  write_ply(site / "products" / layer / "dense" / "mesh.ply", m, frame);
   ProductRecord rec;
   rec.layer_id = l.id;
   rec.kind = "mesh";
-  rec.path = "products/L1/dense/mesh.ply";
+  rec.path = "products/" + layer + "/dense/mesh.ply";
   record_product(p.db(), p.dir(), rec);
 }
 
@@ -297,16 +300,17 @@ TEST(CliExportModel, SiteModelHasLayersAndMarkersAndRefusesAnUnprocessedProject)
   EXPECT_EQ(j["nodes"][1]["extras"]["kind"], "control");
 }
 
-// The viewer's embedded model: the base64 text of <script id="model"> decoded.
-std::string embedded_model(const std::string& html) {
-  const std::string open = "<script id=\"model\" type=\"application/octet-stream\">";
-  const auto b = html.find(open);
+// The viewer's embedded model: the base64 text of <script id="model"> (or another id:
+// "model-detail") decoded; "" when the page has no such element.
+std::string embedded_model(const std::string& html, const std::string& id = "model") {
+  const auto b = html.find("<script id=\"" + id + "\"");
   if (b == std::string::npos) return {};
+  const auto body = html.find('>', b) + 1;
   const auto e = html.find("</script>", b);
   std::string out;
   unsigned bits = 0;
   int n = 0;
-  for (std::size_t i = b + open.size(); i < e; ++i) {
+  for (std::size_t i = body; i < e; ++i) {
     const char c = html[i];
     int v = -1;
     if (c >= 'A' && c <= 'Z') v = c - 'A';
@@ -470,6 +474,250 @@ TEST(CliExportViewer, MaxFacesSimplifiesLargeLayerMeshes) {
   const int indices = j["meshes"][0]["primitives"][0]["indices"];
   EXPECT_LE(int(j["accessors"][indices]["count"]), 3 * 100);
   EXPECT_GT(int(j["accessors"][indices]["count"]), 0);
+}
+
+// --- The page in headless Chromium: what it draws, the marker pick, the levels of detail.
+
+const fs::path kChromium = "/usr/bin/chromium";
+// Software WebGL (SwiftShader), as PageLoadsTheModelInHeadlessChromium found it works on
+// Debian 12's Chromium; one device pixel per CSS pixel, so screenshots are window-sized.
+const std::string kChromiumFlags =
+    "--headless --no-sandbox --disable-gpu --use-gl=swiftshader --enable-unsafe-swiftshader --hide-scrollbars "
+    "--force-device-scale-factor=1 --virtual-time-budget=10000";
+
+// Runs Chromium on `url` with `args` (--dump-dom, --screenshot=...); its stdout into `out`.
+bool run_chromium(const std::string& args, const std::string& url, const fs::path& out) {
+  const std::string cmd = "timeout 180 " + kChromium.string() + " " + kChromiumFlags + " " + args + " '" + url + "' > '" +
+                          out.string() + "' 2> '" + out.string() + ".err'";
+  return std::system(cmd.c_str()) == 0;
+}
+
+// A flat square layer: side x side metres from (x0, y0) at height z (site frame), one
+// colour, cells x cells squares of two triangles.
+DenseMesh flat_square(double x0, double y0, double z, double side, int cells, Rgb8 colour) {
+  DenseMesh m;
+  for (int j = 0; j <= cells; ++j) {
+    for (int i = 0; i <= cells; ++i) {
+      m.vertices.emplace_back(x0 + side * i / cells, y0 + side * j / cells, z);
+      m.colours.push_back(colour);
+      m.normals.emplace_back(0, 0, 1);
+    }
+  }
+  for (int j = 0; j < cells; ++j) {
+    for (int i = 0; i < cells; ++i) {
+      const int a = j * (cells + 1) + i;
+      m.faces.push_back({a, a + 1, a + cells + 2});
+      m.faces.push_back({a, a + cells + 2, a + cells + 1});
+    }
+  }
+  return m;
+}
+
+// Two layers side by side, 1 m squares at Z 1449.95: L1 green to the west, L2 blue to
+// the east; marker GCP1 lies on L1's surface.
+const Rgb8 kGreen(60, 170, 60), kBlue(40, 90, 200);
+constexpr double kLayerZ = -0.05;  // metres, site frame
+const Eigen::Vector3d kMarkerOnL1 = kSiteOrigin + Eigen::Vector3d(100.37, 100.61, kLayerZ);
+
+fs::path two_layer_site(const test::ScratchDir& dir) {
+  const fs::path site = project_with_layer(dir);
+  const auto r = run_strata({"layer", "add", site.string(), "L2", "--unit", "101"});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  record_dense_mesh(site, flat_square(100.0, 100.0, kLayerZ, 1.0, 10, kGreen), "L1");
+  record_dense_mesh(site, flat_square(101.5, 100.0, kLayerZ, 1.0, 10, kBlue), "L2");
+  Project p = Project::open(site);
+  MarkerRecord m;
+  m.name = "GCP1";
+  m.position = kMarkerOnL1;
+  upsert_marker(p.db(), m, p.site().srs_id);
+  return site;
+}
+
+// An 8-bit sRGB colour as the page draws it: glTF holds it linear (the sRGB curve), the
+// renderer encodes its output with gamma 2.2 (three.js r111's gammaOutput).
+cv::Vec3b on_screen(const Rgb8& c) {
+  auto channel = [](int v) {
+    const double s = v / 255.0, linear = s <= 0.04045 ? s / 12.92 : std::pow((s + 0.055) / 1.055, 2.4);
+    return std::uint8_t(std::lround(255 * std::pow(linear, 1 / 2.2)));
+  };
+  return {channel(c[2]), channel(c[1]), channel(c[0])};  // BGR, as OpenCV reads it
+}
+const cv::Vec3b kBackground(0xe8, 0xe3, 0xdd);  // the scene's background 0xdde3e8, BGR
+// Grey levels: the colour is stored as float, drawn unlit, encoded and rounded to 8 bits
+// once; antialiased edge pixels (blends) fall outside and are not counted.
+constexpr int kScreenColourTolerance = 3;
+
+cv::Mat pixels_of(const cv::Mat& bgr, const cv::Vec3b& colour) {
+  cv::Mat mask(bgr.size(), CV_8U, cv::Scalar(0));
+  for (int y = 0; y < bgr.rows; ++y) {
+    for (int x = 0; x < bgr.cols; ++x) {
+      const cv::Vec3b p = bgr.at<cv::Vec3b>(y, x);
+      bool near = true;
+      for (int k = 0; k < 3; ++k) near = near && std::abs(int(p[k]) - int(colour[k])) <= kScreenColourTolerance;
+      mask.at<std::uint8_t>(y, x) = near ? 255 : 0;
+    }
+  }
+  return mask;
+}
+
+// Screenshots of the page at 1000 x 700: both layers drawn in their colours over the
+// background; with ?hide=layer%20L2 the pixels that showed L2 show the background and
+// L1 is unchanged.
+TEST(CliExportViewer, ScreenshotShowsEachLayerInItsColourAndNotOneSwitchedOff) {
+  if (!fs::exists(kChromium)) GTEST_SKIP() << "no /usr/bin/chromium (apt-get install chromium)";
+  test::ScratchDir dir("viewer_screenshot");
+  const fs::path site = two_layer_site(dir), html = dir / "site.html";
+  const auto r = run_strata({"export", "viewer", site.string(), "--out", html.string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const fs::path all_png = dir / "all.png", hidden_png = dir / "hidden.png";
+  ASSERT_TRUE(run_chromium("--window-size=1000,700 --screenshot=" + all_png.string(), "file://" + html.string(),
+                           dir / "all.out")) << test::read_text(dir / "all.out.err");
+  ASSERT_TRUE(run_chromium("--window-size=1000,700 --screenshot=" + hidden_png.string(),
+                           "file://" + html.string() + "?hide=layer%20L2", dir / "hidden.out"))
+      << test::read_text(dir / "hidden.out.err");
+  const cv::Mat all = cv::imread(all_png.string(), cv::IMREAD_COLOR), hidden = cv::imread(hidden_png.string(), cv::IMREAD_COLOR);
+  ASSERT_FALSE(all.empty());
+  ASSERT_FALSE(hidden.empty());
+  ASSERT_EQ(all.cols, 1000);
+  ASSERT_EQ(all.rows, 700);
+  const double image = double(all.total());
+  const cv::Mat green = pixels_of(all, on_screen(kGreen)), blue = pixels_of(all, on_screen(kBlue));
+  const int green_px = cv::countNonZero(green), blue_px = cv::countNonZero(blue);
+  const int background_px = cv::countNonZero(pixels_of(all, kBackground));
+  std::printf("screenshot: green (L1) %d px, blue (L2) %d px, background %d px of %.0f\n", green_px, blue_px,
+              background_px, image);
+  // Each 1 m square seen from the default view covers a few percent of the window.
+  constexpr double kMinLayerShare = 0.01;
+  EXPECT_GT(green_px, kMinLayerShare * image);
+  EXPECT_GT(blue_px, kMinLayerShare * image);
+  EXPECT_GT(background_px, 0.5 * image);  // the rest is background (less the panel and the readout)
+  // The bottom-right corner holds no part of the model nor of the page's boxes.
+  const cv::Rect corner(all.cols - 60, all.rows - 60, 60, 60);
+  EXPECT_EQ(cv::countNonZero(pixels_of(all(corner), kBackground)), corner.area());
+  // L1 is west of L2: its pixels lie left of L2's on the screen (the view looks north-west-ish down).
+  const cv::Moments mg = cv::moments(green, true), mb = cv::moments(blue, true);
+  EXPECT_LT(mg.m10 / mg.m00, mb.m10 / mb.m00);
+
+  // L2 switched off by the URL: none of its colour, its pixels now the background.
+  const cv::Mat blue_after = pixels_of(hidden, on_screen(kBlue)), background_after = pixels_of(hidden, kBackground);
+  EXPECT_EQ(cv::countNonZero(blue_after), 0);
+  cv::Mat was_blue_now_background;
+  cv::bitwise_and(blue, background_after, was_blue_now_background);
+  EXPECT_GT(cv::countNonZero(was_blue_now_background), 0.98 * blue_px);
+  // L1 drawn as before, pixel for pixel but for the few the marker's label crosses.
+  const int green_after = cv::countNonZero(pixels_of(hidden, on_screen(kGreen)));
+  EXPECT_NEAR(green_after, green_px, 0.01 * green_px);
+}
+
+// The measuring tool on marker GCP1: a click at the marker's place on the screen (the
+// page's test hook gives it) reports its surveyed E, N, Z; with the markers hidden a click
+// at the same place meets the surface under it, within 5 mm of the survey.
+TEST(CliExportViewer, ClickOnAMarkerReportsItsSurveyWithinFiveMillimetres) {
+  if (!fs::exists(kChromium)) GTEST_SKIP() << "no /usr/bin/chromium (apt-get install chromium)";
+  test::ScratchDir dir("viewer_marker_click");
+  const fs::path site = two_layer_site(dir), html = dir / "site.html";
+  const auto r = run_strata({"export", "viewer", site.string(), "--out", html.string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const std::string probe = R"(<script>setTimeout(function () {
+    var v = document.getElementById('view'), hook = window.strataViewer, out = document.createElement('div');
+    function click(p) {
+      var o = { clientX: p.x, clientY: p.y, bubbles: true };
+      v.dispatchEvent(new PointerEvent('pointerdown', o));
+      v.dispatchEvent(new PointerEvent('pointerup', o));
+    }
+    document.getElementById('measure').checked = true;
+    var p = hook.screenPositionOf('marker GCP1');
+    click(p);
+    var markers = document.getElementById('show-markers');
+    markers.checked = false;
+    markers.dispatchEvent(new Event('change'));
+    click(p);
+    out.id = 'probe';
+    out.textContent = 'at ' + p.x + ' ' + p.y + ' | ' + document.getElementById('readout').textContent.replace(/\n/g, ' | ');
+    document.body.appendChild(out);
+  }, 2000);</script>)";
+  std::string page = test::read_text(html);
+  page.insert(page.rfind("</body>"), probe);
+  test::write_text(dir / "probe.html", page);
+  ASSERT_TRUE(run_chromium("--window-size=1000,700 --dump-dom", "file://" + (dir / "probe.html").string(), dir / "dom.html"))
+      << test::read_text(dir / "dom.html.err");
+  const std::string dom = test::read_text(dir / "dom.html");
+  std::smatch m;
+  const std::regex readout(
+      R"(<div id="probe">at ([0-9.]+) ([0-9.]+) \| P1  E ([0-9.]+)  N ([0-9.]+)  Z ([0-9.]+)  marker GCP1 \(surveyed\) \| )"
+      R"(P2  E ([0-9.]+)  N ([0-9.]+)  Z ([0-9.]+) \| 3D ([0-9.]+) m)");
+  ASSERT_TRUE(std::regex_search(dom, m, readout)) << dom.substr(std::min(dom.size(), dom.find("probe")), 600);
+  std::printf("marker GCP1 at client pixel (%s, %s); %s\n", m[1].str().c_str(), m[2].str().c_str(), m[0].str().c_str());
+  constexpr double kClickTolerance = 0.005;  // metres: the acceptance of the viewer's measuring tool
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_NEAR(std::stod(m[3 + k]), kMarkerOnL1[k], kClickTolerance) << "marker, axis " << k;
+    EXPECT_NEAR(std::stod(m[6 + k]), kMarkerOnL1[k], kClickTolerance) << "surface, axis " << k;
+  }
+  EXPECT_LT(std::stod(m[9]), kClickTolerance);  // the two points' distance
+  // The surface point is the surface's, not the marker's snapped again: Z is the layer's.
+  EXPECT_NEAR(std::stod(m[8]), kSiteOrigin.z() + kLayerZ, 1e-3);
+}
+
+// A layer of 3200 faces with --coarse-lod 2: the page holds it at about 200 faces (shown
+// at once) and at 3200 (after), and the browser shows the coarse level, then the full one.
+TEST(CliExportViewer, LargeLayerIsShownCoarseFirstThenAtItsFullLevel) {
+  test::ScratchDir dir("viewer_levels");
+  const fs::path site = project_with_layer(dir), html = dir / "site.html";
+  const DenseMesh grid = coloured_grid(40);
+  record_dense_mesh(site, grid);
+  auto r = run_strata({"export", "viewer", site.string(), "--coarse-lod", "2", "--out", html.string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("(coarse level 2), then all 3200"), std::string::npos) << r.err;
+  const std::string page = test::read_text(html);
+  EXPECT_NE(page.find("data-detail=\"yes\""), std::string::npos);
+  test::write_text(dir / "first.glb", embedded_model(page, "model"));
+  test::write_text(dir / "detail.glb", embedded_model(page, "model-detail"));
+  const nlohmann::json first = glb_json(dir / "first.glb"), detail = glb_json(dir / "detail.glb");
+  ASSERT_TRUE(first.is_object());
+  ASSERT_TRUE(detail.is_object());
+  const std::size_t coarse_faces = glb_faces(first), target = grid.faces.size() / 16;
+  constexpr double kMinShareOfTarget = 0.8;  // as the levels of detail of export model
+  EXPECT_LE(coarse_faces, target);
+  EXPECT_GE(double(coarse_faces), kMinShareOfTarget * double(target));
+  EXPECT_EQ(glb_faces(detail), grid.faces.size());
+  EXPECT_EQ(detail["nodes"][0]["name"], "layer L1");
+  // The detail comes after the page's script, so the browser can draw before parsing it.
+  EXPECT_GT(page.find("<script id=\"model-detail\""), page.find("window.strataViewer"));
+
+  // --coarse-lod 0: the full level alone.
+  r = run_strata({"export", "viewer", site.string(), "--coarse-lod", "0", "--out", (dir / "full.html").string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const std::string full_page = test::read_text(dir / "full.html");
+  EXPECT_EQ(full_page.find("<script id=\"model-detail\""), std::string::npos);
+  test::write_text(dir / "full.glb", embedded_model(full_page));
+  EXPECT_EQ(glb_faces(glb_json(dir / "full.glb")), grid.faces.size());
+
+  if (!fs::exists(kChromium)) GTEST_SKIP() << "no /usr/bin/chromium (apt-get install chromium)";
+  const std::string probe = R"(<script>var waited = setInterval(function () {
+    if (window.strataViewer.level() !== 'full') return;
+    clearInterval(waited);
+    var out = document.createElement('div');
+    out.id = 'probe';
+    out.textContent = JSON.stringify(window.strataViewer.levels);
+    document.body.appendChild(out);
+  }, 100);</script>)";
+  std::string probed = page;
+  probed.insert(probed.rfind("</body>"), probe);
+  test::write_text(dir / "probe.html", probed);
+  ASSERT_TRUE(run_chromium("--window-size=800,600 --dump-dom", "file://" + (dir / "probe.html").string(), dir / "dom.html"))
+      << test::read_text(dir / "dom.html.err");
+  const std::string dom = test::read_text(dir / "dom.html");
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(dom, m, std::regex(R"(<div id="probe">([^<]*)</div>)"))) << dom.substr(0, 2000);
+  const nlohmann::json levels = nlohmann::json::parse(m[1].str());
+  ASSERT_EQ(levels.size(), 2u) << levels.dump();
+  EXPECT_EQ(levels[0]["level"], "coarse");
+  EXPECT_EQ(std::size_t(levels[0]["layerFaces"]), coarse_faces);
+  EXPECT_EQ(levels[1]["level"], "full");
+  EXPECT_EQ(std::size_t(levels[1]["layerFaces"]), grid.faces.size());
+  ASSERT_TRUE(std::regex_search(dom, m, std::regex(R"(<div id="status"[^>]*>([^<]*)</div>)")));
+  EXPECT_EQ(m[1].str(), "loaded 1 nodes");
+  EXPECT_NE(m[0].str().find("data-level=\"full\""), std::string::npos) << m[0].str();
 }
 
 }  // namespace
