@@ -245,8 +245,8 @@ void register_model_command(CLI::App& exp) {
   cmd->add_option("--atlas-size", t->atlas_size_px, "side of a square texture atlas, texels (64-16384)")
       ->check(CLI::Range(64, 16384))
       ->capture_default_str();
-  cmd->add_flag("--no-colour-gains{false}", t->colour_gains,
-                "with --texture: each photo's colours as taken, without the gains fitted between photos");
+  cmd->add_flag_callback("--no-colour-gains", [t] { t->colour_gains = false; },
+                         "with --texture: each photo's colours as taken, without the gains fitted between photos");
   const auto check = std::make_shared<CheckArgs>();
   cmd->add_option("--check-photos", check->photos,
                   "with --texture: render the model from N of its photos and compare with them (0: no check)")

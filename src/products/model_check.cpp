@@ -129,6 +129,8 @@ PhotoCheck check_photo(const TexturedMesh& model, const OrthoView& view, int vie
   const Camera& cam = view.camera;
   const Intrinsics& K = cam.intrinsics;
   const PhotoPixels photo = load_photo(view, "products.model_check");
+  const std::array<double, 3>* gain =
+      std::size_t(view_index) < model.view_gains.size() ? &model.view_gains[std::size_t(view_index)] : nullptr;
   const DepthBuffer zbuf =
       mesh_depth_buffer(model.mesh, project_vertices(model.mesh, Projector(cam)), K, o.scale, true);
   const int W = zbuf.width(), H = zbuf.height();
@@ -157,6 +159,11 @@ PhotoCheck check_photo(const TexturedMesh& model, const OrthoView& view, int vie
         continue;
       }
       photo.sample(p.x(), p.y(), 1.0, truth);  // the pixel itself at scale 1, bilinear between pixels below
+      // The photo as the texture shows it: with the gains its texels carry, so that the
+      // figures measure resampling and registration, not the levelling between photos.
+      if (gain) {
+        for (int k = 0; k < 3; ++k) truth[k] = std::uint8_t(std::clamp(std::lround(truth[k] * (*gain)[std::size_t(k)]), 0L, 255L));
+      }
       for (int k = 0; k < 3; ++k) diff[k] = std::uint8_t(std::abs(int(render[k]) - int(truth[k])));
       if (o.images) {
         for (int k = 0; k < 3; ++k)

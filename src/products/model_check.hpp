@@ -6,7 +6,8 @@
 // (photo_sampling's Projector and the triangle z-buffer, here at the photo's
 // resolution or a fraction of it): per rendered pixel the nearest face, the point
 // where the pixel's ray meets that face, its barycentric coordinates -> UV -> a
-// bilinear sample of the atlas. Compared with the photo at the same pixel, the
+// bilinear sample of the atlas. Compared with the photo at the same pixel (times the
+// colour gains the texture gave that photo, TexturedMesh::view_gains), the
 // absolute colour differences over the pixels the model covers are summarised as
 // median and 90th percentile per channel. Where the texture is right they are the
 // photos' own interpolation and noise; a seam on the wrong photo, a misregistered

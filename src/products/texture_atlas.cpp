@@ -590,6 +590,7 @@ TexturedMesh build_texture_atlas(const DenseMesh& m, const std::vector<OrthoView
   std::vector<Page> atlas = paint_atlases(charts, pixels, grey, m, views, gains.gains, o, pages, scale);
   TexturedMesh out = textured_output(charts, pixels, m, o, scale);
   for (Page& p : atlas) out.atlases.push_back(std::move(p.image));
+  out.view_gains = gains.gains;
   if (summary) {
     *summary = texture_summary(m, views, label, cand, g, charts.size() - (grey.faces.empty() ? 0 : 1), pages, scale);
     summary->gains = gains.gains;

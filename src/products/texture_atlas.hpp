@@ -68,6 +68,9 @@ struct TexturedMesh {
   std::vector<int> face_atlas;      // per face, index into atlases
   std::vector<int> face_view;       // per face, index into the views; -1: the grey patch
   std::vector<TextureImage> atlases;
+  // Per view, the colour gains (R, G, B) its texels were multiplied by (all 1 without
+  // colour_balance): the check against the photos applies them to each photo.
+  std::vector<std::array<double, 3>> view_gains;
 };
 
 struct TextureSummary {

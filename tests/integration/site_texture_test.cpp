@@ -10,6 +10,8 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <cstdio>
+#include <regex>
 
 namespace strata {
 namespace {
@@ -62,6 +64,21 @@ TEST_F(SiteTexture, SiteModelTexturesTheAlignedLayer) {
     const int image = g.at("textures").at(texture).at("source");
     EXPECT_EQ(g.at("images").at(image).at("mimeType"), "image/jpeg");
   }
+  // Colour gains between the photos, fitted over the faces several see: the log gives
+  // their range and the RMS of the log colour ratios, which the fit lowers; without
+  // them (--no-colour-gains) no gains are fitted.
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(r.err, m, std::regex(R"(colour gains ([0-9.]+)-([0-9.]+) fitted on ([0-9]+) overlaps; )"
+                                                     R"(RMS of log colour ratios between photos ([0-9.]+) before, ([0-9.]+) after)")))
+      << r.err;
+  std::printf("%s\n", m[0].str().c_str());
+  EXPECT_GT(std::stoul(m[3]), 0u);
+  EXPECT_LE(std::stod(m[1]), std::stod(m[2]));
+  EXPECT_LT(std::stod(m[5]), std::stod(m[4]));
+  const auto plain_colours = run_strata({"export", "model", site.string(), "--texture", "--no-colour-gains", "--lod", "1",
+                                         "--out", (dir / "no_gains.glb").string()});
+  ASSERT_EQ(plain_colours.exit_code, 0) << plain_colours.err;
+  EXPECT_EQ(plain_colours.err.find("colour gains"), std::string::npos) << plain_colours.err;
   // The untextured site model of the same project has no images at all.
   const fs::path plain = dir / "plain.glb";
   ASSERT_EQ(run_strata({"export", "model", site.string(), "--lod", "1", "--out", plain.string()}).exit_code, 0);

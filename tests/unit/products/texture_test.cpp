@@ -2,6 +2,7 @@
 // floor with a smooth colour field and a 15 cm blue box standing on it, seen by two
 // cameras (texture_scene.hpp).
 #include "core/error.hpp"
+#include "products/model_check.hpp"
 #include "products/texture_atlas.hpp"
 #include "texture_scene.hpp"
 
@@ -180,7 +181,8 @@ TEST(TextureAtlas, ColourGainsLevelTheSeamsBetweenPhotosOfDifferentExposure) {
   TextureSummary plain_sum, balanced_sum;
   const SeamSteps plain = seam_steps(build_texture_atlas(s.mesh, s.views, o, &plain_sum));
   o.colour_balance = true;
-  const SeamSteps balanced = seam_steps(build_texture_atlas(s.mesh, s.views, o, &balanced_sum));
+  const TexturedMesh levelled = build_texture_atlas(s.mesh, s.views, o, &balanced_sum);
+  const SeamSteps balanced = seam_steps(levelled);
   ASSERT_EQ(plain.edges, balanced.edges);  // the gains change colours, not the view choice
   // Seams exist where B takes over behind the box: enough edges to measure on.
   constexpr std::size_t kMinSeamEdges = 20;
@@ -205,6 +207,14 @@ TEST(TextureAtlas, ColourGainsLevelTheSeamsBetweenPhotosOfDifferentExposure) {
   EXPECT_GT(balanced_sum.balance_rms_before, std::log(kExposureRatio) * 0.8);
   EXPECT_LT(balanced_sum.balance_rms_after, 0.25 * balanced_sum.balance_rms_before);
   for (const auto& g : plain_sum.gains) EXPECT_EQ(g, (std::array<double, 3>{1, 1, 1}));
+  // The check against the photos compares each photo times its gains: on the faces
+  // textured from photo A itself it still sees the resampling alone (the model check's
+  // own test: median <= 1, p90 <= 3), not A's 9.5 % gain (about 10 grey levels).
+  ASSERT_EQ(levelled.view_gains, balanced_sum.gains);
+  const ColourDifference own = check_textured_model(levelled, s.views, {0}, ModelCheckOptions{}).own;
+  EXPECT_GT(own.pixels, 1000u);
+  EXPECT_LE(own.median_mean, 1.0);
+  EXPECT_LE(own.p90_mean, 3.0);
   std::printf("seam step without gains %.2f, with gains %.2f grey levels over %zu edges; gains A %.4f %.4f %.4f, "
               "B %.4f %.4f %.4f; RMS log ratio %.4f -> %.4f on %zu overlaps\n", plain.mean, balanced.mean,
               plain.edges, balanced_sum.gains[0][0], balanced_sum.gains[0][1], balanced_sum.gains[0][2],
