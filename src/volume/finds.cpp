@@ -138,6 +138,14 @@ FindsCheck place_finds(const LabelVolume& v, const std::vector<FindRecord>& find
   return out;
 }
 
+std::optional<fs::path> project_voxel_model(Project& project) {
+  const auto products = list_products(project.db(), std::nullopt, "voxels");
+  if (products.empty()) return std::nullopt;
+  const fs::path vdb = project.dir() / products.back().path;
+  if (!fs::exists(vdb)) return std::nullopt;
+  return vdb;
+}
+
 FindsCheck check_project_finds(Project& project, const FindCheckOptions& options) {
   options.validate();
   const auto products = list_products(project.db(), std::nullopt, "voxels");
