@@ -148,14 +148,15 @@ std::optional<fs::path> project_voxel_model(Project& project) {
 
 FindsCheck check_project_finds(Project& project, const FindCheckOptions& options) {
   options.validate();
-  const auto products = list_products(project.db(), std::nullopt, "voxels");
-  const fs::path vdb = products.empty() ? fs::path() : project.dir() / products.back().path;
-  if (products.empty() || !fs::exists(vdb)) {
+  const auto vdb = project_voxel_model(project);
+  if (!vdb) {
+    const auto products = list_products(project.db(), std::nullopt, "voxels");
     throw InputError(fmt::format("finds: {} has no voxel model of the units{}; run 'strata volume {}' first",
-                                 project.dir().string(), products.empty() ? "" : " (" + vdb.string() + " is gone)",
+                                 project.dir().string(),
+                                 products.empty() ? "" : " (" + (project.dir() / products.back().path).string() + " is gone)",
                                  project.dir().string()));
   }
-  return place_finds(read_label_volume(vdb), list_finds(project.db()), options);
+  return place_finds(read_label_volume(*vdb), list_finds(project.db()), options);
 }
 
 }  // namespace strata
