@@ -192,7 +192,7 @@ MapLayer finds_layer(const QgsWriter& w, const QgisProjectInput& in) {
   }
   const auto& conflicts = *in.find_conflicts;
   std::vector<QgsWriter::MarkerRule> rules;
-  std::string label = "\"find_id\"";
+  std::string label = "find_id";  // the field itself; an expression only with conflicts to name
   if (!conflicts.empty()) {
     std::string ids, cases;
     for (const QgisFindConflict& c : conflicts) {

@@ -336,10 +336,12 @@ TEST_F(Finds, SectionsShowTheFindsNearThePlane) {
   // doubles carry far more.
   constexpr double kSectionTol = 0.001;  // metres
   const fs::path site = copy_of("site");
-  const auto truth = read_rows(synth() / "truth" / "finds.csv");
+  // The finds as recorded (the register's surveyed points, with the generator's
+  // survey noise), which is what the section projects.
+  const auto recorded = read_rows(synth() / "finds.csv");
   // West to east, 2 m long, 0.1 m south of the first find: it lies 1.0 m along the
   // line, 0.1 m behind the plane (north, left of the line).
-  const double e0 = std::stod(truth.at(0).at("E")) - 1.0, n0 = std::stod(truth.at(0).at("N")) - 0.1;
+  const double e0 = std::stod(recorded.at(0).at("E")) - 1.0, n0 = std::stod(recorded.at(0).at("N")) - 0.1;
   const std::string line = std::to_string(e0) + "," + std::to_string(n0) + "," + std::to_string(e0 + 2.0) + "," +
                            std::to_string(n0);
   auto section = [&](const fs::path& out, const std::vector<std::string>& extra) {
@@ -350,18 +352,18 @@ TEST_F(Finds, SectionsShowTheFindsNearThePlane) {
   };
   std::map<std::string, SectionFind> want;
   int left_out = 0;  // beside the line but farther than 0.25 m from the plane
-  for (const auto& t : truth) {
+  for (const auto& t : recorded) {
     const double s = std::stod(t.at("E")) - e0, offset = n0 - std::stod(t.at("N"));
     if (s < 0 || s > 2.0) continue;
     if (std::abs(offset) > 0.25) {
       ++left_out;
       continue;
     }
-    want[t.at("id")] = {s, std::stod(t.at("Z")), offset, t.at("recorded_unit")};
+    want[t.at("id")] = {s, std::stod(t.at("Z")), offset, t.at("unit")};
   }
   ASSERT_GE(want.size(), 1u);
   EXPECT_GE(left_out, 1) << "the line should pass finds farther than 0.25 m too";
-  EXPECT_NEAR(want.at(truth.at(0).at("id")).chainage_m, 1.0, 1e-6);
+  EXPECT_NEAR(want.at(recorded.at(0).at("id")).chainage_m, 1.0, 1e-6);
 
   const CommandResult r = section(scratch_ / "s.gpkg", {});  // the default 0.25 m
   ASSERT_EQ(r.exit_code, 0) << r.err;
@@ -379,15 +381,17 @@ TEST_F(Finds, SectionsShowTheFindsNearThePlane) {
     EXPECT_NEAR(g.offset_m, w.offset_m, kSectionTol) << id;
     EXPECT_EQ(g.unit, w.unit) << id;
   }
-  EXPECT_NEAR(got.at(truth.at(0).at("id")).offset_m, -0.1, kSectionTol);
+  EXPECT_NEAR(got.at(recorded.at(0).at("id")).offset_m, -0.1, kSectionTol);
 
   // The drawing: a labelled marker for each of them and for no other find.
   ASSERT_EQ(section(scratch_ / "s.svg", {}).exit_code, 0);
   const std::string svg = read_text(scratch_ / "s.svg");
-  for (const auto& t : truth) {
+  for (const auto& t : recorded) {
     const bool drawn = svg.find("data-find=\"" + t.at("id") + "\"") != std::string::npos;
     EXPECT_EQ(drawn, want.count(t.at("id")) == 1) << t.at("id");
-    if (drawn) EXPECT_NE(svg.find(">" + t.at("id") + "</text>"), std::string::npos) << t.at("id");
+    if (drawn) {
+      EXPECT_NE(svg.find(">" + t.at("id") + "</text>"), std::string::npos) << t.at("id");
+    }
   }
 
   // 0 switches the finds off; a negative distance is refused by value, nothing written.
