@@ -36,11 +36,15 @@ Finding conflict_finding(const FindPlacement& p, double tolerance_m) {
                    : fmt::format("and unit {} has no solid in the model", f.unit);
   w.message = fmt::format("find {} was recorded in unit {}, but its point ({}) {}, {}", f.id, f.unit,
                           format_position(f.position), where, how_far);
+  const std::string surfaces =
+      p.geometric_unit ? fmt::format("the layer surfaces put the boundary between units {} and {} in the wrong place",
+                                     f.unit, *p.geometric_unit)
+                       : fmt::format("the layer surfaces miss unit {}", f.unit);
   w.advice = fmt::format(
       "re-check the find's record (the unit on its bag and in the finds register) and its survey (the "
-      "total-station point, the prism height, the station); if both are right, the boundary of unit {} is "
-      "wrong here: look at the layer photos around the find",
-      f.unit);
+      "total-station point, the prism height, the station); if both are right, {} here: look at the layer "
+      "photos around the find",
+      surfaces);
   return w;
 }
 
