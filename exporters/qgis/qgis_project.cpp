@@ -100,14 +100,41 @@ class QgsWriter {
     for (const auto& [k, v] : kv) s += fmt::format("<prop k=\"{}\" v=\"{}\"/>", k, xml_escape(v));
     return s;
   }
+  static std::string symbol(const std::string& type, const std::string& name, const std::string& cls,
+                            const std::vector<std::pair<std::string, std::string>>& kv) {
+    return fmt::format(
+        "<symbol type=\"{}\" name=\"{}\" alpha=\"1\" clip_to_extent=\"1\" force_rhr=\"0\">"
+        "<layer class=\"{}\" enabled=\"1\" pass=\"0\" locked=\"0\">{}</layer></symbol>",
+        type, name, cls, props(kv));
+  }
   static std::string single_symbol(const std::string& type, const std::string& cls,
                                    const std::vector<std::pair<std::string, std::string>>& kv) {
     return fmt::format(
         "      <renderer-v2 type=\"singleSymbol\" symbollevels=\"0\" enableorderby=\"0\" forceraster=\"0\">\n"
-        "        <symbols><symbol type=\"{}\" name=\"0\" alpha=\"1\" clip_to_extent=\"1\" force_rhr=\"0\">"
-        "<layer class=\"{}\" enabled=\"1\" pass=\"0\" locked=\"0\">{}</layer></symbol></symbols>\n"
+        "        <symbols>{}</symbols>\n"
         "      </renderer-v2>\n",
-        type, cls, props(kv));
+        symbol(type, "0", cls, kv));
+  }
+  // A rule-based renderer (QgsRuleBasedRenderer): one rule per filter expression,
+  // in order, each with its legend label and simple marker; the filter "ELSE" takes
+  // the features no other rule took.
+  struct MarkerRule {
+    std::string filter, label;
+    std::vector<std::pair<std::string, std::string>> marker;  // SimpleMarker properties
+  };
+  static std::string marker_rules(const std::vector<MarkerRule>& rules) {
+    std::string rule_xml, symbols;
+    for (std::size_t k = 0; k < rules.size(); ++k) {
+      rule_xml += fmt::format("<rule key=\"{{strata-rule-{0}}}\" filter=\"{1}\" label=\"{2}\" symbol=\"{0}\"/>", k,
+                              xml_escape(rules[k].filter), xml_escape(rules[k].label));
+      symbols += symbol("marker", std::to_string(k), "SimpleMarker", rules[k].marker);
+    }
+    return fmt::format(
+        "      <renderer-v2 type=\"RuleRenderer\" symbollevels=\"0\" enableorderby=\"0\" forceraster=\"0\">\n"
+        "        <rules key=\"{{strata-rules}}\">{}</rules>\n"
+        "        <symbols>{}</symbols>\n"
+        "      </renderer-v2>\n",
+        rule_xml, symbols);
   }
   static std::string labels(const std::string& field, bool expression, int placement, const std::string& colour) {
     return fmt::format(
@@ -141,6 +168,48 @@ struct Group {
   bool visible = true;
   std::vector<MapLayer> layers;
 };
+
+// A QGIS expression string literal.
+std::string quoted(const std::string& text) {
+  std::string q = "'";
+  for (char c : text) q += c == '\'' ? std::string("''") : std::string(1, c);
+  return q + "'";
+}
+
+// Finds: diamonds labelled by number, as the finds register names them. With the
+// voxel model's verdicts: a rule-based renderer, finds in conflict with the unit
+// solids as larger red diamonds first (legend "conflict with the unit solids (N)"),
+// labelled "ID: recorded U, lies in G"; the rest as usual (ELSE).
+MapLayer finds_layer(const QgsWriter& w, const QgisProjectInput& in) {
+  const std::vector<std::pair<std::string, std::string>> usual = {
+      {"name", "diamond"}, {"color", "0,110,160,255"}, {"outline_color", "255,255,255,255"},
+      {"outline_width", "0.2"}, {"size", "2.6"}};
+  const std::string id_label_colour = "0,70,110,255";
+  if (!in.find_conflicts) {
+    return w.vector(site_layer_id("finds"), "finds", "finds", "Point", "",
+                    QgsWriter::single_symbol("marker", "SimpleMarker", usual),
+                    QgsWriter::labels("find_id", false, 0, id_label_colour));
+  }
+  const auto& conflicts = *in.find_conflicts;
+  std::vector<QgsWriter::MarkerRule> rules;
+  std::string label = "find_id";  // the field itself; an expression only with conflicts to name
+  if (!conflicts.empty()) {
+    std::string ids, cases;
+    for (const QgisFindConflict& c : conflicts) {
+      ids += (ids.empty() ? "" : ", ") + quoted(c.id);
+      cases += fmt::format(" WHEN \"find_id\" = {} THEN \"find_id\" || ': recorded ' || \"unit\" || {}", quoted(c.id),
+                           quoted(c.geometric_unit.empty() ? ", in no unit's solid" : ", lies in " + c.geometric_unit));
+    }
+    rules.push_back({fmt::format("\"find_id\" IN ({})", ids),
+                     fmt::format("conflict with the unit solids ({})", conflicts.size()),
+                     {{"name", "diamond"}, {"color", "225,20,20,255"}, {"outline_color", "60,0,0,255"},
+                      {"outline_width", "0.4"}, {"size", "3.6"}}});
+    label = "CASE" + cases + " ELSE \"find_id\" END";
+  }
+  rules.push_back({"ELSE", "agree with the unit solids", usual});
+  return w.vector(site_layer_id("finds"), "finds", "finds", "Point", "", QgsWriter::marker_rules(rules),
+                  QgsWriter::labels(label, !conflicts.empty(), 0, id_label_colour));
+}
 
 }  // namespace
 
@@ -187,6 +256,10 @@ QgisProjectInput collect_qgis_input(Project& project) {
       in.unit_extents = n.step() && n.get_int(0) > 0;
     }
   }
+  {
+    auto n = db.prepare("SELECT count(*) FROM finds");
+    in.finds = n.step() && n.get_int(0) > 0;
+  }
   auto st = db.prepare(
       "SELECT min(min_x), min(min_y), max(max_x), max(max_y) FROM gpkg_contents WHERE data_type IN "
       "('features', 'tiles', '2d-gridded-coverage') AND srs_id = ?");
@@ -207,6 +280,7 @@ std::string qgis_project_xml(const QgisProjectInput& in, const fs::path& qgs_dir
   std::vector<Group> groups;
 
   Group site{"Site", true, {}};
+  if (in.finds) site.layers.push_back(finds_layer(w, in));
   if (in.markers) {
     MapLayer m = w.vector(site_layer_id("markers"), "markers", "markers", "Point", "",
                           QgsWriter::single_symbol("marker", "SimpleMarker",

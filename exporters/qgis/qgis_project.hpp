@@ -1,13 +1,15 @@
 #pragma once
 // QGIS project of a site (exporter.qgis): the project's rasters and vectors by
 // relative paths, styled (hillshade + orthophoto + contours + labelled markers),
-// one group per layer, groups ordered stratigraphically (latest capture on top).
+// one group per layer, groups ordered stratigraphically (latest capture on top);
+// the finds labelled by number, those in conflict with the unit solids apart.
 // Written as .qgs XML, or .qgz (a zip holding the .qgs).
 #include "project/project.hpp"
 
 #include <Eigen/Core>
 
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -22,6 +24,13 @@ struct QgisLayerGroup {
   bool footprint = false;               // a row in `footprints`
 };
 
+// A find whose point contradicts its recorded unit (volume/finds.hpp decides; the
+// exporter only draws the verdict).
+struct QgisFindConflict {
+  std::string id;              // find number (finds.find_id)
+  std::string geometric_unit;  // the unit whose solid holds the point; empty: none
+};
+
 struct QgisProjectInput {
   std::string title;
   std::filesystem::path gpkg;           // absolute path of project.gpkg
@@ -31,9 +40,14 @@ struct QgisProjectInput {
   std::vector<QgisLayerGroup> layers;   // in capture order: first = earliest
   bool markers = true, camera_positions = true, marker_residuals = true;
   bool unit_extents = false;            // rows in `unit_extents` (strata volume)
+  bool finds = false;                   // rows in `finds` (strata import finds)
+  // The finds against the voxel model as of the export: nothing when there is no
+  // voxel model (the finds are drawn alike), else the conflicts (maybe none).
+  std::optional<std::vector<QgisFindConflict>> find_conflicts;
 };
 
 // Gathers layers (capture order), their dtm/ortho products, vectors and extent.
+// find_conflicts stays empty: the caller that can place the finds fills it in.
 QgisProjectInput collect_qgis_input(Project& project);
 
 // The .qgs XML with data sources relative to `qgs_dir` (the folder of the file).

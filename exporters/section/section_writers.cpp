@@ -84,11 +84,15 @@ SectionPage layout_page(const SectionProfile& p, const Eigen::Vector3d& origin, 
       if (std::isfinite(z)) zmin = std::min(zmin, z), zmax = std::max(zmax, z);
   if (!std::isfinite(zmin)) throw ProcessingError(fmt::format("{}: no surface crosses the section line", stage));
   page.zmax = zmax;
+  // A find off the surfaces (a wrong height in the survey) is still drawn, where it is.
+  for (const auto& f : p.finds) zmin = std::min(zmin, f.z), zmax = std::max(zmax, f.z);
   page.z_lo = std::floor((zmin + origin.z() - kNaturalBand - 0.02) / kTick) * kTick - origin.z();
   page.z_hi = std::ceil((zmax + origin.z() + 0.05) / kTick) * kTick - origin.z();
   page.width_draw = p.length() * page.mm_per_m;
   page.height_draw = (page.z_hi - page.z_lo) * page.mm_per_m;
-  const double legend_h = 10 + 6.0 * double((p.bodies.size() + 2 + 2) / 3);
+  // Legend items: the units, not excavated, the two lines, and the two find markers.
+  const std::size_t items = p.bodies.size() + 3 + (p.finds.empty() ? 0 : 2);
+  const double legend_h = 10 + 6.0 * double((items + 2) / 3);
   page.page_w = std::max(page.left + page.width_draw + page.right, 200.0);
   page.page_h = page.top + page.height_draw + 22 + legend_h;
   return page;
@@ -295,6 +299,44 @@ void draw_surfaces(SectionSvg& d) {
   }
 }
 
+// A find's marker: filled in front of the section face (offset >= 0, the side the
+// drawing is seen from), open behind it, as finds projected from either side of a
+// section are told apart on the drawing.
+constexpr double kFindRadius = 0.9;  // mm of paper
+std::string find_marker(double x, double y, bool in_front) {
+  return fmt::format(R"~(<circle cx="{:.2f}" cy="{:.2f}" r="{}" fill="{}" stroke="black" stroke-width="0.25"/>)~", x, y,
+                     kFindRadius, in_front ? "black" : "white");
+}
+
+// Finds projected onto the plane: a marker at (chainage, height) and the find's
+// number beside it, where it overlaps no label already placed (right, left, above,
+// below; on the right when every place is taken: a find is never left unnamed).
+void draw_finds(SectionSvg& d) {
+  constexpr double kFindFont = 2.2;  // mm
+  const auto& page = d.page;
+  for (const auto& f : d.p.finds) {
+    const double x = page.X(f.s), y = page.Y(f.z);
+    d.add(fmt::format(R"~(<g class="find" data-find="{}">{}</g>)~", xml_escape(f.id), find_marker(x, y, f.offset >= 0)));
+    const double gap = kFindRadius + 0.6;
+    const std::pair<Eigen::Vector2d, const char*> places[] = {
+        {{x + gap, y + 0.35 * kFindFont}, "start"},
+        {{x - gap, y + 0.35 * kFindFont}, "end"},
+        {{x, y - gap}, "middle"},
+        {{x, y + gap + 0.8 * kFindFont}, "middle"}};
+    std::size_t chosen = 0;
+    for (std::size_t k = 0; k < std::size(places); ++k) {
+      if (d.clear_of_labels(text_box(places[k].first.x(), places[k].first.y(), kFindFont, f.id.size(), places[k].second))) {
+        chosen = k;
+        break;
+      }
+    }
+    const auto& [at, anchor] = places[chosen];
+    d.place_label(text_box(at.x(), at.y(), kFindFont, f.id.size(), anchor),
+                  fmt::format(R"~(<text x="{:.2f}" y="{:.2f}" font-size="{}" text-anchor="{}" fill="#7a1010">{}</text>)~",
+                              at.x(), at.y(), kFindFont, anchor, xml_escape(f.id)));
+  }
+}
+
 // Datum line: dashed, at the round height just above the highest surface.
 void draw_datum(SectionSvg& d) {
   const auto& p = d.p;
@@ -363,6 +405,11 @@ void draw_legend(SectionSvg& d, double bar_y) {
   legend.item(fmt::format(R"~(<line x1="{:.2f}" y1="{:.2f}" x2="{:.2f}" y2="{:.2f}" stroke="black" stroke-width="0.5"/>)~",
                           legend.lx, legend.ly + 1.75, legend.lx + 6, legend.ly + 1.75),
               "limit of excavation");
+  if (p.finds.empty()) return;
+  legend.item(find_marker(legend.lx + 3, legend.ly + 1.75, true),
+              fmt::format("find, up to {:.2f} m in front", p.finds_within_m));
+  legend.item(find_marker(legend.lx + 3, legend.ly + 1.75, false),
+              fmt::format("find, up to {:.2f} m behind", p.finds_within_m));
 }
 
 // GeoPackage tables of 3D lines, in real CRS coordinates.
@@ -408,6 +455,38 @@ class SectionGpkg {
       for (double z : s.z)
         if (std::isfinite(z)) ztop = std::max(ztop, z);
     add_line(l, {point3(0, ztop), point3(p_.length(), ztop)}, {{"name", "A-B"}});
+  }
+
+  // The finds projected onto the plane: a POINT Z each at its place in the section
+  // (on the line, at its height), with its chainage, height, offset and recorded
+  // unit, and the surveyed E, N. Only when finds were projected (the table may be empty).
+  void write_finds() {
+    if (p_.finds_within_m <= 0) return;
+    OGRLayer* l = ds_->CreateLayer("section_finds", &srs_, wkbPoint25D, nullptr);
+    if (!l) fail("cannot create table section_finds");
+    for (const char* f : {"find_id", "unit", "type"}) {
+      OGRFieldDefn d(f, OFTString);
+      l->CreateField(&d);
+    }
+    for (const char* f : {"chainage_m", "height_m", "offset_m", "e", "n"}) {
+      OGRFieldDefn d(f, OFTReal);
+      l->CreateField(&d);
+    }
+    for (const auto& f : p_.finds) {
+      OGRFeature feature(l->GetLayerDefn());
+      feature.SetField("find_id", f.id.c_str());
+      feature.SetField("unit", f.unit.c_str());
+      feature.SetField("type", f.type.c_str());
+      feature.SetField("chainage_m", f.s);
+      feature.SetField("height_m", f.z + origin_.z());
+      feature.SetField("offset_m", f.offset);
+      feature.SetField("e", f.position.x() + origin_.x());
+      feature.SetField("n", f.position.y() + origin_.y());
+      const Eigen::Vector3d q = point3(f.s, f.z);
+      OGRPoint point(q.x(), q.y(), q.z());
+      feature.SetGeometry(&point);
+      if (l->CreateFeature(&feature) != OGRERR_NONE) fail("cannot write find " + f.id);
+    }
   }
 
   static constexpr const char* kStage = "writer.section.gpkg";
@@ -456,6 +535,7 @@ void write_section_svg(const fs::path& path, const SectionProfile& p, const Eige
   draw_units(d);
   draw_not_excavated(d);
   draw_surfaces(d);
+  draw_finds(d);
   d.svg += d.labels;
   draw_datum(d);
   draw_legend(d, draw_scale_bar(d));
@@ -479,6 +559,7 @@ void write_section_gpkg(const fs::path& path, const SectionProfile& p, const Eig
     gpkg.write_surfaces();
     gpkg.write_units();
     gpkg.write_line();
+    gpkg.write_finds();
     if (ds->CommitTransaction() != OGRERR_NONE) gpkg.fail("cannot commit the features: " + std::string(CPLGetLastErrorMsg()));
     CPLErrorReset();
     ds.reset();

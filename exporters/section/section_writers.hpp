@@ -24,13 +24,17 @@ struct SectionDrawingOptions {
 // SVG in millimetres at the drawing scale: units filled and labelled, layer
 // surfaces as lines (the last, the limit of excavation, heavier), the unit not
 // yet excavated hatched below it, a height scale in absolute metres, a datum
-// line, a 1 m scale bar, the ends A and B with their coordinates, a legend.
+// line, a 1 m scale bar, the ends A and B with their coordinates, a legend; the
+// finds projected onto the plane (profile.finds) as markers with their number,
+// filled in front of the section face, open behind it.
 void write_section_svg(const std::filesystem::path& path, const SectionProfile& profile,
                        const Eigen::Vector3d& site_origin, const SectionDrawingOptions& options);
 
 // GeoPackage with 3D lines in real CRS coordinates: table section_surfaces (one
 // LINESTRING Z per layer and continuous stretch), table section_units (the closed
-// outline of each unit's part as a LINESTRING Z) and section_line (A -> B).
+// outline of each unit's part as a LINESTRING Z) and section_line (A -> B); when
+// finds were projected, section_finds (a POINT Z per find at its place on the plane:
+// find_id, unit, type, chainage_m, height_m, offset_m, and the surveyed e, n).
 void write_section_gpkg(const std::filesystem::path& path, const SectionProfile& profile,
                         const Eigen::Vector3d& site_origin, const std::string& crs);
 

@@ -8,6 +8,7 @@
 #include "pipeline/products_layer.hpp"
 #include "project/project.hpp"
 #include "project/records.hpp"
+#include "volume/finds.hpp"
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -128,7 +129,10 @@ void register_export_qgis(CLI::App* exp) {
       "qgis",
       "QGIS project of the whole site: per layer a group with contours, footprint,\n"
       "orthophoto and hillshade (latest layer on top and switched on), plus markers\n"
-      "labelled by name, marker residuals and camera positions. Data sources are the\n"
+      "labelled by name, marker residuals and camera positions, the finds labelled by number\n"
+      "(when the voxel model of 'strata volume' exists, those in conflict with the unit solids as\n"
+      "'strata finds' reports them: larger red diamonds labelled 'ID: recorded U, lies in G'; the\n"
+      "verdicts are those at the time of the export). Data sources are the\n"
       "project's own files by relative paths, so keep the project file beside (or inside)\n"
       "the project folder. .qgz is a zipped .qgs.\n"
       "Example: strata export qgis site --out site/site.qgz");
@@ -139,9 +143,20 @@ void register_export_qgis(CLI::App* exp) {
   cmd->callback([=] {
     check_out_file(*out, ".qgs/.qgz");
     Project p = Project::open(*dir);
-    const QgisProjectInput in = collect_qgis_input(p);
+    QgisProjectInput in = collect_qgis_input(p);
+    std::string finds;
+    if (in.finds && project_voxel_model(p)) {
+      const FindsCheck check = check_project_finds(p, {});
+      in.find_conflicts.emplace();
+      for (const FindPlacement& f : check.finds)
+        if (f.conflict) in.find_conflicts->push_back({f.find.id, f.geometric_unit.value_or("")});
+      finds = fmt::format(", {} finds of which {} in conflict with the unit solids", check.finds.size(),
+                          in.find_conflicts->size());
+    } else if (in.finds) {
+      finds = ", the finds (no voxel model yet to check them against: 'strata volume')";
+    }
     write_qgis_project(in, *out);
-    log::info("wrote {} ({} layers)", *out, in.layers.size());
+    log::info("wrote {} ({} layers{})", *out, in.layers.size(), finds);
   });
 }
 

@@ -18,8 +18,10 @@ void register_report_command(CLI::App& app) {
       "write the field report: one self-contained HTML file (open it in any browser, no network\n"
       "needed). With --layer: is the layer recorded well enough to dig it away? Photos, camera\n"
       "positions, coverage map, marker residuals, reprojection errors, DTM hillshade and\n"
-      "plain-language warnings with what to do. Without: the site report (Harris matrix, volumes,\n"
-      "thickness maps, a section, every layer's verdict).");
+      "plain-language warnings with what to do. Without: the site report (every layer's verdict,\n"
+      "the finds: counts per recorded unit and each find with the unit whose solid holds it, those in\n"
+      "conflict first as warnings (needs the voxel model of 'strata volume'; without it, the record\n"
+      "alone), Harris matrix, volumes, thickness maps, a section with the finds within 0.25 m of it).");
   auto dir = std::make_shared<std::string>();
   auto layer = std::make_shared<std::string>();
   auto out = std::make_shared<std::string>();
@@ -62,6 +64,7 @@ void register_report_command(CLI::App& app) {
         fmt::print("layer {}: {} problems, {} warnings\n", l.layer, l.count(Severity::problem),
                    l.count(Severity::warning));
       }
+      if (!summary.finds.empty()) fmt::print("finds: {} in conflict with the unit solids\n", summary.finds.size());
       fmt::print("report: {}\n", *out);
     }
   });

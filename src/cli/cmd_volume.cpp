@@ -269,30 +269,43 @@ void register_exports(CLI::App& app) {
         "section",
         "a section along the line E1,N1 -> E2,N2 through every layer surface and unit: an SVG drawing\n"
         "(1:20 by default: units filled and numbered, heights, datum, scale bar) or a GeoPackage of 3D\n"
-        "lines (.gpkg), by extension.");
+        "lines (.gpkg), by extension.\n"
+        "Finds within --finds-within metres of the section's vertical plane, whose foot falls between the\n"
+        "ends, are projected onto it: in the drawing a marker with the find's number (filled: in front of\n"
+        "the face, the side the drawing is seen from, right of E1,N1 -> E2,N2; open: behind it); in the\n"
+        "GeoPackage the table section_finds (find_id, unit, type, chainage_m from the first end,\n"
+        "height_m, offset_m from the plane, + in front, and the surveyed e, n).");
     auto a = std::make_shared<ModelArgs>();
     auto line = std::make_shared<std::string>();
     auto out = std::make_shared<std::string>();
     auto scale = std::make_shared<double>(20);
     auto title = std::make_shared<std::string>("Section");
     auto step = std::make_shared<double>(0);
+    auto finds = std::make_shared<SectionFindOptions>();
     add_model_options(cmd, *a);
     cmd->add_option("--line", *line, "E1,N1,E2,N2 in the site CRS")->required();
     cmd->add_option("--out", *out, "output .svg or .gpkg")->required();
     cmd->add_option("--scale", *scale, "drawing scale 1:N (default 20)");
     cmd->add_option("--title", *title, "title of the drawing");
     cmd->add_option("--step", *step, "sampling step along the line, metres (default: one grid cell)");
+    cmd->add_option("--finds-within", finds->within_m,
+                    "project the finds within this distance of the section plane, metres, either side; "
+                    "0: no finds")
+        ->capture_default_str();
     cmd->callback([=] {
       const std::string ext = fs::path(*out).extension().string();
       if (ext != ".svg" && ext != ".gpkg")
         throw InputError(fmt::format("export section: --out '{}' must end in .svg or .gpkg", *out));
+      finds->validate();
       const auto v = parse_numbers(*line, 4, "--line");
       const SiteVolumeOptions o = site_options(*a);
       Project p = Project::open(a->dir);
       const SiteModel m = load_site_model(p, o);
       const Eigen::Vector2d A(v[0] - m.site.origin.x(), v[1] - m.site.origin.y());
       const Eigen::Vector2d B(v[2] - m.site.origin.x(), v[3] - m.site.origin.y());
-      const SectionProfile profile = cut_section(A, B, m.layers, m.solids, *step);
+      SectionProfile profile = cut_section(A, B, m.layers, m.solids, *step);
+      const std::vector<FindRecord> recorded = list_finds(p.db());
+      const std::size_t projected = add_section_finds(profile, recorded, m.site.origin, *finds);
       if (ext == ".svg") {
         SectionDrawingOptions d;
         d.scale = *scale;
@@ -303,7 +316,10 @@ void register_exports(CLI::App& app) {
       } else {
         write_section_gpkg(*out, profile, m.site.origin, m.site.crs);
       }
-      log::info("wrote {} ({:.2f} m, {} samples)", *out, profile.length(), profile.s.size());
+      log::info("wrote {} ({:.2f} m, {} samples{})", *out, profile.length(), profile.s.size(),
+                finds->within_m > 0 ? fmt::format(", {} of {} finds within {:.2f} m of the plane", projected,
+                                                  recorded.size(), finds->within_m)
+                                    : std::string());
     });
   }
 }

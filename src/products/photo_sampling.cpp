@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 
 namespace strata {
 
@@ -62,8 +63,13 @@ PhotoPixels load_photo(const OrthoView& v, const char* stage) {
   }
   // The camera model describes the sensor as stored: EXIF orientation is ignored,
   // as in feature extraction.
+  // Checked first: OpenCV's imread would print a warning of its own beside our error.
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(v.photo, ec)) {
+    throw IoError(fmt::format("{}: photo {} is missing from the project ({})", stage, v.name, v.photo.string()));
+  }
   cv::Mat bgr = cv::imread(v.photo.string(), cv::IMREAD_COLOR | cv::IMREAD_IGNORE_ORIENTATION);
-  if (bgr.empty()) throw IoError(fmt::format("{}: {}: cannot read the photo", stage, v.photo.string()));
+  if (bgr.empty()) throw IoError(fmt::format("{}: photo {}: {}: cannot read the photo", stage, v.name, v.photo.string()));
   if (bgr.cols != K.width || bgr.rows != K.height) {
     throw InputError(fmt::format("{}: {}: photo is {} x {} px but its camera is {} x {}", stage, v.photo.string(),
                                  bgr.cols, bgr.rows, K.width, K.height));

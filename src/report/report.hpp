@@ -29,6 +29,9 @@ struct LayerVerdict {
 
 struct ReportSummary {
   std::vector<LayerVerdict> layers;
+  // Site report: one warning per find in conflict with the unit solids (empty
+  // without the voxel model).
+  std::vector<Finding> finds;
 };
 
 // Writes the report of one layer to `out` (temporary file, then rename). Whatever
@@ -37,8 +40,8 @@ struct ReportSummary {
 ReportSummary write_layer_report(Project& project, const std::string& layer, const std::filesystem::path& out,
                                  const ReportOptions& options = {});
 
-// The site report: Harris matrix, volumes, thickness maps, a section, and a
-// summary with the findings of every layer.
+// The site report: every layer's verdict and findings, the finds against the unit
+// solids, Harris matrix, volumes, thickness maps and a section.
 ReportSummary write_site_report(Project& project, const std::filesystem::path& out, const ReportOptions& options = {});
 
 // For the pipeline after every `process`: writes products/<layer>/report.html and

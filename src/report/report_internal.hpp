@@ -39,6 +39,11 @@ std::string layer_sections_html(const LayerData& d, const ReportOptions& options
 std::string findings_html(const std::vector<Finding>& findings);
 std::string verdict_html(const std::vector<Finding>& findings);
 
+// The site report's finds: counts per recorded unit and every find, checked against
+// the voxel model when it exists (conflicts first, as warnings, also returned in
+// `warnings`), else the record alone and what to run.
+std::string finds_section_html(Project& project, std::vector<Finding>* warnings);
+
 // A complete page around `body`, with the stylesheet inline.
 std::string page_html(const std::string& title, const std::string& subtitle, const std::string& body);
 

@@ -1,5 +1,6 @@
-// The site report: the Harris matrix, unit volumes, thickness maps, a section
-// along the excavation's long axis, and every layer's verdict and findings.
+// The site report: every layer's verdict and findings, the finds against the unit
+// solids, the Harris matrix, unit volumes, thickness maps, and a section along the
+// excavation's long axis with the finds near it.
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/log.hpp"
@@ -210,7 +211,9 @@ std::string section_section(Project& project, const ReportOptions& o) {
       a = {(e.x0 + e.x1) / 2, e.y0 + inset};
       b = {(e.x0 + e.x1) / 2, e.y1 - inset};
     }
-    const SectionProfile profile = cut_section(a, b, model.layers, model.solids);
+    SectionProfile profile = cut_section(a, b, model.layers, model.solids);
+    const std::size_t finds =
+        add_section_finds(profile, list_finds(project.db()), model.site.origin, SectionFindOptions{});
     SectionDrawingOptions drawing;
     drawing.title = "Section along the long axis";
     drawing.crs = model.site.crs;
@@ -222,9 +225,10 @@ std::string section_section(Project& project, const ReportOptions& o) {
     s += "<div class=\"svgbox\">" + svg + "</div>\n";
     const Eigen::Vector3d o3 = model.site.origin;
     s += "<p class=\"caption\">" +
-         xml_escape(fmt::format("From A (E {:.2f}, N {:.2f}) to B (E {:.2f}, N {:.2f}), {:.2f} m, through {} layer surfaces.",
-                            a.x() + o3.x(), a.y() + o3.y(), b.x() + o3.x(), b.y() + o3.y(), profile.length(),
-                            profile.surfaces.size())) +
+         xml_escape(fmt::format("From A (E {:.2f}, N {:.2f}) to B (E {:.2f}, N {:.2f}), {:.2f} m, through {} layer "
+                                "surfaces; {} finds within {:.2f} m of it projected onto it.",
+                                a.x() + o3.x(), a.y() + o3.y(), b.x() + o3.x(), b.y() + o3.y(), profile.length(),
+                                profile.surfaces.size(), finds, SectionFindOptions{}.within_m)) +
          "</p>\n";
   } catch (const Error& e) {
     s += missing(fmt::format("No section yet: {}", e.what()));
@@ -279,6 +283,7 @@ std::string site_report_html(Project& project, const ReportOptions& options, Rep
   // The layers' verdicts come first in the page: they are what to act on.
   std::string layers = layers_section(project, options, summary);
   body += layers;
+  body += rd::finds_section_html(project, summary ? &summary->finds : nullptr);
   body += matrix_section(project.db());
   body += volumes_section(project.db());
   body += thickness_section(project, options);

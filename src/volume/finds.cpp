@@ -138,16 +138,25 @@ FindsCheck place_finds(const LabelVolume& v, const std::vector<FindRecord>& find
   return out;
 }
 
+std::optional<fs::path> project_voxel_model(Project& project) {
+  const auto products = list_products(project.db(), std::nullopt, "voxels");
+  if (products.empty()) return std::nullopt;
+  const fs::path vdb = project.dir() / products.back().path;
+  if (!fs::exists(vdb)) return std::nullopt;
+  return vdb;
+}
+
 FindsCheck check_project_finds(Project& project, const FindCheckOptions& options) {
   options.validate();
-  const auto products = list_products(project.db(), std::nullopt, "voxels");
-  const fs::path vdb = products.empty() ? fs::path() : project.dir() / products.back().path;
-  if (products.empty() || !fs::exists(vdb)) {
+  const auto vdb = project_voxel_model(project);
+  if (!vdb) {
+    const auto products = list_products(project.db(), std::nullopt, "voxels");
     throw InputError(fmt::format("finds: {} has no voxel model of the units{}; run 'strata volume {}' first",
-                                 project.dir().string(), products.empty() ? "" : " (" + vdb.string() + " is gone)",
+                                 project.dir().string(),
+                                 products.empty() ? "" : " (" + (project.dir() / products.back().path).string() + " is gone)",
                                  project.dir().string()));
   }
-  return place_finds(read_label_volume(vdb), list_finds(project.db()), options);
+  return place_finds(read_label_volume(*vdb), list_finds(project.db()), options);
 }
 
 }  // namespace strata

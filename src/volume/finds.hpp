@@ -13,6 +13,7 @@
 #include "project/project.hpp"
 #include "volume/voxels.hpp"
 
+#include <filesystem>
 #include <optional>
 #include <string>
 #include <vector>
@@ -49,6 +50,10 @@ struct FindsCheck {
 
 // Places every find in the label model; positions in the site CRS.
 FindsCheck place_finds(const LabelVolume& model, const std::vector<FindRecord>& finds, const FindCheckOptions& options);
+
+// The voxel model of the units `strata volume` wrote (the latest "voxels" product),
+// absolute path; nothing when there is none or its file is gone.
+std::optional<std::filesystem::path> project_voxel_model(Project& project);
 
 // The project's finds against its voxel model (the latest "voxels" product).
 // InputError telling the user to run `strata volume` first when there is none.

@@ -52,4 +52,29 @@ SectionProfile cut_section(const Eigen::Vector2d& a, const Eigen::Vector2d& b, c
   return p;
 }
 
+void SectionFindOptions::validate() const {
+  if (!(within_m >= 0) || !std::isfinite(within_m))
+    throw InputError(fmt::format("section: --finds-within {} must be 0 (no finds) or a distance in metres", within_m));
+}
+
+std::size_t add_section_finds(SectionProfile& p, const std::vector<FindRecord>& finds,
+                              const Eigen::Vector3d& site_origin, const SectionFindOptions& options) {
+  options.validate();
+  p.finds.clear();
+  p.finds_within_m = options.within_m;
+  if (options.within_m <= 0 || !(p.length() > 0)) return 0;
+  const Eigen::Vector2d along = (p.b - p.a).normalized();
+  const Eigen::Vector2d right(along.y(), -along.x());  // A -> B turned clockwise
+  for (const FindRecord& f : finds) {
+    const Eigen::Vector3d x = f.position - site_origin;  // site frame
+    const Eigen::Vector2d d = x.head<2>() - p.a;
+    const double s = d.dot(along), offset = d.dot(right);
+    // Only finds beside the line itself: one beyond A or B is not in this section.
+    if (s < 0 || s > p.length() || std::abs(offset) > options.within_m) continue;
+    p.finds.push_back({f.id, f.unit, f.type, x, s, x.z(), offset});
+  }
+  std::stable_sort(p.finds.begin(), p.finds.end(), [](const auto& a, const auto& b) { return a.s < b.s; });
+  return p.finds.size();
+}
+
 }  // namespace strata

@@ -97,7 +97,8 @@ TEST_F(SiteTexture, AMissingPhotoIsNamedAndNothingIsWritten) {
   std::sort(photos.begin(), photos.end());
   const fs::path gone = photos[photos.size() / 2];
   fs::remove(gone);
-  const auto r = run_strata({"export", "model", site.string(), "--texture", "--lod", "1", "--out", out.string()});
+  const auto r =
+      run_strata({"-q", "export", "model", site.string(), "--texture", "--lod", "1", "--out", out.string()});
   EXPECT_NE(r.exit_code, 0);
   EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
   EXPECT_NE(r.err.find(gone.filename().string()), std::string::npos) << r.err;

@@ -14,7 +14,8 @@ extent, visibility, renderer, labels, feature count) and checks that
     (latest capture on top: layer names in descending capture order),
   - per layer group: contours (labelled), footprint, hillshade (multiplied over
     the orthophoto), orthophoto,
-  - the markers layer is labelled.
+  - the markers layer is labelled; the finds layer, when there is one, is labelled,
+    switched on, and its conflict rule (with the voxel model) matches finds.
 --png renders the visible layers in tree order with QgsMapRendererParallelJob;
 --groups also renders each layer group on its own (map-<group>.png next to --png).
 Exit status 0 when every check passes, 1 otherwise.
@@ -142,6 +143,24 @@ def main():
           "only the top (latest) layer group is switched on")
     markers = project.mapLayersByName("markers")
     check(len(markers) == 1 and markers[0].labelsEnabled(), "the markers are labelled")
+    finds = project.mapLayersByName("finds")
+    if finds:
+        layer = finds[0]
+        check(layer.labelsEnabled(), "the finds are labelled")
+        check(root.findLayer(layer.id()).isVisible(), "the finds are switched on")
+        renderer = layer.renderer()
+        if renderer.type() == "RuleRenderer":
+            # Every find in exactly one rule: the conflicts' filter, then ELSE.
+            rules = renderer.rootRule().children()
+            check(len(rules) >= 1 and rules[-1].isElse(), "the last finds rule is ELSE")
+            for rule in rules:
+                if rule.isElse():
+                    continue
+                matched = sum(1 for _ in layer.getFeatures(rule.filterExpression()))
+                print(f"  finds rule '{rule.label()}': {rule.filterExpression()} -> {matched} features")
+                check(matched > 0, f"the finds rule '{rule.label()}' matches finds")
+        else:
+            check(renderer.type() == "singleSymbol", "the finds are drawn with one symbol (no voxel model)")
 
     if a.png and full.isEmpty():
         check(False, "something to render (no valid layer has an extent)")

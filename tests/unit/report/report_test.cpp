@@ -344,7 +344,7 @@ TEST_F(ReportTest, SiteReportHasEverySection) {
   keep(out, "site.html");
   EXPECT_EQ(s.layers.size(), 4u);
   const std::string html = test::read_text(out);
-  for (const char* heading : {"Site", "Layers", "Harris matrix", "Volumes", "Thickness maps", "Section"}) {
+  for (const char* heading : {"Site", "Layers", "Finds", "Harris matrix", "Volumes", "Thickness maps", "Section"}) {
     EXPECT_NE(html.find(fmt::format("<h2>{}</h2>", heading)), std::string::npos) << heading;
   }
   expect_self_contained(html);
@@ -362,6 +362,7 @@ TEST(ReportEmpty, SiteReportOfAnEmptyProject) {
   EXPECT_NE(html.find("No layers recorded yet."), std::string::npos);
   EXPECT_NE(html.find("No stratigraphic units recorded yet."), std::string::npos);
   EXPECT_NE(html.find("No volumes yet"), std::string::npos);
+  EXPECT_NE(html.find("No finds recorded yet; import them with: strata import finds DIR FILE.csv"), std::string::npos);
 }
 
 TEST_F(ReportTest, CommandLine) {
