@@ -610,6 +610,18 @@ TEST(CliExportViewer, ScreenshotShowsEachLayerInItsColourAndNotOneSwitchedOff) {
   // L1 drawn as before, pixel for pixel but for the few the marker's label crosses.
   const int green_after = cv::countNonZero(pixels_of(hidden, on_screen(kGreen)));
   EXPECT_NEAR(green_after, green_px, 0.01 * green_px);
+
+  // ?shade=1 lights the layers: the same squares, no longer in their recorded colours.
+  const fs::path shaded_png = dir / "shaded.png";
+  ASSERT_TRUE(run_chromium("--window-size=1000,700 --screenshot=" + shaded_png.string(),
+                           "file://" + html.string() + "?shade=1", dir / "shaded.out"))
+      << test::read_text(dir / "shaded.out.err");
+  const cv::Mat shaded = cv::imread(shaded_png.string(), cv::IMREAD_COLOR);
+  ASSERT_FALSE(shaded.empty());
+  const int shaded_layers = cv::countNonZero(pixels_of(shaded, on_screen(kGreen))) +
+                            cv::countNonZero(pixels_of(shaded, on_screen(kBlue)));
+  EXPECT_LT(shaded_layers, 0.1 * (green_px + blue_px));
+  EXPECT_NEAR(cv::countNonZero(pixels_of(shaded, kBackground)), background_px, 0.01 * background_px);
 }
 
 // The measuring tool on marker GCP1: a click at the marker's place on the screen (the
