@@ -569,6 +569,7 @@ TexturedMesh build_texture_atlas(const DenseMesh& m, const std::vector<OrthoView
   FaceCandidates cand(m.faces.size(), o.candidates);
   for (std::size_t v = 0; v < views.size(); ++v) score_view(m, g, views[v], int(v), o, cand);
   const std::vector<int> label = smooth_labels(cand, g, o);
+  // Without colour balance: no overlaps, every gain 1.
   const ColourGains gains = o.colour_balance ? face_colour_gains(cand, int(views.size()))
                                              : fit_colour_gains(ColourOverlaps{}, int(views.size()));
 
