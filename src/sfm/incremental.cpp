@@ -18,6 +18,7 @@
 #include <algorithm>
 #include <cmath>
 #include <ctime>
+#include <iterator>
 #include <limits>
 #include <map>
 #include <numeric>
@@ -88,6 +89,7 @@ void IncrementalOptions::validate() const {
   if (!(final_max_reprojection_px > 0)) fail("final_max_reprojection_px", final_max_reprojection_px, "> 0");
   if (local_ba_images < 1) fail("local_ba_images", local_ba_images, ">= 1");
   if (local_ba_max_observations < 0) fail("local_ba_max_observations", local_ba_max_observations, ">= 0");
+  if (global_ba_max_observations < 0) fail("global_ba_max_observations", global_ba_max_observations, ">= 0");
   if (!(global_ba_growth > 1)) fail("global_ba_growth", global_ba_growth, "> 1");
   if (calibration_min_images < 2) fail("calibration_min_images", calibration_min_images, ">= 2");
   if (higher_order_min_images < calibration_min_images) {
@@ -96,6 +98,7 @@ void IncrementalOptions::validate() const {
   if (principal_point_min_images < 2) fail("principal_point_min_images", principal_point_min_images, ">= 2");
   if (intermediate_ba_max_iterations < 1) fail("intermediate_ba_max_iterations", intermediate_ba_max_iterations, ">= 1");
   if (!(intermediate_ba_function_tolerance > 0)) fail("intermediate_ba_function_tolerance", intermediate_ba_function_tolerance, "> 0");
+  if (!(final_ba_function_tolerance > 0)) fail("final_ba_function_tolerance", final_ba_function_tolerance, "> 0");
   if (final_refinement_passes < 1) fail("final_refinement_passes", final_refinement_passes, ">= 1");
   bundle.validate();
 }
@@ -177,14 +180,19 @@ class IncrementalMapper {
   std::size_t complete_tracks(double max_error_px);
   std::size_t filter_points(const std::vector<int>& tracks, double max_error_px);
   std::vector<int> all_point_tracks() const;
-  void adjust(const std::vector<int>& variable_images, bool global);
+  void adjust(const std::vector<int>& variable_images, bool global, bool bounded = false);
   // The points of a local adjustment within local_ba_max_observations.
   std::vector<int> bound_local_points(const std::vector<int>& ids,
                                       const std::vector<int>& variable_images,
                                       const std::vector<char>& variable) const;
+  // The points of an intermediate global adjustment within global_ba_max_observations.
+  std::vector<int> bound_global_points(const std::vector<int>& ids) const;
+  // Points left out of an adjustment, triangulated again from the adjusted poses.
+  void retriangulate_left_out(const std::vector<int>& all_ids, const std::vector<int>& adjusted);
   bool final_stage_ = false;  // final adjustments run to the full tolerances
   void local_adjust(int image);
-  void global_adjust(double max_error_px);
+  // bounded: an intermediate adjustment (global_ba_max_observations applies).
+  void global_adjust(double max_error_px, bool bounded = false);
   Reconstruction result() const;
   void log_unregistered(int image) const;  // why an image stayed out (debug log)
 
@@ -206,7 +214,7 @@ class IncrementalMapper {
   std::size_t retry_registered_ = 0;
   int n_registered_ = 0;
   std::pair<int, int> init_pair_{-1, -1};
-  int local_count_ = 0, global_count_ = 0;
+  int local_count_ = 0, global_count_ = 0, bounded_count_ = 0;
   std::size_t filtered_ = 0;
   double ba_seconds_ = 0;
 };
@@ -670,7 +678,7 @@ std::pair<std::size_t, std::size_t> IncrementalMapper::pair_agreement(int image,
   return {total, agree};
 }
 
-void IncrementalMapper::adjust(const std::vector<int>& variable_images, bool global) {
+void IncrementalMapper::adjust(const std::vector<int>& variable_images, bool global, bool bounded) {
   BaProblem problem;
   for (std::size_t g = 0; g < intr_.size(); ++g) {
     add_group(problem, intr_[g], groups_[g].calibration_fixed);
@@ -703,6 +711,17 @@ void IncrementalMapper::adjust(const std::vector<int>& variable_images, bool glo
   if (!global && opt_.local_ba_max_observations > 0) {
     point_tracks = bound_local_points(point_tracks, variable_images, variable);
   }
+  std::vector<int> all_tracks;  // of a bounded global adjustment: every point before the bound
+  if (global && bounded && opt_.global_ba_max_observations > 0) {
+    all_tracks = point_tracks;
+    std::sort(all_tracks.begin(), all_tracks.end());
+    point_tracks = bound_global_points(point_tracks);
+    if (point_tracks.size() == all_tracks.size()) {
+      all_tracks.clear();
+    } else {
+      ++bounded_count_;
+    }
+  }
   for (int id : point_tracks) {
     const auto& t = tracks_[id];
     const int p = int(problem.points.size());
@@ -724,6 +743,8 @@ void IncrementalMapper::adjust(const std::vector<int>& variable_images, bool glo
   if (!final_stage_) {
     bo.max_iterations = std::min(bo.max_iterations, opt_.intermediate_ba_max_iterations);
     bo.function_tolerance = std::max(bo.function_tolerance, opt_.intermediate_ba_function_tolerance);
+  } else {
+    bo.function_tolerance = std::max(bo.function_tolerance, opt_.final_ba_function_tolerance);
   }
   problem.refine_intrinsics = global && n_registered_ >= opt_.calibration_min_images;
   if (n_registered_ < opt_.principal_point_min_images) bo.refine.principal_point = false;
@@ -745,9 +766,11 @@ void IncrementalMapper::adjust(const std::vector<int>& variable_images, bool glo
     poses_[image] = pose_from_block(problem.cameras[c].pose);
   }
   for (std::size_t p = 0; p < point_tracks.size(); ++p) tracks_[point_tracks[p]].X = problem.points[p];
-  log::debug("sfm: {} BA over {} images, {} observations: rmse {:.3f} px, {} iterations, {:.2f} s",
-             global ? "global" : "local", variable_images.size(), s.observations, s.rmse_px,
-             s.iterations, s.seconds);
+  log::debug("sfm: {} BA over {} images, {} observations{}: rmse {:.3f} px, {} iterations, {:.2f} s",
+             global ? "global" : "local", variable_images.size(), s.observations,
+             all_tracks.empty() ? "" : fmt::format(" ({} of {} points)", point_tracks.size(), all_tracks.size()),
+             s.rmse_px, s.iterations, s.seconds);
+  if (!all_tracks.empty()) retriangulate_left_out(all_tracks, point_tracks);
   filter_points(point_tracks, opt_.max_reprojection_px);
 }
 
@@ -791,6 +814,73 @@ std::vector<int> IncrementalMapper::bound_local_points(const std::vector<int>& i
   return kept;
 }
 
+std::vector<int> IncrementalMapper::bound_global_points(const std::vector<int>& ids) const {
+  struct Candidate {
+    int id;
+    int rays;  // inlier observations in registered images
+  };
+  std::vector<Candidate> candidates;
+  candidates.reserve(ids.size());
+  std::size_t total = 0;
+  for (int id : ids) {
+    const auto& t = tracks_[id];
+    Candidate c{id, 0};
+    for (std::size_t k = 0; k < t.elements.size(); ++k) {
+      if (t.inlier[k] && registered_[t.elements[k].image]) ++c.rays;
+    }
+    total += std::size_t(c.rays);
+    candidates.push_back(c);
+  }
+  const auto budget = std::size_t(opt_.global_ba_max_observations);
+  if (total <= budget || n_registered_ < 1) return ids;
+  // Longest tracks first: each ties the most photos together for its cost. A point is
+  // taken while one of its photos is below its share, so that no photo is left with
+  // too few points to hold its pose.
+  std::stable_sort(candidates.begin(), candidates.end(),
+                   [](const Candidate& a, const Candidate& b) { return a.rays > b.rays; });
+  const std::size_t share = budget / std::size_t(n_registered_);
+  std::vector<std::size_t> taken(images_.size(), 0);
+  std::vector<int> kept;
+  std::size_t used = 0;
+  for (const auto& c : candidates) {
+    if (used + std::size_t(c.rays) > budget) continue;
+    const auto& t = tracks_[c.id];
+    bool needed = false;
+    for (std::size_t k = 0; k < t.elements.size() && !needed; ++k) {
+      const int image = t.elements[k].image;
+      needed = t.inlier[k] && registered_[image] && taken[image] < share;
+    }
+    if (!needed) continue;
+    for (std::size_t k = 0; k < t.elements.size(); ++k) {
+      if (t.inlier[k] && registered_[t.elements[k].image]) ++taken[t.elements[k].image];
+    }
+    used += std::size_t(c.rays);
+    kept.push_back(c.id);
+  }
+  std::sort(kept.begin(), kept.end());  // the order the problem is built in, as unbounded
+  return kept;
+}
+
+void IncrementalMapper::retriangulate_left_out(const std::vector<int>& all_ids, const std::vector<int>& adjusted) {
+  // Both sorted by track id.
+  std::vector<int> left_out;
+  std::set_difference(all_ids.begin(), all_ids.end(), adjusted.begin(), adjusted.end(),
+                      std::back_inserter(left_out));
+  for (int id : left_out) {
+    auto& t = tracks_[id];
+    std::vector<Pose> poses;
+    std::vector<Eigen::Vector2d> xn;
+    for (std::size_t k = 0; k < t.elements.size(); ++k) {
+      if (!t.inlier[k] || !registered_[t.elements[k].image]) continue;
+      poses.push_back(poses_[t.elements[k].image]);
+      xn.push_back(normalised(t.elements[k]));
+    }
+    if (poses.size() < 2) continue;
+    const Eigen::Vector3d X = triangulate_dlt(poses, xn);
+    if (X.allFinite()) t.X = X;  // the filter after the adjustment judges it
+  }
+}
+
 void IncrementalMapper::local_adjust(int image) {
   // The new image and the registered images sharing the most points with it.
   std::map<int, int> shared;
@@ -813,12 +903,12 @@ void IncrementalMapper::local_adjust(int image) {
   adjust(variable, false);
 }
 
-void IncrementalMapper::global_adjust(double max_error_px) {
+void IncrementalMapper::global_adjust(double max_error_px, bool bounded) {
   std::vector<int> all;
   for (int i = 0; i < int(images_.size()); ++i) {
     if (registered_[i]) all.push_back(i);
   }
-  adjust(all, true);
+  adjust(all, true, bounded);
   complete_tracks(max_error_px);
   filter_points(all_point_tracks(), max_error_px);
   retriangulate_all();
@@ -854,7 +944,7 @@ Reconstruction IncrementalMapper::run(IncrementalSummary& summary) {
       // Stuck: a global refinement may add points that let another image in, so every
       // image that failed gets another try.
       if (last_global != n_registered_) {
-        global_adjust(opt_.max_reprojection_px);
+        global_adjust(opt_.max_reprojection_px, true);
         last_global = n_registered_;
         std::fill(failed_at_.begin(), failed_at_.end(), -1);
         continue;
@@ -869,7 +959,7 @@ Reconstruction IncrementalMapper::run(IncrementalSummary& summary) {
     // A pose from few points: the global adjustment pins it with its new two-view points.
     if (retried || n_registered_ < opt_.early_global_images ||
         n_registered_ >= opt_.global_ba_growth * last_global) {
-      global_adjust(opt_.max_reprojection_px);  // covers what the local one would do
+      global_adjust(opt_.max_reprojection_px, true);  // covers what the local one would do
       last_global = n_registered_;
     } else {
       local_adjust(image);
@@ -880,7 +970,8 @@ Reconstruction IncrementalMapper::run(IncrementalSummary& summary) {
   // intermediate tolerances, and only the last adjustment runs to `bundle`'s.
   for (int pass = 0; pass < opt_.final_refinement_passes; ++pass) {
     check_cancelled();
-    const double gate = pass == 0 ? opt_.max_reprojection_px : opt_.final_max_reprojection_px;
+    const bool last = pass + 1 == opt_.final_refinement_passes;
+    const double gate = last ? opt_.final_max_reprojection_px : opt_.max_reprojection_px;
     global_adjust(gate);
   }
   // Last adjustment after the final filtering, so the points removed do not bias it.
@@ -905,6 +996,7 @@ Reconstruction IncrementalMapper::run(IncrementalSummary& summary) {
   summary.reprojection_rmse_px = reprojection_rmse_px(rec, keypoints_);
   summary.local_adjustments = local_count_;
   summary.global_adjustments = global_count_;
+  summary.bounded_adjustments = bounded_count_;
   summary.filtered_observations = filtered_;
   summary.registered_on_retry = retry_registered_;
   for (std::size_t i = 0; i < images_.size(); ++i) {

@@ -71,6 +71,13 @@ struct IncrementalOptions {
   // most variable images (those that tie the poses together) and leaves the rest
   // to the next global adjustment.
   int local_ba_max_observations = 15000;
+  // Observations in an intermediate global adjustment (while photos are still being
+  // added), at most (0 = no bound). Such an adjustment only keeps the poses on track for
+  // the next resections, and in a compact layer a few hundred well-spread points per
+  // photo pin a pose as well as thousands do: the bound keeps the longest tracks until
+  // every photo has its share (budget / registered photos) and re-triangulates the
+  // points it left out from the adjusted poses. The final adjustments take every point.
+  int global_ba_max_observations = 40000;
   // A global adjustment runs when the registered count has grown by this factor
   // since the last one (and for every image while fewer than `early_global_images`).
   double global_ba_growth = 1.25;
@@ -92,7 +99,16 @@ struct IncrementalOptions {
   // `bundle` as given).
   int intermediate_ba_max_iterations = 30;
   double intermediate_ba_function_tolerance = 1e-6;  // relative cost change
-  int final_refinement_passes = 2;  // global BA / filter / retriangulate rounds at the end
+  // Global BA / filter / retriangulate rounds at the end, >= 1; the last filters with
+  // final_max_reprojection_px, the others with max_reprojection_px. One is enough when
+  // the intermediate adjustments kept the model close (a second moved no check-marker
+  // figure on the full-size example, docs/performance.md).
+  int final_refinement_passes = 1;
+  // Relative cost change at which the last adjustment stops (the larger of this and
+  // bundle.function_tolerance). Past 1e-6 the Cauchy-weighted cost creeps down for
+  // dozens of iterations that move no camera by a measurable amount, and a layer with
+  // markers is adjusted again with them (georeference) from this state.
+  double final_ba_function_tolerance = 1e-6;
 
   // Throws InputError naming the first invalid field.
   void validate() const;
@@ -110,6 +126,7 @@ struct IncrementalSummary {
   double reprojection_rmse_px = 0;
   int local_adjustments = 0;
   int global_adjustments = 0;
+  int bounded_adjustments = 0;           // global ones on a subset of the points (global_ba_max_observations)
   std::size_t filtered_observations = 0; // outlier observations removed over the run
   std::size_t registered_on_retry = 0;   // photos placed by the relaxed retry
   std::vector<std::string> unregistered; // image names that could not be placed
