@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <random>
@@ -14,19 +15,24 @@ namespace {
 
 constexpr double kNoiseK = 0.0015;  // 1/m: the default depth noise, sigma = k z^2
 // The recorded poses drift by several centimetres round the loop (checked below);
-// registration must bring every camera within a few noise sigmas of the truth.
+// registration must bring every camera within about one sigma of a single point's
+// depth noise at 2.3 m (8 mm), and several times closer than the device put it.
 constexpr double kMinRecordedDriftM = 0.03;
-constexpr double kMaxPositionErrorM = 0.005;
+constexpr double kMaxPositionErrorM = 0.01;
 constexpr double kMaxRotationErrorRad = 0.003;
+constexpr double kMinDriftReduction = 3.0;
+constexpr double kMinInlierShare = 0.5;
 
-// A 4 m x 3 m trench 0.4 m deep with steep sides in undulating ground, and a block
-// standing in it: enough relief to fix all six degrees of freedom.
+// A 4 m x 3 m trench 0.4 m deep with sloping sides (sampled as a height field, a
+// vertical side would hold no points), two blocks standing in it and bumps of a few
+// centimetres: enough relief to fix all six degrees of freedom.
 double height(double x, double y) {
-  const double inside = 0.25 * (1 + std::tanh((x - 0.0) / 0.02)) * (1 + std::tanh((4.0 - x) / 0.02)) * 0.5 *
-                        (1 + std::tanh((y - 0.0) / 0.02)) * (1 + std::tanh((3.0 - y) / 0.02)) * 0.5;
-  const double block = (std::abs(x - 2.6) < 0.3 && std::abs(y - 1.2) < 0.2) ? 0.2 : 0.0;
-  return 0.02 * std::sin(1.3 * x) + 0.015 * std::cos(1.7 * y) + 0.01 * std::sin(3.1 * x + 2.3 * y) -
-         0.4 * inside + block * inside;
+  auto step = [](double t) { return 0.5 * (1 + std::tanh(t / 0.12)); };
+  const double inside = step(x) * step(4.0 - x) * step(y) * step(3.0 - y);
+  const double block = (std::abs(x - 2.6) < 0.3 && std::abs(y - 1.2) < 0.2 ? 0.2 : 0.0) +
+                       (std::abs(x - 1.1) < 0.15 && std::abs(y - 2.0) < 0.35 ? 0.15 : 0.0);
+  return 0.03 * std::sin(14.0 * x) * std::cos(17.0 * y) + 0.02 * std::sin(1.3 * x + 0.7 * y) - 0.4 * inside +
+         block * inside;
 }
 
 Eigen::Isometry3d look_at(const Eigen::Vector3d& c, const Eigen::Vector3d& target) {
@@ -43,7 +49,7 @@ struct Sequence {
   std::vector<std::vector<Eigen::Vector3d>> frames;  // camera frame, thinned
 };
 
-// `share` of a loop round the trench, `n` frames; the surface sampled every 2 cm and
+// `share` of a loop round the trench, `n` frames; the surface sampled every 2.5 cm and
 // kept where a 63 x 49 degree camera sees it within 3 m, with noise k z^2 on depth.
 Sequence make_sequence(int n, double share, unsigned seed) {
   Sequence s;
@@ -68,8 +74,8 @@ Sequence make_sequence(int n, double share, unsigned seed) {
     s.recorded.push_back(recorded);
     std::vector<Eigen::Vector3d> points;
     const Eigen::Isometry3d to_camera = s.truth.back().inverse();
-    for (double x = -1.0; x <= 5.0; x += 0.02)
-      for (double y = -1.0; y <= 4.0; y += 0.02) {
+    for (double x = -1.0; x <= 5.0; x += 0.025)
+      for (double y = -1.0; y <= 4.0; y += 0.025) {
         const Eigen::Vector3d p = to_camera * Eigen::Vector3d(x, y, height(x, y));
         if (p.z() < 0.3 || p.z() > 3.0 || std::abs(p.x() / p.z()) > 0.61 || std::abs(p.y() / p.z()) > 0.457) continue;
         points.push_back(p * (1 + kNoiseK * p.z() * normal(rng)));  // along the ray: depth z(1 + k z e)
@@ -87,22 +93,27 @@ double rotation_error(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
 }
 
 TEST(DepthTracking, RemovesTheRecordedDriftAndClosesTheLoop) {
-  const int n = 40;
-  const Sequence s = make_sequence(n, 0.97, 7);
+  const int n = 24;
+  const Sequence s = make_sequence(n, 1.0, 7);  // the last frame one step short of the first
   ASSERT_GT(position_error(s.recorded.back(), s.truth.back()), kMinRecordedDriftM);
   const DepthTrackingSummary t = track_depth_sequence(s.frames, s.recorded, DepthTrackingOptions{});
   EXPECT_TRUE(t.loop_closed);
   ASSERT_EQ(t.poses.size(), std::size_t(n));
   EXPECT_EQ(position_error(t.poses[0], s.truth[0]), 0.0);  // the first frame fixes the sequence
+  double worst_recorded = 0, worst = 0;
   for (int i = 0; i < n; ++i) {
-    EXPECT_LT(position_error(t.poses[std::size_t(i)], s.truth[std::size_t(i)]), kMaxPositionErrorM) << "frame " << i;
-    EXPECT_LT(rotation_error(t.poses[std::size_t(i)], s.truth[std::size_t(i)]), kMaxRotationErrorRad) << "frame " << i;
-    if (i > 0) EXPECT_TRUE(t.fit[std::size_t(i)].converged) << "frame " << i;
+    const std::size_t k = std::size_t(i);
+    worst_recorded = std::max(worst_recorded, position_error(s.recorded[k], s.truth[k]));
+    worst = std::max(worst, position_error(t.poses[k], s.truth[k]));
+    EXPECT_LT(position_error(t.poses[k], s.truth[k]), kMaxPositionErrorM) << "frame " << i;
+    EXPECT_LT(rotation_error(t.poses[k], s.truth[k]), kMaxRotationErrorRad) << "frame " << i;
+    EXPECT_GT(t.fit[k].inlier_share, kMinInlierShare) << "frame " << i;
   }
+  EXPECT_GT(worst_recorded, kMinDriftReduction * worst);
 }
 
 TEST(DepthTracking, NoLoopWhenThePathDoesNotReturn) {
-  const Sequence s = make_sequence(16, 0.4, 3);
+  const Sequence s = make_sequence(10, 0.4, 3);
   DepthTrackingOptions o;
   o.refine_rounds = 0;
   const DepthTrackingSummary t = track_depth_sequence(s.frames, s.recorded, o);
