@@ -20,6 +20,7 @@ constexpr double kWobbleRollRad = 0.05;    // radians (3 degrees), amplitude of 
 // The camera aims at the floor this share of the way from the trench centre towards
 // itself: it sees the near half and the middle; the loop covers the rest.
 constexpr double kAimShare = 0.3;
+constexpr double kPathExponent = 6.0;  // of the superellipse the path follows round the trench
 constexpr double kFloorNormalZ = 0.7;  // a hit with a steeper normal is a section face (material bands)
 
 double pixel_normal(std::uint64_t index, std::uint32_t seed) {
@@ -69,7 +70,11 @@ std::vector<DepthFramePlan> plan_depth_sequence(const Scene& scene, int layer, s
   for (int i = 0; i < o.frames; ++i) {
     const double s = double(i) / o.frames;  // share of the loop
     const double theta = start + kTwoPi * s;
-    const Eigen::Vector2d offset(a * std::cos(theta), b * std::sin(theta));
+    // A superellipse |x/a|^p + |y/b|^p = 1 (p = kPathExponent): a rounded rectangle
+    // that stays outside the trench at its corners, where an ellipse through the
+    // middles of the sides would cut across them.
+    auto bend = [](double v) { return std::copysign(std::pow(std::abs(v), 2.0 / kPathExponent), v); };
+    const Eigen::Vector2d offset(a * bend(std::cos(theta)), b * bend(std::sin(theta)));
     Eigen::Vector2d xy = centre + offset;
     xy += kWobblePositionM * Eigen::Vector2d(wobble(0, s), wobble(1, s));
     const Eigen::Vector3d c(xy.x(), xy.y(), surface.sample(xy.x(), xy.y()) + o.height_m + kWobblePositionM * wobble(2, s));
