@@ -1,8 +1,9 @@
-// strata import photos|scan|markers|finds|units|relations, strata markers, strata find add
+// strata import photos|scan|depth|markers|finds|units|relations, strata markers, strata find add
 #include "cli/commands.hpp"
 #include "cli/common.hpp"
 #include "core/error.hpp"
 #include "core/log.hpp"
+#include "importers/depth/depth_importer.hpp"
 #include "importers/finds/find_importer.hpp"
 #include "importers/markers/marker_importer.hpp"
 #include "importers/photos/photo_importer.hpp"
@@ -199,6 +200,53 @@ void register_scan_import(CLI::App& import) {
   });
 }
 
+// strata import depth DIR --layer L --intrinsics FILE [--depth-scale S] [--noise-k K] [--poses FILE]
+//                     [--colour DIR] [--sequence NAME] FRAME...
+void register_depth_import(CLI::App& import) {
+  auto* cmd = import.add_subcommand(
+      "depth",
+      "copy an RGB-D depth sequence of a layer into media/ (named by SHA-256, never modified) and\n"
+      "record it: 16-bit greyscale PNG depth frames (0 = no depth; --depth-scale metres a unit), in\n"
+      "the order given, the camera's intrinsics (a text file: width, height, fx, fy, cx, cy), optional\n"
+      "colour frames (8-bit PNG, same file names, in --colour) and the poses the device recorded\n"
+      "(--poses: 'file tx ty tz qx qy qz qw' a line, camera -> site frame). Every file is read and\n"
+      "checked; a wrong header, a truncated or damaged file, a frame of another size or without a\n"
+      "pose imports nothing. 'strata register depth' then places the frames. See docs/range.md.");
+  auto dir = std::make_shared<std::string>();
+  auto options = std::make_shared<DepthImportOptions>();
+  auto files = std::make_shared<std::vector<std::string>>();
+  auto intrinsics = std::make_shared<std::string>();
+  auto poses = std::make_shared<std::string>();
+  auto colour = std::make_shared<std::string>();
+  auto sequence = std::make_shared<std::string>();
+  cmd->add_option("DIR", *dir, "project folder")->required();
+  cmd->add_option("--layer", options->layer, "layer the sequence records")->required();
+  cmd->add_option("--intrinsics", *intrinsics, "the depth camera's intrinsics file")->required();
+  cmd->add_option("--depth-scale", options->depth_scale_m, "metres per unit of the PNG (default 0.001: millimetres)");
+  cmd->add_option("--noise-k", options->noise_k,
+                  fmt::format("depth noise: one sigma = K z^2, K in 1/m (default {}: 1.5 mm at 1 m)",
+                              kDefaultDepthNoiseK));
+  cmd->add_option("--poses", *poses, "the poses the device recorded, one line a frame (needed by 'register depth')");
+  cmd->add_option("--colour", *colour, "folder of the colour frames, named as the depth frames");
+  cmd->add_option("--sequence", *sequence, "name of the sequence (default: the folder of the first frame)");
+  cmd->add_option("FRAME", *files, "depth frames (.png), in the order they were taken")->required();
+  cmd->footer("Example: strata import depth site --layer L4 --intrinsics cam.txt --poses poses.txt --colour rgb/ depth/*.png");
+  cmd->callback([=] {
+    options->intrinsics = *intrinsics;
+    if (!poses->empty()) options->poses = *poses;
+    if (!colour->empty()) options->colour_dir = *colour;
+    if (!sequence->empty()) options->sequence = *sequence;
+    const ProjectLock lock = lock_project(*dir);
+    Project p = Project::open(*dir);
+    const std::vector<std::filesystem::path> paths(files->begin(), files->end());
+    const auto s = import_depth(p, *options, paths);
+    fmt::print("layer {}: depth sequence '{}' imported: {} frame(s) of {} x {} px, {} with colour, {} with a "
+               "recorded pose, {:.1f} million depths\n",
+               options->layer, s.sequence, s.frames, s.intrinsics.width, s.intrinsics.height, s.with_colour,
+               s.with_pose, 1e-6 * double(s.valid_pixels));
+  });
+}
+
 }  // namespace
 
 void register_import_commands(CLI::App& app) {
@@ -276,6 +324,7 @@ void register_import_commands(CLI::App& app) {
     });
   }
   register_scan_import(*import);
+  register_depth_import(*import);
   register_find_imports(app, *import);
   register_stratigraphy_imports(*import);
   {

@@ -10,6 +10,7 @@
 #include "pipeline/stage_json.hpp"
 #include "report/report.hpp"
 #include "project/media.hpp"
+#include "project/depth_records.hpp"
 #include "project/project.hpp"
 #include "project/records.hpp"
 #include "project/scan_records.hpp"
@@ -173,16 +174,18 @@ struct ProcessRun {
 
 // One layer through the stages asked for; its figures as `--json` prints them.
 nlohmann::json process_layer(Project& p, const std::string& name, const ProcessRun& run) {
-  // A layer recorded by range scans alone has nothing to align: its registered
-  // scans are fused directly (docs/range.md).
+  // A layer recorded by range scans or depth sequences alone has nothing to align:
+  // its registered scans and depth frames are fused directly (docs/range.md).
   const LayerRecord rec = require_layer(p.db(), name);
-  const bool scans_only = list_images(p.db(), rec.id).empty() && !list_scans(p.db(), rec.id).empty();
+  const std::size_t scans = list_scans(p.db(), rec.id).size();
+  const std::size_t sequences = list_depth_sequences(p.db(), rec.id).size();
+  const bool scans_only = list_images(p.db(), rec.id).empty() && scans + sequences > 0;
   nlohmann::json q;
   bool aligned_anew = false;
   if (scans_only) {
-    log::info("== layer {}: no photos, {} range scan(s): no alignment", name, list_scans(p.db(), rec.id).size());
+    log::info("== layer {}: no photos, {} range scan(s), {} depth sequence(s): no alignment", name, scans, sequences);
     q = {{"layer", name}, {"photos", false}};
-    if (!run.json) fmt::print("layer {}\n  no photos: the surface comes from its range scans\n", name);
+    if (!run.json) fmt::print("layer {}\n  no photos: the surface comes from its range scans and depth frames\n", name);
   } else {
     log::info("== layer {}: alignment", name);
     const AlignResult r = align_layer(p, name, run.align);

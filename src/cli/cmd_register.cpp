@@ -1,14 +1,19 @@
 // strata register scan: unregistered range scans placed in the site frame on surveyed
 // targets, or by ICP against a photogrammetric surface (docs/range.md, "Registration").
+// strata register depth: RGB-D depth sequences tracked frame to model and closed on
+// their first frames (docs/range.md, "Registration of depth sequences").
 #include "cli/commands.hpp"
 #include "cli/common.hpp"
+#include "pipeline/register_depth.hpp"
 #include "pipeline/register_scans.hpp"
 #include "project/project.hpp"
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <memory>
+#include <vector>
 
 namespace strata::cli {
 namespace {
@@ -77,6 +82,65 @@ void print_registration(const LayerRegistrationSummary& s) {
   fmt::print("run 'strata process' to fuse them into the layer's surface\n");
 }
 
+nlohmann::json matrix_json(const Eigen::Matrix4d& m) {
+  nlohmann::json out = nlohmann::json::array();
+  for (int k = 0; k < 16; ++k) out.push_back(m(k / 4, k % 4));
+  return out;
+}
+
+nlohmann::json registration_json(const DepthRegistrationSummary& s) {
+  nlohmann::json out = {{"layer", s.layer}, {"sequences", nlohmann::json::array()}};
+  for (const DepthSequenceResult& q : s.sequences) {
+    nlohmann::json frames = nlohmann::json::array();
+    for (const DepthFrameResult& r : q.frames) {
+      frames.push_back({{"frame", r.frame.name},
+                        {"method", r.frame.fit->method},
+                        {"pose", matrix_json(r.pose)},
+                        {"tracked_pose", matrix_json(r.tracked)},
+                        {"recorded_pose", matrix_json(r.recorded)},
+                        {"rms_m", r.fit.rms_m},
+                        {"inlier_share", r.fit.inlier_share},
+                        {"sigma_translation_m", r.fit.sigma_translation_m},
+                        {"sigma_rotation_rad", r.fit.sigma_rotation_rad},
+                        {"iterations", r.fit.iterations},
+                        {"median_depth_m", r.median_depth_m},
+                        {"points_used", r.points_used}});
+    }
+    out["sequences"].push_back({{"sequence", q.sequence.name},
+                                {"frames", frames},
+                                {"loop_closed", q.loop_closed},
+                                {"loop_frames", q.loop_frames},
+                                {"loop_inlier_share", q.loop_inlier_share},
+                                {"loop_correction_m", q.loop_correction_m},
+                                {"loop_correction_rad", q.loop_correction_rad},
+                                {"seconds", q.seconds}});
+  }
+  return out;
+}
+
+void print_registration(const DepthRegistrationSummary& s) {
+  for (const DepthSequenceResult& q : s.sequences) {
+    std::vector<double> rms;
+    double worst_t = 0, worst_r = 0;
+    for (const DepthFrameResult& r : q.frames) {
+      rms.push_back(r.fit.rms_m);
+      worst_t = std::max(worst_t, r.fit.sigma_translation_m);
+      worst_r = std::max(worst_r, r.fit.sigma_rotation_rad);
+    }
+    std::sort(rms.begin(), rms.end());
+    fmt::print("layer {}: depth sequence '{}': {} frames registered in {:.0f} s; RMS residual median {:.2f} mm, "
+               "largest {:.2f} mm; pose sigma at most {:.3f} mm / {:.4f} mrad (lower bounds)\n",
+               s.layer, q.sequence.name, q.frames.size(), q.seconds, 1000 * rms[rms.size() / 2], 1000 * rms.back(),
+               1000 * worst_t, 1000 * worst_r);
+    if (q.loop_closed)
+      fmt::print("  loop closed on the first {} frames: the last camera moved {:.1f} mm and turned {:.2f} mrad\n",
+                 q.loop_frames, 1000 * q.loop_correction_m, 1000 * q.loop_correction_rad);
+    else
+      fmt::print("  loop not closed: the last frame does not overlap the first {} frames\n", q.loop_frames);
+  }
+  fmt::print("run 'strata process' to fuse them into the layer's surface\n");
+}
+
 // Opens the project under its write lock, registers, and prints the result.
 template <class Register>
 void run_registration(const std::string& dir, bool json, Register&& register_scans) {
@@ -87,10 +151,40 @@ void run_registration(const std::string& dir, bool json, Register&& register_sca
   else print_registration(result);
 }
 
+// strata register depth DIR --layer L [--sequence NAME] [--json]
+void register_depth_registration(CLI::App& reg) {
+  auto* cmd = reg.add_subcommand(
+      "depth",
+      "register a layer's RGB-D depth sequences in the site frame: each frame fitted by robust\n"
+      "point-to-plane ICP to the model of the frames before it, starting from the motion the device\n"
+      "recorded (its first frame keeps its recorded pose); then the loop closed by fitting the last\n"
+      "frame to the first ones and spreading the correction along the sequence; then every frame\n"
+      "fitted again to the model of all frames. Per frame: RMS residual, inlier share, pose sigma.\n"
+      "When any frame cannot be registered, nothing is changed. See docs/range.md.");
+  auto dir = std::make_shared<std::string>();
+  auto layer = std::make_shared<std::string>();
+  auto sequence = std::make_shared<std::string>();
+  auto json = std::make_shared<bool>(false);
+  auto rounds = std::make_shared<int>(DepthTrackingOptions{}.refine_rounds);
+  cmd->add_option("DIR", *dir, "project folder")->required();
+  cmd->add_option("--layer", *layer, "the layer whose depth sequences to register")->required();
+  cmd->add_option("--sequence", *sequence, "one sequence, by name (default: every sequence of the layer)");
+  cmd->add_option("--rounds", *rounds, "rounds of re-registration against the model of all frames (0..10)")
+      ->capture_default_str();
+  cmd->add_flag("--json", *json, "print the registration figures as JSON (every frame's poses and fit)");
+  cmd->footer("Example: strata register depth site --layer L4 --json > L4_depth.json");
+  cmd->callback([=] {
+    DepthRegistrationOptions options;
+    if (!sequence->empty()) options.sequence = *sequence;
+    options.tracking.refine_rounds = *rounds;
+    run_registration(*dir, *json, [&](Project& p) { return register_layer_depth(p, *layer, options); });
+  });
+}
+
 }  // namespace
 
 void register_registration_commands(CLI::App& app) {
-  auto* reg = app.add_subcommand("register", "place range scans in the site frame");
+  auto* reg = app.add_subcommand("register", "place range scans and depth sequences in the site frame");
   reg->require_subcommand(1);
   auto* cmd = reg->add_subcommand(
       "scan",
@@ -144,6 +238,7 @@ void register_registration_commands(CLI::App& app) {
     if (!scan->empty()) options.scan = *scan;
     run_registration(*dir, *json, [&](Project& p) { return register_layer_scans(p, *layer, options); });
   });
+  register_depth_registration(*reg);
 }
 
 }  // namespace strata::cli

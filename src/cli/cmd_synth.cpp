@@ -23,6 +23,8 @@ struct SynthArgs {
   bool no_exif = false;
   bool scans = false;
   double scan_step_mrad = 0, scan_sigma = -1;
+  bool depth = false;
+  int depth_frames = -1;
 };
 
 // The camera of each synthetic lens (docs/cameras.md, "Synthetic lenses").
@@ -60,6 +62,8 @@ void run_synth(const SynthArgs& a) {
   o.scans.enabled = a.scans;
   if (a.scan_step_mrad > 0) o.scans.step_mrad = a.scan_step_mrad;
   if (a.scan_sigma >= 0) o.scans.sigma_m = a.scan_sigma;
+  o.depth.enabled = a.depth;
+  if (a.depth_frames >= 0) o.depth.frames = a.depth_frames;
   if (a.stages >= 0) o.site.stages = a.stages;
   if (a.photos >= 0) o.photos.per_layer = a.photos;
   // A different width keeps the preset's aspect unless --height is given, and
@@ -88,6 +92,10 @@ void run_synth(const SynthArgs& a) {
     fmt::print("  scans.csv: {} simulated laser scans, {} points (step {} mrad, range sigma {} mm), poses in "
                "scans/L<k>/S<n>_pose.txt\n",
                s.scans, s.scan_points, o.scans.step_mrad, 1000 * o.scans.sigma_m);
+  if (o.depth.enabled)
+    fmt::print("  depth/L<k>/: {} simulated depth frames ({} x {}, noise {} z^2), true and recorded (drifting) "
+               "poses in poses_true.txt, poses_recorded.txt\n",
+               s.depth_frames, o.depth.width, o.depth.height, o.depth.noise_k);
 }
 
 }  // namespace
@@ -138,6 +146,11 @@ void register_synth_command(CLI::App& app) {
                 "listed in scans.csv (docs/range.md)");
   cmd->add_option("--scan-step-mrad", args->scan_step_mrad,
                   "angular step of the simulated scans, milliradians [2: 4-8 mm at the floor]");
+  cmd->add_flag("--depth", args->depth,
+                "also simulate a hand-held depth camera (RGB-D) sequence of every layer: 16-bit PNG\n"
+                "depth in millimetres and RGB PNG per frame, intrinsics, true and drifting recorded\n"
+                "poses under depth/L<k>/ (docs/range.md)");
+  cmd->add_option("--depth-frames", args->depth_frames, "depth frames per layer, one loop round the trench [60]");
   cmd->add_option("--scan-sigma", args->scan_sigma, "range noise of the simulated scans, metres, one sigma [0.003]");
   cmd->callback([args] { run_synth(*args); });
 }

@@ -123,6 +123,11 @@ struct RangeScanInput {
   // station known), along the point's normal when the file has normals (turned to
   // face up), else along the vertical, as if seen from straight above.
   std::optional<Eigen::Vector3d> station;
+  // The noise of a point (site frame, metres) when it varies from point to point, as
+  // a depth camera's grows with the square of the depth (k z^2); it then replaces
+  // sigma_m for that point, and sigma_m is only the scale its weights are relative to.
+  // Empty: sigma_m for every point.
+  std::function<double(const Eigen::Vector3d& point)> point_sigma;
   // Reads the scan: calls `sink` with consecutive chunks of points (site frame,
   // metres) and their unit normals (site frame; empty when the file has none).
   using ChunkSink = std::function<void(const std::vector<Eigen::Vector3d>& points,

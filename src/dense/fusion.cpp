@@ -198,8 +198,10 @@ void TsdfVolume::integrate(const PinholeCamera& cam, const DepthMap& depth,
 }
 
 void TsdfVolume::add_scan_points(const std::vector<Eigen::Vector3d>& points,
-                                 const std::vector<Eigen::Vector3d>& dirs) {
+                                 const std::vector<Eigen::Vector3d>& dirs, const std::vector<double>& relative_weights) {
   STRATA_CHECK(points.size() == dirs.size(), "{} scan points but {} ray directions", points.size(), dirs.size());
+  STRATA_CHECK(relative_weights.empty() || relative_weights.size() == points.size(), "{} scan points but {} weights",
+               points.size(), relative_weights.size());
   STRATA_CHECK(impl_->weight && impl_->colour && impl_->spread && impl_->weight2,
                "volume read from a file cannot integrate");
   auto& I = *impl_;
@@ -217,6 +219,7 @@ void TsdfVolume::add_scan_points(const std::vector<Eigen::Vector3d>& points,
   for (std::size_t i = 0; i < points.size(); ++i) {
     const Eigen::Vector3d& p = points[i];
     const Eigen::Vector3d& u = dirs[i];
+    const float pw = relative_weights.empty() ? 1.f : static_cast<float>(relative_weights[i]);
     // Every voxel of the 2 x 2 x 2 blocks around the samples, once per point.
     cells.clear();
     for (int s = 0; s <= n_steps; ++s) {
@@ -236,7 +239,7 @@ void TsdfVolume::add_scan_points(const std::vector<Eigen::Vector3d>& points,
       const double lateral2 = (off - d * u).squaredNorm();
       const float g = static_cast<float>(std::exp(-0.5 * lateral2 * inv_v2));
       const openvdb::Vec3s old = acc.getValue(c);
-      acc.setValue(c, openvdb::Vec3s(old[0] + g, old[1] + g * static_cast<float>(d), old[2] + g * g));
+      acc.setValue(c, openvdb::Vec3s(old[0] + pw * g, old[1] + pw * g * static_cast<float>(d), old[2] + pw * g * g));
     }
   }
 }

@@ -129,7 +129,13 @@ class TsdfVolume {
   // `weight_per_point` x n_eff, n_eff = (sum g)^2 / sum g^2 the effective number of
   // points averaged (the inverse variance of their mean, in the fusion's unit
   // weight). Voxels no photo saw get a mid grey colour.
-  void add_scan_points(const std::vector<Eigen::Vector3d>& points, const std::vector<Eigen::Vector3d>& dirs);
+  // Points of unequal noise (a depth camera's k z^2) carry `relative_weights`, the
+  // inverse variance of each relative to the scan's sigma: a voxel then sums w g,
+  // w g d and w g^2, so its mean is inverse-variance weighted and n_eff = (sum w g)^2
+  // / sum w g^2 is the inverse variance of that mean in units of the scan's sigma
+  // (equal weights: as without). Empty: every point weighs 1.
+  void add_scan_points(const std::vector<Eigen::Vector3d>& points, const std::vector<Eigen::Vector3d>& dirs,
+                       const std::vector<double>& relative_weights = {});
   struct ScanFusion {
     std::size_t voxels = 0;  // voxels that received an observation from the scan
     double weight = 0;       // sum of the weights added
@@ -192,7 +198,8 @@ struct ScanFusionFigures {
   std::uint64_t points = 0;
   double weight = 0;  // sum of the weights the scans added
 };
-// Fuses every scan into `volume`, each point weighing (unit_sigma_m / sigma_m)^2.
+// Fuses every scan into `volume`, each point weighing (unit_sigma_m / sigma)^2, sigma
+// its scan's sigma_m or, when the scan has one, its point_sigma.
 ScanFusionFigures fuse_scans(TsdfVolume& volume, const std::vector<RangeScanInput>& scans, double unit_sigma_m);
 
 }  // namespace strata::dense

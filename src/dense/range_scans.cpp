@@ -65,8 +65,18 @@ ScanFusionFigures fuse_scans(TsdfVolume& volume, const std::vector<RangeScanInpu
   for (const auto& scan : scans) {
     check_cancelled();
     std::uint64_t points = 0;
+    std::vector<double> relative;  // (sigma_m / point sigma)^2, when the noise varies
     scan.read([&](const std::vector<Eigen::Vector3d>& chunk, const std::vector<Eigen::Vector3f>& normals) {
-      volume.add_scan_points(chunk, scan_ray_directions(scan, chunk, normals));
+      relative.clear();
+      if (scan.point_sigma) {
+        relative.reserve(chunk.size());
+        for (const auto& p : chunk) {
+          const double sigma = scan.point_sigma(p);
+          STRATA_CHECK(sigma > 0 && std::isfinite(sigma), "scan {}: point sigma {}", scan.name, sigma);
+          relative.push_back(std::pow(scan.sigma_m / sigma, 2));
+        }
+      }
+      volume.add_scan_points(chunk, scan_ray_directions(scan, chunk, normals), relative);
       points += chunk.size();
     });
     // Inverse variance in the fusion's unit weight (FusionOptions::photo_depth_sigma_gsd).

@@ -128,19 +128,26 @@ void IcpOptions::validate() const {
   need(min_support_share > 0 && min_support_share < 1, "min_support_share", "in (0, 1)");
 }
 
-std::vector<Eigen::Vector3d> voxel_subsample(const std::vector<Eigen::Vector3d>& points, double voxel_m) {
-  STRATA_CHECK(voxel_m > 0, "voxel size must be > 0");
-  std::map<std::int64_t, std::pair<Eigen::Vector3d, int>> cells;  // ordered: a deterministic result
-  for (const auto& p : points) {
-    auto [it, fresh] = cells.try_emplace(cell_key((p / voxel_m).array().floor().cast<int>()), Eigen::Vector3d::Zero(), 0);
-    auto& c = it->second;
-    c.first += p;
-    ++c.second;
-  }
+VoxelMeans::VoxelMeans(double voxel_m) : voxel_(voxel_m) { STRATA_CHECK(voxel_m > 0, "voxel size must be > 0"); }
+
+void VoxelMeans::add(const Eigen::Vector3d& p) {
+  auto [it, fresh] = cells_.try_emplace(cell_key((p / voxel_).array().floor().cast<int>()), Eigen::Vector3d::Zero(), 0);
+  auto& c = it->second;
+  c.first += p;
+  ++c.second;
+}
+
+std::vector<Eigen::Vector3d> VoxelMeans::points() const {
   std::vector<Eigen::Vector3d> out;
-  out.reserve(cells.size());
-  for (const auto& [key, c] : cells) out.push_back(c.first / double(c.second));
+  out.reserve(cells_.size());
+  for (const auto& [key, c] : cells_) out.push_back(c.first / double(c.second));
   return out;
+}
+
+std::vector<Eigen::Vector3d> voxel_subsample(const std::vector<Eigen::Vector3d>& points, double voxel_m) {
+  VoxelMeans cells(voxel_m);  // ordered: a deterministic result
+  for (const auto& p : points) cells.add(p);
+  return cells.points();
 }
 
 OrientedPoints estimate_normals(const std::vector<Eigen::Vector3d>& points, double radius_m) {

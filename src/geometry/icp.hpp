@@ -8,6 +8,9 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include <cstdint>
+#include <map>
+#include <utility>
 #include <vector>
 
 namespace strata {
@@ -21,6 +24,19 @@ struct OrientedPoints {
 // One point per occupied cube of `voxel_m` (the mean of the points in it), in a
 // deterministic order: the cloud thinned to an even density.
 std::vector<Eigen::Vector3d> voxel_subsample(const std::vector<Eigen::Vector3d>& points, double voxel_m);
+
+// The same for a cloud that grows (a model built frame by frame): the running mean
+// of the points added to each cube so far.
+class VoxelMeans {
+ public:
+  explicit VoxelMeans(double voxel_m);
+  void add(const Eigen::Vector3d& p);
+  std::vector<Eigen::Vector3d> points() const;  // one a cube, in a deterministic order
+
+ private:
+  double voxel_;
+  std::map<std::int64_t, std::pair<Eigen::Vector3d, int>> cells_;
+};
 
 // Normals by principal components of the neighbours within `radius_m` (at least 5
 // of them; points with fewer are dropped), turned to face +z (surfaces seen from

@@ -35,6 +35,10 @@ std::vector<Eigen::Vector2d> sparse_area(const Reconstruction& rec) {
 }
 
 void warn_unregistered_scans(const LayerRecord& layer, const LayerScans& scans) {
+  for (const auto& seq : scans.unregistered_depth)
+    log::warn("layer {}: depth sequence '{}' has frames not registered, not fused (register them with 'strata "
+              "register depth')",
+              layer.name, seq);
   if (scans.unregistered.empty()) return;
   std::string names;
   for (const auto& n : scans.unregistered) names += (names.empty() ? "" : ", ") + n;
@@ -141,8 +145,8 @@ DenseLayerResult dense_layer(Project& project, const std::string& layer_name, co
   const LayerScans scans = layer_scans(project, layer);
   warn_unregistered_scans(layer, scans);
   if (!alignment && scans.registered.empty()) {
-    throw ProcessingError(fmt::format("layer {} is not aligned and has no registered scan; run 'strata process "
-                                      "--layer {} --until sparse' first",
+    throw ProcessingError(fmt::format("layer {} is not aligned and has no registered scan or depth frame; run "
+                                      "'strata process --layer {} --until sparse' first",
                                       layer.name, layer.name));
   }
   // The alignment, the scans and every option (a changed option recomputes; the

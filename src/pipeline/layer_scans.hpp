@@ -6,6 +6,7 @@
 #include "project/project.hpp"
 #include "project/records.hpp"
 #include "project/scan_records.hpp"
+#include "project/depth_records.hpp"
 
 #include <optional>
 #include <string>
@@ -14,8 +15,10 @@
 namespace strata {
 
 struct LayerScans {
-  std::vector<RangeScanInput> registered;  // 'survey' and 'transform' scans
+  std::vector<RangeScanInput> registered;  // 'survey' and 'transform' scans, then registered depth frames
   std::vector<std::string> unregistered;   // names of the scans no stage can place yet
+  int depth_frames = 0;                    // registered depth frames among `registered`
+  std::vector<std::string> unregistered_depth;  // depth sequences with frames not registered yet
   std::string key;                         // digest of the registered scans (content, sigma, registration)
   std::optional<ScanBounds> bounds;        // union of the registered scans' boxes, site frame
 };
@@ -23,7 +26,9 @@ struct LayerScans {
 // Each 'transform' scan is fused along its rays from the transform's translation
 // (the scanner's origin in the site frame); a 'survey' scan has no station
 // (RangeScanInput::station). Its points go through PROJ when its CRS is not the
-// site's, then the site origin is subtracted.
+// site's, then the site origin is subtracted. A registered depth frame is fused like
+// a 'transform' scan from its camera centre, each point weighted by its noise k z^2
+// (every kDepthFusionStride-th pixel each way).
 LayerScans layer_scans(Project& project, const LayerRecord& layer);
 
 }  // namespace strata

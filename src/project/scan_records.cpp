@@ -1,8 +1,7 @@
 #include "project/scan_records.hpp"
 
 #include "core/error.hpp"
-
-#include <sstream>
+#include "project/matrix_text.hpp"
 
 namespace strata {
 namespace {
@@ -13,21 +12,8 @@ constexpr const char* kScanSelect =
     "registered_by, registered_against, registration_rms_m, registration_inliers, registration_sigma_t_m, "
     "registration_sigma_r_rad FROM scans ";
 
-// Row-major, 17 significant digits: the text reads back to the same doubles.
-std::string matrix_text(const Eigen::Matrix4d& m) {
-  std::string out;
-  for (int r = 0; r < 4; ++r)
-    for (int c = 0; c < 4; ++c) out += fmt::format("{}{:.17g}", out.empty() ? "" : " ", m(r, c));
-  return out;
-}
-
 Eigen::Matrix4d parse_matrix(const std::string& text, std::int64_t id) {
-  std::istringstream in(text);
-  Eigen::Matrix4d m;
-  for (int r = 0; r < 4; ++r)
-    for (int c = 0; c < 4; ++c)
-      if (!(in >> m(r, c))) throw IoError(fmt::format("scans: the transform of scan {} is damaged: '{}'", id, text));
-  return m;
+  return parse_matrix_text(text, fmt::format("scans: the transform of scan {}", id));
 }
 
 ScanRecord read_scan(const Statement& st) {

@@ -10,6 +10,7 @@
 #include "core/resources.hpp"
 #include "crs/crs.hpp"
 #include "exporters/raster/geotiff.hpp"
+#include "synthetic/depth_camera.hpp"
 #include "synthetic/finds.hpp"
 #include "synthetic/noise.hpp"
 #include "synthetic/photo_set.hpp"
@@ -20,6 +21,7 @@
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <tbb/parallel_for.h>
 
@@ -347,6 +349,68 @@ void write_truth_surface(const synthetic::Scene& scene, int k, const SyntheticEx
   write_dtm_geotiff(path, truth, crs_frame, {.cog = false, .compression = "DEFLATE"});
 }
 
+// One pose per line: the depth file's name, then tx ty tz qx qy qz qw (camera ->
+// site frame, metres; the TUM RGB-D trajectory layout with the file name in place
+// of the time stamp), as 'strata import depth --poses' reads it.
+void write_depth_poses(const fs::path& file, const std::vector<std::string>& names,
+                       const std::vector<Eigen::Isometry3d>& poses, const std::string& what) {
+  synthetic::TextFile t(file);
+  t.out() << "# " << what << ": camera (x right, y down, z forward) -> site frame, metres\n"
+          << "# file tx ty tz qx qy qz qw\n";
+  for (std::size_t i = 0; i < poses.size(); ++i) {
+    const Eigen::Quaterniond q(poses[i].linear());
+    const Eigen::Vector3d& p = poses[i].translation();
+    t.out() << fmt::format("{} {:.6f} {:.6f} {:.6f} {:.9f} {:.9f} {:.9f} {:.9f}\n", names[i], p.x(), p.y(), p.z(),
+                           q.x(), q.y(), q.z(), q.w());
+  }
+  t.close();
+}
+
+// The simulated depth sequence of layer k (docs/range.md, "Synthetic depth
+// sequences"): depth/L<k>/depth/<nnnn>.png (16-bit grey, millimetres, 0 = no
+// return), colour/<nnnn>.png (8-bit RGB, the same pixels), intrinsics.txt, poses_true.txt and
+// poses_recorded.txt (the drifting poses a device's tracking would record).
+void write_layer_depth(const synthetic::Scene& scene, int k, const fs::path& dir, SyntheticExcavationSummary& summary) {
+  using namespace synthetic;
+  const auto& o = scene.options();
+  const auto& d = o.depth;
+  const std::string layer = fmt::format("L{}", k + 1);
+  const fs::path out = dir / "depth" / layer;
+  fs::create_directories(out / "depth");
+  fs::create_directories(out / "colour");
+  {
+    TextFile t(out / "intrinsics.txt");
+    t.out() << fmt::format("# simulated depth camera of {}: pixels, (0, 0) the centre of the top-left pixel, "
+                           "no distortion; depth noise one sigma = {} z^2 (z in metres)\n",
+                           layer, d.noise_k);
+    t.out() << fmt::format("width {}\nheight {}\nfx {}\nfy {}\ncx {}\ncy {}\n", d.width, d.height, d.focal_px,
+                           d.focal_px, 0.5 * (d.width - 1), 0.5 * (d.height - 1));
+    t.close();
+  }
+  const auto plan = plan_depth_sequence(scene, k, o.seed);
+  std::vector<std::string> names;
+  std::vector<Eigen::Isometry3d> truth, recorded;
+  for (std::size_t i = 0; i < plan.size(); ++i) {
+    check_cancelled();
+    const DepthFrame frame = render_depth_frame(scene, k, plan[i].true_pose,
+                                                mix64(o.seed * 7057 + std::uint64_t(k) * 41 + i));
+    const std::string name = fmt::format("{:04d}.png", i + 1);
+    const cv::Mat depth(d.height, d.width, CV_16UC1, const_cast<std::uint16_t*>(frame.depth_mm.data()));
+    cv::Mat rgb(d.height, d.width, CV_8UC3, const_cast<std::uint8_t*>(frame.rgb.data())), bgr;
+    cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
+    if (!cv::imwrite((out / "depth" / name).string(), depth) || !cv::imwrite((out / "colour" / name).string(), bgr))
+      throw IoError(fmt::format("synth: {}: frame {} cannot be written", out.string(), name));
+    names.push_back(name);
+    truth.push_back(plan[i].true_pose);
+    recorded.push_back(plan[i].recorded_pose);
+    summary.depth_frames++;
+  }
+  write_depth_poses(out / "poses_true.txt", names, truth, fmt::format("true poses of the depth frames of {}", layer));
+  write_depth_poses(out / "poses_recorded.txt", names, recorded,
+                    fmt::format("poses of the depth frames of {} as the device's tracking recorded them (drifting)",
+                                layer));
+}
+
 // Each recorded layer: bake its lit texture (over the first layer's, for the ground
 // around the trench), photograph it, write its truth and its scans. Returns the lines
 // of gcp_list.txt.
@@ -375,6 +439,7 @@ std::vector<std::string> record_layers(const synthetic::Scene& scene, const Synt
     write_truth_surface(scene, k, o, dir / "truth" / layer / "surface.tif");
     if (k == 0) ground = std::move(texture);
     if (o.scans.enabled) write_layer_scans(scene, k, dir, scan_lines, summary);
+    if (o.depth.enabled) write_layer_depth(scene, k, dir, summary);
   }
   if (o.scans.enabled) {
     TextFile csv(dir / "scans.csv");
@@ -512,6 +577,17 @@ void write_site_json(const synthetic::Scene& scene, const SyntheticExcavationOpt
                   {"count", site.markers},
                   {"check", site.check_markers},
                   {"survey_sigma_m", site.survey_sigma}};
+  if (o.depth.enabled)
+    j["depth"] = {{"dir", "depth"},
+                  {"frames", o.depth.frames},
+                  {"width", o.depth.width},
+                  {"height", o.depth.height},
+                  {"focal_px", o.depth.focal_px},
+                  {"noise_k", o.depth.noise_k},
+                  {"depth_scale_m", 0.001},
+                  {"drift_rotation_mrad", o.depth.drift_rotation_mrad},
+                  {"drift_translation_m", o.depth.drift_translation_m},
+                  {"drift_bias_mrad", o.depth.drift_bias_mrad}};
   if (o.scans.enabled)
     j["scans"] = {{"csv", "scans.csv"},
                   {"stations", o.scans.stations},
@@ -606,6 +682,23 @@ void SyntheticExcavationOptions::validate() const {
   require(scans.height_m >= 0.5 && scans.height_m <= 3, "scans.height_m", scans.height_m, "0.5..3 m");
   require(scans.crop_margin_m >= 0 && scans.crop_margin_m <= 1, "scans.crop_margin_m", scans.crop_margin_m,
           "0..1 m (inside the scene's fine grid)");
+  require(depth.frames >= 8 && depth.frames <= 1000, "depth.frames", depth.frames, "8..1000");
+  require(depth.width >= 32 && depth.width <= 4096, "depth.width", depth.width, "32..4096 pixels");
+  require(depth.height >= 32 && depth.height <= 4096, "depth.height", depth.height, "32..4096 pixels");
+  require(depth.focal_px >= 0.2 * depth.width && depth.focal_px <= 10.0 * depth.width, "depth.focal_px",
+          depth.focal_px, "0.2..10 x depth.width pixels");
+  require(depth.noise_k >= 0 && depth.noise_k <= 0.05, "depth.noise_k", depth.noise_k, "0..0.05 1/m");
+  require(depth.min_depth_m >= 0.05 && depth.min_depth_m < depth.max_depth_m, "depth.min_depth_m",
+          depth.min_depth_m, "0.05 m..depth.max_depth_m");
+  require(depth.max_depth_m <= 65.0, "depth.max_depth_m", depth.max_depth_m, "at most 65 m (16-bit millimetres)");
+  require(depth.height_m >= 0.3 && depth.height_m <= 3, "depth.height_m", depth.height_m, "0.3..3 m");
+  require(depth.edge_offset_m >= 0 && depth.edge_offset_m <= 1, "depth.edge_offset_m", depth.edge_offset_m,
+          "0..1 m (inside the scene's fine grid)");
+  require(depth.drift_rotation_mrad >= 0 && depth.drift_rotation_mrad <= 20, "depth.drift_rotation_mrad",
+          depth.drift_rotation_mrad, "0..20 mrad");
+  require(depth.drift_translation_m >= 0 && depth.drift_translation_m <= 0.05, "depth.drift_translation_m",
+          depth.drift_translation_m, "0..0.05 m");
+  require(std::abs(depth.drift_bias_mrad) <= 20, "depth.drift_bias_mrad", depth.drift_bias_mrad, "-20..20 mrad");
   constexpr double kGridMarginBoth = 2 * 1.2;  // metres: fine grid margin, both sides (scene.cpp)
   const double nodes = (site.trench_size_e + kGridMarginBoth) * (site.trench_size_n + kGridMarginBoth) /
                        (render.height_cell * render.height_cell);

@@ -87,6 +87,26 @@ struct SyntheticExcavationOptions {
     double target_sigma_m = 0.002; // metres, per axis: a marker's centre as the scanner's software finds it
   } scans;
 
+  // A simulated hand-held depth camera (RGB-D) sequence of every layer (docs/range.md,
+  // "Synthetic depth sequences"); off by default, so the other files are the same with
+  // or without it.
+  struct Depth {
+    bool enabled = false;
+    int frames = 60;               // depth frames per layer, one loop round the trench (8..1000)
+    int width = 640;               // pixels
+    int height = 480;              // pixels
+    double focal_px = 525.0;       // fx = fy, pixels: a 63 x 49 degree field of view at 640 x 480
+    double noise_k = 0.0015;       // 1/m: depth noise, one sigma = k z^2 (1.5 mm at 1 m, 6 mm at 2 m)
+    double min_depth_m = 0.3;      // metres: nearer than this the sensor returns nothing
+    double max_depth_m = 4.0;      // metres: farther than this the sensor returns nothing
+    double height_m = 1.2;         // metres: the camera above the ground, held at chest height
+    double edge_offset_m = 0.3;    // metres: the path runs this far outside the trench edge
+    // The recorded poses' drift: per frame, one sigma per axis, in the camera frame.
+    double drift_rotation_mrad = 1.0;  // milliradians
+    double drift_translation_m = 0.002;  // metres
+    double drift_bias_mrad = 0.5;  // milliradians per frame about the image's vertical axis (a gyro bias)
+  } depth;
+
   // Throws InputError naming the first invalid field and its value.
   void validate() const;
 };
@@ -108,6 +128,7 @@ struct SyntheticExcavationSummary {
   int planted_contradictions = 0;  // of which recorded in another unit than the true one
   int scans = 0;                 // simulated scan stations written (options.scans)
   std::int64_t scan_points = 0;
+  int depth_frames = 0;          // simulated depth frames written (options.depth)
   std::vector<UnitVolume> units; // one per removed unit, in excavation order
   double seconds = 0;            // wall-clock time of the whole generation
 };

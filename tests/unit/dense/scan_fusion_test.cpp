@@ -164,6 +164,45 @@ TEST(ScanFusion, WeightsFollowTheNoiseOfScansAndDepthMaps) {
   EXPECT_GT(noisy, 10 * std::abs(precise));
 }
 
+// A depth camera's points carry their own noise (RangeScanInput::point_sigma, k z^2):
+// two scans of the same rays, one 6 mm above the truth whose points say 2 mm, one on
+// the truth whose points say 6 mm, must meet at their inverse-variance mean
+// 6 x 2^-2 / (2^-2 + 6^-2) = 5.4 mm; with the sigmas swapped at 0.6 mm. A point
+// sigma equal to the scan's sigma_m must fuse exactly as no point sigma.
+TEST(ScanFusion, PointSigmasWeighEachPointByItsOwnNoise) {
+  constexpr double kOffset = 0.006, kSigmaScale = 0.001;
+  constexpr double kMeanTolerance = 0.0005;  // metres: the zero crossing between voxel centres, a few tenths of a mm
+  const Eigen::Vector3d station(-0.9, 0.0, 1.5);
+  const std::vector<Eigen::Vector3d> rays = scan_points(station, 0.0, 5);
+  std::vector<Eigen::Vector3d> raised = rays;
+  for (auto& p : raised) p.z() += kOffset;
+  auto with_sigma = [&](const std::vector<Eigen::Vector3d>& points, double sigma) {
+    RangeScanInput in = in_memory(points, station, kSigmaScale);
+    in.point_sigma = [sigma](const Eigen::Vector3d&) { return sigma; };
+    return in;
+  };
+  auto plane_height = [&](const std::vector<RangeScanInput>& scans) {
+    dense::TsdfVolume volume(kVoxel, 2 * kTruncation);
+    dense::fuse_scans(volume, scans, kVoxel);
+    volume.finalise(0.2);
+    const HeightRaster<double> hf = volume.top_surface(RasterGrid::from_south_west_centre(-0.3, 0.15, 0.01, 20, 10));
+    std::vector<double> z;
+    for (double v : hf.z)
+      if (std::isfinite(v)) z.push_back(v);
+    EXPECT_GT(z.size(), 150u);
+    std::nth_element(z.begin(), z.begin() + std::ptrdiff_t(z.size() / 2), z.end());
+    return z[z.size() / 2];
+  };
+  const double raised_precise = plane_height({with_sigma(raised, 0.002), with_sigma(rays, 0.006)});
+  const double raised_noisy = plane_height({with_sigma(raised, 0.006), with_sigma(rays, 0.002)});
+  const double expected = kOffset * (1 / 4.0) / (1 / 4.0 + 1 / 36.0);
+  EXPECT_NEAR(raised_precise, expected, kMeanTolerance);
+  EXPECT_NEAR(raised_noisy, kOffset - expected, kMeanTolerance);
+  // Equal point sigmas: the same as a constant sigma_m.
+  const double constant = plane_height({in_memory(raised, station, 0.002), in_memory(rays, station, 0.006)});
+  EXPECT_NEAR(constant, raised_precise, 1e-6);
+}
+
 TEST(ScanFusion, RaysWithoutAStationFollowTheNormalsOrTheVertical) {
   RangeScanInput scan;
   scan.sigma_m = 0.003;
