@@ -70,7 +70,7 @@ struct IncrementalOptions {
   // most of the model; the bound keeps the points seen by the new image and by the
   // most variable images (those that tie the poses together) and leaves the rest
   // to the next global adjustment.
-  int local_ba_max_observations = 15000;
+  int local_ba_max_observations = 8000;
   // Observations in an intermediate global adjustment (while photos are still being
   // added), at most (0 = no bound). Such an adjustment only keeps the poses on track for
   // the next resections, and in a compact layer a few hundred well-spread points per
