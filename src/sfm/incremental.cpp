@@ -174,6 +174,10 @@ class IncrementalMapper {
   // within `max_px` of the epipolar lines implied by `pose` and the registered poses.
   std::pair<std::size_t, std::size_t> pair_agreement(int image, const Pose& pose,
                                                      double max_px) const;
+  // Elements of `t` that are inliers in registered photos.
+  std::vector<std::size_t> usable_elements(const Track& t) const;
+  // The multi-view DLT point of `t` from the elements `use` (non-finite when degenerate).
+  Eigen::Vector3d dlt_point(const Track& t, const std::vector<std::size_t>& use) const;
   bool triangulate_track(Track& t, double max_error_px);
   std::size_t triangulate_image(int image);
   std::size_t retriangulate_all();
@@ -401,21 +405,30 @@ std::pair<int, int> IncrementalMapper::initialise() {
   return {a, b};
 }
 
-bool IncrementalMapper::triangulate_track(Track& t, double max_error_px) {
+std::vector<std::size_t> IncrementalMapper::usable_elements(const Track& t) const {
   std::vector<std::size_t> use;
   for (std::size_t k = 0; k < t.elements.size(); ++k) {
     if (t.inlier[k] && registered_[t.elements[k].image]) use.push_back(k);
   }
+  return use;
+}
+
+Eigen::Vector3d IncrementalMapper::dlt_point(const Track& t, const std::vector<std::size_t>& use) const {
+  std::vector<Pose> poses;
+  std::vector<Eigen::Vector2d> xn;
+  for (auto k : use) {
+    poses.push_back(poses_[t.elements[k].image]);
+    xn.push_back(normalised(t.elements[k]));
+  }
+  return triangulate_dlt(poses, xn);
+}
+
+bool IncrementalMapper::triangulate_track(Track& t, double max_error_px) {
+  std::vector<std::size_t> use = usable_elements(t);
   // Two rounds: the linear solution from every view, then without views it fits badly.
   for (int round = 0; round < 2; ++round) {
     if (use.size() < 2) return false;
-    std::vector<Pose> poses;
-    std::vector<Eigen::Vector2d> xn;
-    for (auto k : use) {
-      poses.push_back(poses_[t.elements[k].image]);
-      xn.push_back(normalised(t.elements[k]));
-    }
-    const Eigen::Vector3d X = triangulate_dlt(poses, xn);
+    const Eigen::Vector3d X = dlt_point(t, use);
     if (!X.allFinite()) return false;
     t.X = X;
     std::vector<std::size_t> good;
@@ -823,11 +836,7 @@ std::vector<int> IncrementalMapper::bound_global_points(const std::vector<int>& 
   candidates.reserve(ids.size());
   std::size_t total = 0;
   for (int id : ids) {
-    const auto& t = tracks_[id];
-    Candidate c{id, 0};
-    for (std::size_t k = 0; k < t.elements.size(); ++k) {
-      if (t.inlier[k] && registered_[t.elements[k].image]) ++c.rays;
-    }
+    const Candidate c{id, int(usable_elements(tracks_[id]).size())};
     total += std::size_t(c.rays);
     candidates.push_back(c);
   }
@@ -845,15 +854,11 @@ std::vector<int> IncrementalMapper::bound_global_points(const std::vector<int>& 
   for (const auto& c : candidates) {
     if (used + std::size_t(c.rays) > budget) continue;
     const auto& t = tracks_[c.id];
-    bool needed = false;
-    for (std::size_t k = 0; k < t.elements.size() && !needed; ++k) {
-      const int image = t.elements[k].image;
-      needed = t.inlier[k] && registered_[image] && taken[image] < share;
-    }
+    const std::vector<std::size_t> use = usable_elements(t);
+    const bool needed =
+        std::any_of(use.begin(), use.end(), [&](std::size_t k) { return taken[t.elements[k].image] < share; });
     if (!needed) continue;
-    for (std::size_t k = 0; k < t.elements.size(); ++k) {
-      if (t.inlier[k] && registered_[t.elements[k].image]) ++taken[t.elements[k].image];
-    }
+    for (std::size_t k : use) ++taken[t.elements[k].image];
     used += std::size_t(c.rays);
     kept.push_back(c.id);
   }
@@ -868,15 +873,9 @@ void IncrementalMapper::retriangulate_left_out(const std::vector<int>& all_ids, 
                       std::back_inserter(left_out));
   for (int id : left_out) {
     auto& t = tracks_[id];
-    std::vector<Pose> poses;
-    std::vector<Eigen::Vector2d> xn;
-    for (std::size_t k = 0; k < t.elements.size(); ++k) {
-      if (!t.inlier[k] || !registered_[t.elements[k].image]) continue;
-      poses.push_back(poses_[t.elements[k].image]);
-      xn.push_back(normalised(t.elements[k]));
-    }
-    if (poses.size() < 2) continue;
-    const Eigen::Vector3d X = triangulate_dlt(poses, xn);
+    const std::vector<std::size_t> use = usable_elements(t);
+    if (use.size() < 2) continue;
+    const Eigen::Vector3d X = dlt_point(t, use);
     if (X.allFinite()) t.X = X;  // the filter after the adjustment judges it
   }
 }

@@ -6,6 +6,7 @@
 #include "project/project.hpp"
 #include "project/records.hpp"
 #include "support/obj_file.hpp"
+#include "support/recorded_mesh.hpp"
 #include "support/test_support.hpp"
 
 #include <gtest/gtest.h>
@@ -24,6 +25,8 @@ namespace strata {
 namespace {
 
 namespace fs = std::filesystem;
+using test::glb_json;
+using test::record_dense_mesh;
 using test::run_strata;
 
 const Eigen::Vector3d kSiteOrigin(733900.0, 4173900.0, 1450.0);  // E, N, Z metres, as given to init
@@ -53,29 +56,15 @@ fs::path project_with_layer(const test::ScratchDir& dir) {
   return site;
 }
 
-void record_dense_mesh(const fs::path& site, const DenseMesh& m, const std::string& layer = "L1") {
-  Project p = Project::open(site);
-  const LayerRecord l = require_layer(p.db(), layer);
-  ExportFrame frame;
-  frame.site_origin = kSiteOrigin;
-  frame.crs = "EPSG:32636";
-  fs::create_directories(site / "products" / layer / "dense");
-  write_ply(site / "products" / layer / "dense" / "mesh.ply", m, frame);
-  ProductRecord rec;
-  rec.layer_id = l.id;
-  rec.kind = "mesh";
-  rec.path = "products/" + layer + "/dense/mesh.ply";
-  record_product(p.db(), p.dir(), rec);
-}
-
-nlohmann::json glb_json(const fs::path& glb) {
-  const std::string b = test::read_text(glb);
-  std::uint32_t magic = 0, json_len = 0;
-  if (b.size() < 20) return {};
-  std::memcpy(&magic, b.data(), 4);
-  std::memcpy(&json_len, b.data() + 12, 4);
-  if (magic != 0x46546C67 || 20 + std::size_t{json_len} > b.size()) return {};
-  return nlohmann::json::parse(b.substr(20, json_len));
+// Two triangles per square of a (cells + 1) x (cells + 1) vertex grid laid row by row.
+void add_grid_faces(DenseMesh& m, int cells) {
+  for (int j = 0; j < cells; ++j) {
+    for (int i = 0; i < cells; ++i) {
+      const int a = j * (cells + 1) + i;
+      m.faces.push_back({a, a + 1, a + cells + 2});
+      m.faces.push_back({a, a + cells + 2, a + cells + 1});
+    }
+  }
 }
 
 // A coloured grid of cells x cells squares, 1 cm each, two triangles per square (site
@@ -88,13 +77,7 @@ DenseMesh coloured_grid(int cells) {
       m.colours.emplace_back(std::uint8_t(255 * i / cells), 128, 64);
     }
   }
-  for (int j = 0; j < cells; ++j) {
-    for (int i = 0; i < cells; ++i) {
-      const int a = j * (cells + 1) + i;
-      m.faces.push_back({a, a + 1, a + cells + 2});
-      m.faces.push_back({a, a + cells + 2, a + cells + 1});
-    }
-  }
+  add_grid_faces(m, cells);
   return m;
 }
 
@@ -110,7 +93,7 @@ int max_vertex_index(const test::ObjFile& o) {
 // The recorded quad of a fresh project exported as `file` (.glb or .obj) in `dir`.
 fs::path exported_quad(const test::ScratchDir& dir, const std::string& file) {
   const fs::path site = project_with_layer(dir);
-  record_dense_mesh(site, quad());
+  record_dense_mesh(site, "L1", quad());
   const auto r = run_strata({"export", "model", site.string(), "--layer", "L1", "--out", (dir / file).string()});
   EXPECT_EQ(r.exit_code, 0) << r.err;
   return dir / file;
@@ -163,7 +146,7 @@ TEST(CliExportModel, LevelsOfDetailKeepAQuarterOfTheFacesEachAndTheirColours) {
   test::ScratchDir dir("model_lod");
   const fs::path site = project_with_layer(dir);
   const DenseMesh m = coloured_grid(40);
-  record_dense_mesh(site, m);
+  record_dense_mesh(site, "L1", m);
   // The collapses stop on an edge count, so a level ends at or a little below its target.
   constexpr double kMinShareOfTarget = 0.8;
   for (int lod = 1; lod <= 2; ++lod) {
@@ -247,7 +230,7 @@ TEST(CliExportModel, GlbCarriesTheSiteFrame) {
 TEST(CliExportModel, TextureNeedsAlignedPhotos) {
   test::ScratchDir dir("model_texture");
   const fs::path site = project_with_layer(dir);
-  record_dense_mesh(site, quad());
+  record_dense_mesh(site, "L1", quad());
   // The site model textures the layers with aligned photos; this one has none: it
   // keeps its vertex colours, with a warning naming it.
   auto r = run_strata({"export", "model", site.string(), "--texture", "--out", (dir / "site.glb").string()});
@@ -279,7 +262,7 @@ TEST(CliExportModel, SiteModelHasLayersAndMarkersAndRefusesAnUnprocessedProject)
 
   r = run_strata({"layer", "add", site.string(), "L2", "--unit", "101"});
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  record_dense_mesh(site, quad());
+  record_dense_mesh(site, "L1", quad());
   const Eigen::Vector3d gcp = kSiteOrigin + Eigen::Vector3d(101.5, 101.0, -0.05);
   {
     Project p = Project::open(site);
@@ -330,7 +313,7 @@ std::string embedded_model(const std::string& html, const std::string& id = "mod
 
 // Layer L1 processed and one marker surveyed: two scene nodes.
 void record_mesh_and_marker(const fs::path& site) {
-  record_dense_mesh(site, quad());
+  record_dense_mesh(site, "L1", quad());
   Project p = Project::open(site);
   MarkerRecord m;
   m.name = "GCP1";
@@ -466,7 +449,7 @@ TEST(CliExportViewer, MaxFacesSimplifiesLargeLayerMeshes) {
       grid.faces.push_back({a, b + 1, a + 1});
     }
   }
-  record_dense_mesh(site, grid);
+  record_dense_mesh(site, "L1", grid);
   const auto r = run_strata({"export", "viewer", site.string(), "--out", (dir / "site.html").string(),
                              "--max-faces", "100"});
   ASSERT_EQ(r.exit_code, 0) << r.err;
@@ -506,13 +489,7 @@ DenseMesh flat_square(double x0, double y0, double z, double side, int cells, Rg
       m.normals.emplace_back(0, 0, 1);
     }
   }
-  for (int j = 0; j < cells; ++j) {
-    for (int i = 0; i < cells; ++i) {
-      const int a = j * (cells + 1) + i;
-      m.faces.push_back({a, a + 1, a + cells + 2});
-      m.faces.push_back({a, a + cells + 2, a + cells + 1});
-    }
-  }
+  add_grid_faces(m, cells);
   return m;
 }
 
@@ -526,8 +503,8 @@ fs::path two_layer_site(const test::ScratchDir& dir) {
   const fs::path site = project_with_layer(dir);
   const auto r = run_strata({"layer", "add", site.string(), "L2", "--unit", "101"});
   EXPECT_EQ(r.exit_code, 0) << r.err;
-  record_dense_mesh(site, flat_square(100.0, 100.0, kLayerZ, 1.0, 10, kGreen), "L1");
-  record_dense_mesh(site, flat_square(101.5, 100.0, kLayerZ, 1.0, 10, kBlue), "L2");
+  record_dense_mesh(site, "L1", flat_square(100.0, 100.0, kLayerZ, 1.0, 10, kGreen));
+  record_dense_mesh(site, "L2", flat_square(101.5, 100.0, kLayerZ, 1.0, 10, kBlue));
   Project p = Project::open(site);
   MarkerRecord m;
   m.name = "GCP1";
@@ -679,7 +656,7 @@ TEST(CliExportViewer, LargeLayerIsShownCoarseFirstThenAtItsFullLevel) {
   test::ScratchDir dir("viewer_levels");
   const fs::path site = project_with_layer(dir), html = dir / "site.html";
   const DenseMesh grid = coloured_grid(40);
-  record_dense_mesh(site, grid);
+  record_dense_mesh(site, "L1", grid);
   auto r = run_strata({"export", "viewer", site.string(), "--coarse-lod", "2", "--out", html.string()});
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.err.find("(coarse level 2), then all 3200"), std::string::npos) << r.err;
