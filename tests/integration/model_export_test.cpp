@@ -685,20 +685,36 @@ TEST(CliExportViewer, LargeLayerIsShownCoarseFirstThenAtItsFullLevel) {
   EXPECT_EQ(glb_faces(glb_json(dir / "full.glb")), grid.faces.size());
 
   if (!fs::exists(kChromium)) GTEST_SKIP() << "no /usr/bin/chromium (apt-get install chromium)";
-  const std::string probe = R"(<script>var waited = setInterval(function () {
-    if (window.strataViewer.level() !== 'full') return;
-    clearInterval(waited);
-    var out = document.createElement('div');
-    out.id = 'probe';
-    out.textContent = JSON.stringify(window.strataViewer.levels);
-    document.body.appendChild(out);
-  }, 100);</script>)";
+  // Waits on the status box's data-level, not on a timer: a polling timer lets
+  // headless Chromium's virtual time run out before the full level has been parsed.
+  const std::string probe = R"(<script>(function () {
+    function record() {
+      if (window.strataViewer.level() !== 'full' || document.getElementById('probe')) return;
+      var out = document.createElement('div');
+      out.id = 'probe';
+      out.textContent = JSON.stringify(window.strataViewer.levels);
+      document.body.appendChild(out);
+    }
+    new MutationObserver(record).observe(document.getElementById('status'), { attributes: true, childList: true });
+    record();
+  })();</script>)";
   std::string probed = page;
   probed.insert(probed.rfind("</body>"), probe);
   test::write_text(dir / "probe.html", probed);
-  ASSERT_TRUE(run_chromium("--window-size=800,600 --dump-dom", "file://" + (dir / "probe.html").string(), dir / "dom.html"))
-      << test::read_text(dir / "dom.html.err");
-  const std::string dom = test::read_text(dir / "dom.html");
+  // Headless Chromium's virtual time sometimes runs out before the full level is parsed
+  // under load (about one run in five with the suite beside it: the page's
+  // requestAnimationFrame steps and virtual time race). A dump without the probe is
+  // taken again, up to kDumpTries times; what the dump must show is asserted below as
+  // before. The race itself is an open problem (docs/model.md, Viewer).
+  constexpr int kDumpTries = 5;
+  std::string dom;
+  for (int attempt = 0; attempt < kDumpTries; ++attempt) {
+    ASSERT_TRUE(run_chromium("--window-size=800,600 --dump-dom", "file://" + (dir / "probe.html").string(),
+                             dir / "dom.html"))
+        << test::read_text(dir / "dom.html.err");
+    dom = test::read_text(dir / "dom.html");
+    if (dom.find("<div id=\"probe\">") != std::string::npos) break;
+  }
   std::smatch m;
   ASSERT_TRUE(std::regex_search(dom, m, std::regex(R"(<div id="probe">([^<]*)</div>)"))) << dom.substr(0, 2000);
   const nlohmann::json levels = nlohmann::json::parse(m[1].str());
