@@ -11,12 +11,21 @@ truth surface: |z - h(x, y)| / sqrt(1 + |grad h|^2), h bilinear and its gradient
 from central differences, which is the distance to the tangent plane (exact on a
 plane, and on steep walls not inflated the way a vertical difference is).
 
+Next to the tangent plane, the 3D distance to the truth surface (`*_3d_mm`): the
+nearest of samples of the bilinear truth surface 1 mm apart, with the steep ramps
+between samples (trench sides, wall faces) filled in 1 mm steps, so that a point on a
+vertical face is measured against that face and not against the floor beside it (the
+tangent plane of a height field at a wall's foot or top is the floor's or the top's,
+and calls a correct point on the face an outlier of up to the wall's height). Its
+resolution is about 0.5 mm.
+
 Prints one JSON object, for the points over the trench rectangle of site.json
 ("trench") and for all the points over the truth raster:
-  points, median_mm, p95_mm, p99_mm, max_mm, share_over_10mm_pct, share_over_25mm_pct
+  points, median_mm, p95_mm, p99_mm, max_mm, share_over_10mm_pct, share_over_25mm_pct,
+  median_3d_mm, p95_3d_mm, p99_3d_mm, share_over_10mm_3d_pct
 and the vertical |z - h| median and p95 for comparison.
 
-Needs the Debian python3-gdal and python3-numpy (run it with /usr/bin/python3).
+Needs the Debian python3-gdal, python3-numpy and python3-scipy (run it with /usr/bin/python3).
 """
 import argparse
 import json
@@ -104,10 +113,65 @@ def distances(xyz, h, gt):
     return idx, normal, np.abs(dz[ok])
 
 
-def stats(normal, vertical):
+def distances_3d(xyz, h, gt, step=0.001):
+    """Distance of each point to the bilinear truth surface, from samples `step` apart
+    in x and y, plus samples every `step` in z along the steep edges between them."""
+    from scipy.spatial import cKDTree
+    x0, dx, _, y0, _, dy = gt
+    rows, cols = h.shape
+    lo = xyz.min(axis=0) - 0.02
+    hi = xyz.max(axis=0) + 0.02
+    # Sample positions in pixel coordinates (column, row) over the points' box.
+    c_lo, c_hi = sorted([(lo[0] - x0) / dx - 0.5, (hi[0] - x0) / dx - 0.5])
+    r_lo, r_hi = sorted([(lo[1] - y0) / dy - 0.5, (hi[1] - y0) / dy - 0.5])
+    c_lo, r_lo = max(c_lo, 0.0), max(r_lo, 0.0)
+    c_hi, r_hi = min(c_hi, cols - 1.001), min(r_hi, rows - 1.001)
+    fc = np.arange(c_lo, c_hi, step / abs(dx))
+    fr = np.arange(r_lo, r_hi, step / abs(dy))
+    FC, FR = np.meshgrid(fc, fr)
+    c0 = np.floor(FC).astype(int)
+    r0 = np.floor(FR).astype(int)
+    tc, tr = FC - c0, FR - r0
+    z = ((1 - tr) * ((1 - tc) * h[r0, c0] + tc * h[r0, c0 + 1]) +
+         tr * ((1 - tc) * h[r0 + 1, c0] + tc * h[r0 + 1, c0 + 1]))
+    X = x0 + (FC + 0.5) * dx
+    Y = y0 + (FR + 0.5) * dy
+    samples = [np.stack([X.ravel(), Y.ravel(), z.ravel()], axis=1)]
+    # Fill the ramps: between each sample and its right and lower neighbour, points
+    # every `step` in z where the two differ by more than `step`.
+    for axis in (0, 1):
+        za = z[:, :-1] if axis == 1 else z[:-1, :]
+        zb = z[:, 1:] if axis == 1 else z[1:, :]
+        xa = X[:, :-1] if axis == 1 else X[:-1, :]
+        xb = X[:, 1:] if axis == 1 else X[1:, :]
+        ya = Y[:, :-1] if axis == 1 else Y[:-1, :]
+        yb = Y[:, 1:] if axis == 1 else Y[1:, :]
+        steep = np.abs(zb - za) > step
+        if not steep.any():
+            continue
+        za, zb, xa, xb, ya, yb = (a[steep] for a in (za, zb, xa, xb, ya, yb))
+        n = np.ceil(np.abs(zb - za) / step).astype(int)
+        k = np.repeat(np.arange(n.size), n)
+        t = (np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n) + 0.5) / np.repeat(n, n)
+        samples.append(np.stack([xa[k] + t * (xb[k] - xa[k]), ya[k] + t * (yb[k] - ya[k]),
+                                 za[k] + t * (zb[k] - za[k])], axis=1))
+    pts = np.concatenate(samples)
+    pts = pts[np.isfinite(pts[:, 2])]
+    d, _ = cKDTree(pts).query(xyz, workers=-1)
+    return d
+
+
+def stats(normal, vertical, d3=None):
     if normal.size == 0:
         return {"points": 0}
     mm = normal * 1e3
+    extra = {}
+    if d3 is not None:
+        m3 = d3 * 1e3
+        extra = {"median_3d_mm": round(float(np.median(m3)), 3),
+                 "p95_3d_mm": round(float(np.percentile(m3, 95)), 3),
+                 "p99_3d_mm": round(float(np.percentile(m3, 99)), 3),
+                 "share_over_10mm_3d_pct": round(float(100 * np.mean(m3 > 10)), 3)}
     return {"points": int(mm.size),
             "median_mm": round(float(np.median(mm)), 3),
             "p95_mm": round(float(np.percentile(mm, 95)), 3),
@@ -116,7 +180,7 @@ def stats(normal, vertical):
             "share_over_10mm_pct": round(float(100 * np.mean(mm > 10)), 3),
             "share_over_25mm_pct": round(float(100 * np.mean(mm > 25)), 3),
             "vertical_median_mm": round(float(np.median(vertical) * 1e3), 3),
-            "vertical_p95_mm": round(float(np.percentile(vertical, 95) * 1e3), 3)}
+            "vertical_p95_mm": round(float(np.percentile(vertical, 95) * 1e3), 3), **extra}
 
 
 def main():
@@ -132,10 +196,11 @@ def main():
     with open(a.site) as f:
         t = json.load(f)["trench"]
     p = xyz[idx]
+    d3 = distances_3d(p, h, gt)
     in_trench = (p[:, 0] >= t["min_E"]) & (p[:, 0] <= t["max_E"]) & (p[:, 1] >= t["min_N"]) & (p[:, 1] <= t["max_N"])
     out = {"points_total": int(xyz.shape[0]),
-           "trench": stats(normal[in_trench], vertical[in_trench]),
-           "over_truth": stats(normal, vertical)}
+           "trench": stats(normal[in_trench], vertical[in_trench], d3[in_trench]),
+           "over_truth": stats(normal, vertical, d3)}
     text = json.dumps(out, indent=1)
     print(text)
     if a.json_out:

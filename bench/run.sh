@@ -5,37 +5,46 @@
 # the Debian `colmap` package is installed, runs COLMAP's CPU sparse pipeline on the
 # same photos for comparison (time ratio and camera accuracy after a similarity fit).
 #
-# Usage: bench/run.sh [--size full|small] [--layer L1] [--keep DIR] [--no-colmap]
-# Writes bench/results/<UTC timestamp>-<size>-<layer>.json and bench/results/latest-<size>-<layer>.json.
+# Usage: bench/run.sh [--size full|small] [--layer L1] [--keep DIR] [--no-colmap] [--data DIR]
+#   --data DIR: another synthetic excavation (strata synth DIR ...), e.g. 200 photos a layer:
+#               strata synth /tmp/p200 --size full --stages 1 --photos 200
+# Writes bench/results/<UTC timestamp>-<size>-<layer>.json and bench/results/latest-<size>-<layer>.json
+# (<size> is the --data folder's name with --data).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 size=full
 layer=L1
 keep=
 colmap=1
+data=
 while [[ $# -gt 0 ]]; do
   case "$1" in
     --size) size="$2"; shift 2 ;;
     --layer) layer="$2"; shift 2 ;;
     --keep) keep="$2"; shift 2 ;;
     --no-colmap) colmap=0; shift ;;
+    --data) data="$2"; shift 2 ;;
     *) echo "unknown option $1" >&2; exit 2 ;;
   esac
 done
 
 bash scripts/setup.sh
-command -v /usr/bin/time >/dev/null && /usr/bin/python3 -c 'import numpy, osgeo' 2>/dev/null || {
-  echo "bench: installing time, python3-numpy, python3-gdal"
+command -v /usr/bin/time >/dev/null && /usr/bin/python3 -c 'import numpy, osgeo, scipy' 2>/dev/null || {
+  echo "bench: installing time, python3-numpy, python3-gdal, python3-scipy"
   sudo_cmd=; [[ $(id -u) -ne 0 ]] && sudo_cmd=sudo
-  $sudo_cmd env DEBIAN_FRONTEND=noninteractive apt-get install -y -q time python3-numpy python3-gdal >/dev/null
+  $sudo_cmd env DEBIAN_FRONTEND=noninteractive apt-get install -y -q time python3-numpy python3-gdal python3-scipy >/dev/null
 }
 build=${STRATA_BUILD_DIR:-build}  # another build directory of the same tree, e.g. a developer's
 cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo >/dev/null
 cmake --build "$build" -j "$(nproc)" --target strata
 strata=$PWD/$build/src/cli/strata
 
-data=example/data-$size
-if [[ ! -f "$data/site.json" ]]; then "$strata" synth "$data" --size "$size"; fi
+if [[ -z "$data" ]]; then
+  data=example/data-$size
+  if [[ ! -f "$data/site.json" ]]; then "$strata" synth "$data" --size "$size"; fi
+elif [[ ! -f "$data/site.json" ]]; then
+  echo "bench: $data: no site.json (make it with strata synth $data ...)" >&2; exit 2
+fi
 if [[ -n "$keep" ]]; then work=$keep; rm -rf "$work"; mkdir -p "$work"
 else work=$(mktemp -d /tmp/strata-bench.XXXXXX); trap 'rm -rf "$work"' EXIT; fi
 site=$work/site
@@ -53,12 +62,13 @@ awk 'NR == FNR { keep[$1] = 1; next } FNR == 1 || ($6 in keep)' "$work/names.txt
 "$strata" -q import markers "$site" "$work/gcp_list.txt"
 n_photos=$(ls "$data/$photos"/*.jpg | wc -l)
 
-# timed NAME CMD...: wall seconds of CMD (stdout to $work/NAME.json), peak RSS in $work/NAME.mem (kB).
+# timed NAME CMD...: wall seconds of CMD (stdout to $work/NAME.json); peak RSS (kB), user and
+# system CPU seconds in $work/NAME.mem (CPU seconds change less than wall time with other load).
 timed() {
   local name=$1; shift
   local t0 t1
   t0=$(date +%s.%N)
-  /usr/bin/time -f %M -o "$work/$name.mem" "$@" > "$work/$name.json"
+  /usr/bin/time -f "%M %U %S" -o "$work/$name.mem" "$@" > "$work/$name.json"
   t1=$(date +%s.%N)
   echo "$t0 $t1" | awk '{ printf "%.2f", $2 - $1 }'
 }
@@ -72,6 +82,11 @@ echo "bench: dense surface"
 dense_s=$(timed dense "$strata" -q process "$site" --layer "$layer" --until dense --json)
 echo "bench: products"
 products_s=$(timed products "$strata" -q process "$site" --layer "$layer" --json)
+points=
+if [[ -f "$site/products/$layer/dense/points.ply" ]]; then
+  /usr/bin/python3 bench/eval_points.py "$site/products/$layer/dense/points.ply" "$data/truth/$layer/surface.tif" \
+    "$data/site.json" > "$work/points.json" && points=$work/points.json
+fi
 surface=
 dtm=$(ls "$site/products/$layer"/dtm*.tif 2>/dev/null | head -n 1 || true)
 if [[ -n "$dtm" && -f bench/eval_surface.py ]]; then
@@ -85,29 +100,32 @@ if [[ $colmap == 1 ]] && command -v colmap >/dev/null 2>&1; then
   cdir=$work/colmap
   mkdir -p "$cdir/sparse"
   c0=$(date +%s.%N)
-  colmap feature_extractor --database_path "$cdir/db.db" --image_path "$data/$photos" \
+  /usr/bin/time -f "%U %S" -a -o "$cdir/cpu.txt" colmap feature_extractor --database_path "$cdir/db.db" --image_path "$data/$photos" \
     --ImageReader.single_camera 1 --SiftExtraction.use_gpu 0 --SiftExtraction.num_threads "$(nproc)" \
     --SiftExtraction.max_image_size 2000 > "$cdir/log.txt" 2>&1
-  colmap exhaustive_matcher --database_path "$cdir/db.db" --SiftMatching.use_gpu 0 \
+  /usr/bin/time -f "%U %S" -a -o "$cdir/cpu.txt" colmap exhaustive_matcher --database_path "$cdir/db.db" --SiftMatching.use_gpu 0 \
     --SiftMatching.num_threads "$(nproc)" >> "$cdir/log.txt" 2>&1
-  colmap mapper --database_path "$cdir/db.db" --image_path "$data/$photos" \
+  /usr/bin/time -f "%U %S" -a -o "$cdir/cpu.txt" colmap mapper --database_path "$cdir/db.db" --image_path "$data/$photos" \
     --output_path "$cdir/sparse" --Mapper.num_threads "$(nproc)" >> "$cdir/log.txt" 2>&1
   c1=$(date +%s.%N)
   mkdir -p "$cdir/txt"
   colmap model_converter --input_path "$cdir/sparse/0" --output_path "$cdir/txt" --output_type TXT \
     >> "$cdir/log.txt" 2>&1 || true
   colmap_s=$(echo "$c0 $c1" | awk '{ printf "%.2f", $2 - $1 }')
-  colmap_json="{\"seconds\": $colmap_s, \"model\": \"$cdir/txt\"}"
+  colmap_cpu=$(awk '{ s += $1 + $2 } END { printf "%.2f", s }' "$cdir/cpu.txt")
+  colmap_json="{\"seconds\": $colmap_s, \"cpu_seconds\": $colmap_cpu, \"model\": \"$cdir/txt\"}"
 fi
 
 mkdir -p bench/results
 stamp=$(date -u +%Y%m%dT%H%M%SZ)
-out=bench/results/$stamp-$size-$layer.json
-latest=bench/results/latest-$size-$layer.json  # the previous run of the same layer
+label=$size  # another --data set is named by its folder
+[[ "$data" != example/data-$size ]] && label=$(basename "$data")
+out=bench/results/$stamp-$label-$layer.json
+latest=bench/results/latest-$label-$layer.json  # the previous run of the same layer
 /usr/bin/python3 bench/summarise.py --size "$size" --layer "$layer" --photos "$n_photos" \
   --sparse "$work/sparse.json" --sparse-seconds "$sparse_s" \
   --dense "$work/dense.json" --dense-seconds "$dense_s" --products-seconds "$products_s" --memdir "$work" \
   --cameras "$work/cameras.csv" --truth "$data/truth/$layer/cameras.csv" \
-  --surface "$surface" --colmap "$colmap_json" --previous "$latest" --load-before "$load_before" --out "$out"
+  --surface "$surface" --points "$points" --colmap "$colmap_json" --previous "$latest" --load-before "$load_before" --out "$out"
 cp "$out" "$latest"
 echo "bench: wrote $out"

@@ -80,7 +80,7 @@ def stats(errors):
 def main():
     ap = argparse.ArgumentParser()
     for name in ["size", "layer", "photos", "sparse", "sparse-seconds", "dense", "dense-seconds",
-                 "products-seconds", "memdir", "cameras", "truth", "colmap", "surface", "previous", "load-before",
+                 "products-seconds", "memdir", "cameras", "truth", "colmap", "surface", "points", "previous", "load-before",
                  "out"]:
         ap.add_argument("--" + name)
     a = ap.parse_args()
@@ -105,6 +105,7 @@ def main():
         "sparse_timings": sparse.get("timings"), "sparse_peak_memory_mb": sparse.get("peak_memory_mb"),
         "dense_steps": dense.get("steps"), "dense_completeness": dense.get("completeness"),
         "surface": read_json(a.surface) if a.surface and os.path.exists(a.surface) else None,
+        "points": read_json(a.points) if a.points and os.path.exists(a.points) else None,
         "colmap": json.loads(a.colmap) if a.colmap and a.colmap != "null" else None,
         "load_average_before": float(a.load_before) if a.load_before else None,
     }
@@ -117,7 +118,13 @@ def main():
             path = os.path.join(a.memdir, stage + ".mem")
             if os.path.exists(path):
                 with open(path) as f:
-                    result[stage + "_peak_rss_mb"] = round(int(f.read().split()[0]) / 1024.0, 1)
+                    fields = f.read().split()
+                result[stage + "_peak_rss_mb"] = round(int(fields[0]) / 1024.0, 1)
+                if len(fields) >= 3:  # user and system CPU seconds
+                    result[stage + "_cpu_seconds"] = round(float(fields[1]) + float(fields[2]), 2)
+        cpu = [result.get(s + "_cpu_seconds") for s in ["sparse", "dense", "products"]]
+        if all(c is not None for c in cpu):
+            result["layer_cpu_seconds"] = round(sum(cpu), 2)
     result["ratio_to_target"] = result["layer_seconds"] / TARGET_LAYER_SECONDS
     c = result["colmap"]
     if c:
@@ -129,17 +136,21 @@ def main():
         c.pop("model", None)
         if c.get("seconds"):
             result["ratio_sparse_to_colmap"] = result["sparse_seconds"] / c["seconds"]
+        if c.get("cpu_seconds") and result.get("sparse_cpu_seconds"):
+            result["ratio_sparse_cpu_to_colmap"] = result["sparse_cpu_seconds"] / c["cpu_seconds"]
     if a.previous and os.path.exists(a.previous):
         prev = read_json(a.previous)
         result["ratio_to_previous"] = {k: result[k] / prev[k] for k in
-                                       ["sparse_seconds", "dense_seconds", "products_seconds", "layer_seconds"]
+                                       ["sparse_seconds", "dense_seconds", "products_seconds", "layer_seconds",
+                                        "layer_cpu_seconds"]
                                        if prev.get(k) and result.get(k)}
     with open(a.out, "w") as f:
         json.dump(result, f, indent=2)
     keys = ["timing_warning", "photos", "registered", "sparse_seconds", "dense_seconds", "products_seconds", "layer_seconds",
             "ratio_to_target", "reprojection_rmse_px", "check_rmse_xyz_m", "camera_centres_georeferenced",
             "camera_centres_shape", "sparse_peak_rss_mb", "dense_peak_rss_mb", "products_peak_rss_mb",
-            "dense_completeness", "surface", "colmap", "ratio_sparse_to_colmap",
+            "sparse_cpu_seconds", "dense_cpu_seconds", "products_cpu_seconds", "layer_cpu_seconds",
+            "dense_completeness", "surface", "points", "colmap", "ratio_sparse_to_colmap", "ratio_sparse_cpu_to_colmap",
             "ratio_to_previous"]
     print(json.dumps({k: result.get(k) for k in keys if result.get(k) is not None}, indent=2))
 

@@ -113,7 +113,8 @@ void print_dense(const DenseQuality& q, bool skipped) {
     fmt::print("    to sparse points    median {:.1f} mm, 95% {:.1f} mm\n", 1000 * s.median_distance_sparse_m,
                1000 * s.p95_distance_sparse_m);
   }
-  fmt::print("    mesh                {} faces; {} points\n", s.mesh_faces, s.points);
+  fmt::print("    mesh                {} faces; {} points ({} seen too little for the cloud)\n", s.mesh_faces,
+             s.points, s.points_below_weight);
   fmt::print("    time                {:.1f} s\n", s.total.seconds);
 }
 
@@ -261,6 +262,10 @@ void register_process_commands(CLI::App& app) {
   cmd->add_option("--dense-scale", dense->patch_match.scale,
                   "depth-map resolution relative to the photos: 1, 0.5 or 0.25 (default: the coarsest "
                   "whose ground sampling distance is at most 8 mm)");
+  cmd->add_option("--dense-cover", dense->views.reference_cover,
+                  "depth maps over each spot of the surface: the fewest photos whose views hold every "
+                  "sparse point this many times get a depth map (default 5; 0 = every photo, slower)")
+      ->check(CLI::Range(0, 16));
   cmd->add_option("--voxel-size", dense->fusion.voxel_size_m,
                   "fusion voxel size in metres (default: from the ground sampling distance)");
   cmd->add_option("--target-faces", dense->mesh.target_faces,

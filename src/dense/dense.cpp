@@ -161,7 +161,7 @@ void select_source_views(const DenseOptions& options, const std::vector<RangeSca
   views.neighbours = dense::select_views(rec, options.views, pm.depth_margin);
   views.needed.assign(static_cast<std::size_t>(n), 0);
   for (int i = 0; i < n; ++i) {
-    if (views.neighbours[i].sources.empty()) continue;
+    if (!views.neighbours[i].reference) continue;
     views.refs.push_back(i);
     views.needed[i] = 1;
     for (int s : views.neighbours[i].sources) views.needed[s] = 1;
@@ -179,7 +179,7 @@ void select_source_views(const DenseOptions& options, const std::vector<RangeSca
   summary.view_selection = figures(sw);
   fault::point("process.dense.views_selected");
   if (n > 0) {
-    log::info("dense: {} of {} images have source views; depth maps at scale {}", views.refs.size(), n, pm.scale);
+    log::info("dense: {} of {} images are reference views (depth maps at scale {})", views.refs.size(), n, pm.scale);
   }
   views.image_key.assign(static_cast<std::size_t>(n), 0);
   views.raw_key.assign(static_cast<std::size_t>(n), 0);
@@ -297,7 +297,7 @@ DepthMap filtered_depth_map(const DenseOptions& options, int i, Views& views) {
   const auto& cons = options.consistency;
   CacheKey filtered_depth("filtered depth map v2");
   filtered_depth.add(views.raw_key[i]);
-  for (int s : views.neighbours[i].sources) filtered_depth.add(views.raw_key[s]);
+  for (int s : views.neighbours[i].checks) filtered_depth.add(views.raw_key[s]);
   const std::uint64_t key = filtered_depth.add(cons).u64();
   views.filtered_key[i] = key;
   DepthMap filtered;
@@ -308,7 +308,7 @@ DepthMap filtered_depth_map(const DenseOptions& options, int i, Views& views) {
   }
   std::vector<DepthMap> maps;
   std::vector<PinholeCamera> cams;
-  for (int s : views.neighbours[i].sources) {
+  for (int s : views.neighbours[i].checks) {
     DepthMap m;
     if (views.raw_key[s] == 0 || !dense::read_depth_map(views.raw_file(s), views.raw_key[s], m)) continue;
     maps.push_back(std::move(m));
@@ -411,7 +411,8 @@ Surfaces extract_surfaces(const MeshOptions& mo, dense::TsdfVolume& volume, Dens
   const Stopwatch sw;
   Surfaces s;
   s.mesh = volume.extract_mesh(0.0);
-  s.points = volume.points_from_mesh(s.mesh);
+  s.points = volume.points_from_mesh(s.mesh, mo.min_point_weight, mo.min_point_observations);
+  summary.points_below_weight = s.mesh.vertices.size() - s.points.vertices.size();
   if (mo.adaptivity > 0) s.mesh = volume.extract_mesh(mo.adaptivity);
   if (mo.target_faces > 0 && s.mesh.faces.size() > mo.target_faces) {
     s.mesh = simplify_mesh(s.mesh, mo.target_faces);

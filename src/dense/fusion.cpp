@@ -449,13 +449,34 @@ void TsdfVolume::colour_vertices(DenseMesh& mesh) const {
                     });
 }
 
-DenseMesh TsdfVolume::points_from_mesh(const DenseMesh& full_mesh) const {
+DenseMesh TsdfVolume::points_from_mesh(const DenseMesh& full_mesh, double min_weight, double min_observations) const {
   // The vertices of the unsimplified zero-level-set mesh: one point per surface
-  // cell, already on the surface, with the level-set gradient as normal.
-  DenseMesh mesh;
-  mesh.vertices = full_mesh.vertices;
-  mesh.colours = full_mesh.colours;
+  // cell, already on the surface, with the level-set gradient as normal; those whose
+  // nearest voxel was seen too little are left out.
   const auto& I = *impl_;
+  std::vector<char> keep(full_mesh.vertices.size(), 1);
+  if ((min_weight > 0 || min_observations > 0) && I.weight) {
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, full_mesh.vertices.size()),
+                      [&](const tbb::blocked_range<std::size_t>& r) {
+                        auto wacc = I.weight->getConstAccessor();
+                        std::optional<openvdb::FloatGrid::ConstAccessor> qacc;
+                        if (I.weight2) qacc.emplace(I.weight2->getConstAccessor());
+                        const auto& xform = I.weight->transform();
+                        for (std::size_t i = r.begin(); i < r.end(); ++i) {
+                          const openvdb::Coord c = xform.worldToIndexCellCentered(to_vdb(full_mesh.vertices[i]));
+                          const double w = wacc.getValue(c);
+                          const double w2 = qacc ? double(qacc->getValue(c)) : 0.0;
+                          const double n_eff = w2 > 0 ? w * w / w2 : 0.0;
+                          keep[i] = (w >= min_weight || (qacc && n_eff >= min_observations)) ? 1 : 0;
+                        }
+                      });
+  }
+  DenseMesh mesh;
+  for (std::size_t i = 0; i < full_mesh.vertices.size(); ++i) {
+    if (!keep[i]) continue;
+    mesh.vertices.push_back(full_mesh.vertices[i]);
+    if (i < full_mesh.colours.size()) mesh.colours.push_back(full_mesh.colours[i]);
+  }
   mesh.normals.resize(mesh.vertices.size());
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, mesh.vertices.size()),
                     [&](const tbb::blocked_range<std::size_t>& r) {

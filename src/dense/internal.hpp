@@ -69,13 +69,16 @@ struct DepthMap {
 // Neighbours of one reference image and its expected depth range from the sparse points.
 struct ViewNeighbours {
   std::vector<int> sources;   // image indices, best first
+  bool reference = false;     // gets a depth map (ViewSelectionOptions::reference_cover)
+  std::vector<int> checks;    // reference views whose depth maps check this one's, best first
   double depth_min = 0;       // metres
   double depth_max = 0;
   double depth_median = 0;    // metres, median sparse depth (0 when none)
 };
 
 // For every image of the reconstruction: its source views (empty when the image is
-// unregistered or has no usable neighbour) and depth range.
+// unregistered or has no usable neighbour), depth range, whether it is a reference
+// view and, if so, the reference views that check its depth map.
 std::vector<ViewNeighbours> select_views(const Reconstruction& rec, const ViewSelectionOptions& opt,
                                          double depth_margin);
 
@@ -159,7 +162,10 @@ class TsdfVolume {
   void colour_vertices(DenseMesh& mesh) const;
   // The point cloud of a mesh from extract_mesh(0): its vertices (one per surface
   // cell, on the zero level set) with colour and the level-set gradient as normal.
-  DenseMesh points_from_mesh(const DenseMesh& full_mesh) const;
+  // The vertices of the unsimplified mesh whose voxel holds at least `min_weight` of
+  // fused weight or `min_observations` effective observations, with the level set's
+  // gradient as normals.
+  DenseMesh points_from_mesh(const DenseMesh& full_mesh, double min_weight, double min_observations) const;
   // Uppermost zero crossing per cell (see sample_top_surface()).
   HeightRaster<double> top_surface(const RasterGrid& grid) const;
   // |signed distance| to the surface at each point, metres; NaN outside the band.

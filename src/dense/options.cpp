@@ -27,6 +27,8 @@ void DenseOptions::validate() const {
   require(views.min_angle_deg >= 0 && views.min_angle_deg < views.max_angle_deg &&
               views.max_angle_deg <= 90,
           "views.min_angle_deg/max_angle_deg", "must satisfy 0 <= min < max <= 90 degrees");
+  require(views.reference_cover >= 0 && views.reference_cover <= 16, "views.reference_cover",
+          "must be in [0, 16] (0 = every image with source views)");
 
   const double s = patch_match.scale;
   require(s == 0 || s == 1.0 || s == 0.5 || s == 0.25, "patch_match.scale",
@@ -78,6 +80,10 @@ void DenseOptions::validate() const {
           "fusion.photo_depth_sigma_gsd", "must be positive (depth-map GSDs)");
 
   require(mesh.adaptivity >= 0 && mesh.adaptivity <= 1, "mesh.adaptivity", "must be in [0, 1]");
+  require(mesh.min_point_weight >= 0 && std::isfinite(mesh.min_point_weight), "mesh.min_point_weight",
+          "must be >= 0");
+  require(mesh.min_point_observations >= 0 && std::isfinite(mesh.min_point_observations),
+          "mesh.min_point_observations", "must be >= 0");
   require(quality.cell_size_m > 0, "quality.cell_size_m", "must be positive metres");
   require(quality.area.empty() || quality.area.size() >= 3, "quality.area",
           "must be empty or a polygon of at least 3 vertices");

@@ -244,6 +244,7 @@ void describe(Io& io, DenseQuality& q) {
   io("floating_voxels_removed", s.floating_voxels_removed);
   io("mesh_faces", s.mesh_faces);
   io("points", s.points);
+  io("points_below_weight", s.points_below_weight);
   io("completeness", s.completeness);
   io("area_m2", s.area_m2);
   io("median_distance_sparse_m", s.median_distance_sparse_m);

@@ -185,8 +185,9 @@ double percentile(std::vector<double> v, double q) {
   return v[static_cast<std::size_t>(q * (v.size() - 1))];
 }
 
-TEST(Dense, ViewSelectionPrefersOverlappingNeighbours) {
-  // A geometry-only scene (no rendering needed): reuse the sparse construction.
+// A geometry-only scene (no rendering needed): `views` cameras of 100 x 100 pixels
+// in a row along x, `step` apart, 1 m over the plane z = 0, looking straight down.
+Reconstruction camera_row(int views, double step) {
   Reconstruction rec;
   Intrinsics in;
   in.width = 100;
@@ -194,10 +195,15 @@ TEST(Dense, ViewSelectionPrefersOverlappingNeighbours) {
   in.fx = in.fy = 100;
   in.cx = in.cy = 49.5;
   rec.groups.push_back({in, false});
-  for (int v = 0; v < 4; ++v) {
+  for (int v = 0; v < views; ++v) {
     rec.images.push_back({fmt::format("v{}", v), 0, true,
-                          Pose::look_at({0.2 * v, 0, 1}, {0.2 * v, 0, 0}, Eigen::Vector3d::UnitY())});
+                          Pose::look_at({step * v, 0, 1}, {step * v, 0, 0}, Eigen::Vector3d::UnitY())});
   }
+  return rec;
+}
+
+TEST(Dense, ViewSelectionPrefersOverlappingNeighbours) {
+  Reconstruction rec = camera_row(4, 0.2);
   for (int k = 0; k < 50; ++k) {
     SparsePoint p;
     p.X = {0.01 * k - 0.25 + 0.1, 0.01 * (k % 7), 0.0};
@@ -213,6 +219,57 @@ TEST(Dense, ViewSelectionPrefersOverlappingNeighbours) {
   EXPECT_GT(nb[0].depth_min, 0.5);
   EXPECT_LT(nb[0].depth_min, 1.0);
   EXPECT_GT(nb[0].depth_max, 1.0);
+}
+
+// Twelve photos in a row over one patch, each point matched by only two neighbours
+// (short tracks): every photo holds every point in its view, so a cover of 3 needs 3
+// reference views, not 12; each reference's depth map is checked against references
+// only.
+TEST(Dense, ReferenceViewsCoverEveryPointWithFewerDepthMaps) {
+  constexpr int kViews = 12;
+  Reconstruction rec = camera_row(kViews, 0.03);
+  const Intrinsics& in = rec.groups[0].intrinsics;
+  for (int k = 0; k < 200; ++k) {
+    SparsePoint p;
+    p.X = {0.15 + 0.002 * k - 0.2, 0.01 * (k % 9) - 0.04, 0.0};
+    const int a = k % (kViews - 1);
+    p.track = {{a, -1}, {a + 1, -1}};
+    rec.points.push_back(p);
+  }
+  auto references = [](const std::vector<dense::ViewNeighbours>& nb) {
+    std::vector<int> r;
+    for (int i = 0; i < int(nb.size()); ++i)
+      if (nb[i].reference) r.push_back(i);
+    return r;
+  };
+  ViewSelectionOptions every;
+  every.reference_cover = 0;
+  const auto all = dense::select_views(rec, every, 0.25);
+  EXPECT_EQ(references(all).size(), std::size_t(kViews));
+
+  ViewSelectionOptions three;
+  three.reference_cover = 3;
+  const auto nb = dense::select_views(rec, three, 0.25);
+  const std::vector<int> refs = references(nb);
+  EXPECT_EQ(refs.size(), 3u);
+  for (std::size_t k = 0; k < rec.points.size(); ++k) {
+    int holding = 0;
+    for (int i : refs) {
+      const Eigen::Vector3d Xc = rec.images[i].pose.to_camera(rec.points[k].X);
+      const Eigen::Vector2d px = in.to_pixel(Xc.head<2>() / Xc.z());
+      holding += Xc.z() > 0 && px.x() >= 0 && px.y() >= 0 && px.x() < in.width && px.y() < in.height ? 1 : 0;
+    }
+    EXPECT_GE(holding, 3) << "point " << k;
+  }
+  for (int i = 0; i < kViews; ++i) {
+    EXPECT_EQ(nb[i].sources, all[i].sources) << "sources do not depend on the references";
+    if (!nb[i].reference) {
+      EXPECT_TRUE(nb[i].checks.empty());
+      continue;
+    }
+    EXPECT_FALSE(nb[i].checks.empty()) << "reference " << i << " has no depth map to be checked against";
+    for (int c : nb[i].checks) EXPECT_TRUE(nb[c].reference) << c << " checks " << i << " without a depth map";
+  }
 }
 
 TEST(Dense, RecoversAnalyticSurface) {
@@ -600,6 +657,42 @@ TEST(Dense, SmallFloatingPiecesOfTheFusedBandAreRemoved) {
   EXPECT_LT(double(removed), kFloaterPieceFraction * double(before));
   EXPECT_NEAR(top_at_origin(), 0.0, kFloaterVoxel) << "the floor under the floater should be the top surface now";
   EXPECT_NEAR(top_at(0.2, 0.1), 0.0, kFloaterVoxel);
+}
+
+// The point cloud leaves out vertices seen too little: a floor seen head-on by four
+// depth maps, and beyond their views a strip that one doubtful map (confidence 0.5)
+// alone saw. The mesh keeps the strip; the points do not.
+TEST(Dense, PointCloudLeavesOutSurfaceSeenTooLittle) {
+  const std::vector<std::uint8_t> grey(std::size_t(kFloaterRef.width) * kFloaterRef.height * 3, 128);
+  dense::TsdfVolume volume(kFloaterVoxel, 4 * kFloaterVoxel);
+  for (const auto& cam : kFloaterNeighbours) volume.integrate(cam, render_plane(cam, false), grey);
+  // Off to the side: its view reaches past the others' (x > 1.1 m).
+  const dense::PinholeCamera side = [] {
+    dense::PinholeCamera c = looking_at_origin({1.6, 0.0, 0.6});
+    c.pose = Pose::look_at({1.6, 0.0, 0.6}, {1.4, 0.0, 0.0}, Eigen::Vector3d::UnitY());
+    return c;
+  }();
+  dense::DepthMap doubtful = render_plane(side, false);
+  for (float& c : doubtful.confidence) c = 0.5f;
+  volume.integrate(side, doubtful, grey);
+  volume.finalise(0.2);
+  const DenseMesh mesh = volume.extract_mesh(0.0);
+  auto count_beyond = [](const DenseMesh& m, double x) {
+    return std::count_if(m.vertices.begin(), m.vertices.end(), [x](const Eigen::Vector3d& v) { return v.x() > x; });
+  };
+  ASSERT_GT(count_beyond(mesh, 1.3), 50) << "the strip only the side view saw should be in the mesh";
+  const DenseMesh kept = volume.points_from_mesh(mesh, 1.5, 2.0);
+  const DenseMesh every = volume.points_from_mesh(mesh, 0.0, 0.0);
+  EXPECT_EQ(every.vertices.size(), mesh.vertices.size());
+  EXPECT_EQ(count_beyond(kept, 1.3), 0) << "one doubtful depth map is not enough for the cloud";
+  // The floor under the four maps stays (all of it within their common view).
+  auto count_within = [](const DenseMesh& m, double r) {
+    return std::count_if(m.vertices.begin(), m.vertices.end(),
+                         [r](const Eigen::Vector3d& v) { return v.head<2>().norm() < r; });
+  };
+  EXPECT_EQ(count_within(kept, 0.2), count_within(mesh, 0.2));
+  EXPECT_EQ(kept.normals.size(), kept.vertices.size());
+  EXPECT_EQ(kept.colours.size(), kept.vertices.size());
 }
 
 // The fused surface states its height uncertainty per cell from the agreement of
