@@ -5,7 +5,7 @@
 # the Debian `colmap` package is installed, runs COLMAP's CPU sparse pipeline on the
 # same photos for comparison (time ratio and camera accuracy after a similarity fit).
 #
-# Usage: bench/run.sh [--size full|small] [--layer L1] [--keep DIR] [--no-colmap] [--data DIR]
+# Usage: [STRATA_BIN=path] bench/run.sh [--size full|small] [--layer L1] [--keep DIR] [--no-colmap] [--data DIR]
 #   --data DIR: another synthetic excavation (strata synth DIR ...), e.g. 200 photos a layer:
 #               strata synth /tmp/p200 --size full --stages 1 --photos 200
 # Writes bench/results/<UTC timestamp>-<size>-<layer>.json and bench/results/latest-<size>-<layer>.json
@@ -34,10 +34,14 @@ command -v /usr/bin/time >/dev/null && /usr/bin/python3 -c 'import numpy, osgeo,
   sudo_cmd=; [[ $(id -u) -ne 0 ]] && sudo_cmd=sudo
   $sudo_cmd env DEBIAN_FRONTEND=noninteractive apt-get install -y -q time python3-numpy python3-gdal python3-scipy >/dev/null
 }
-build=${STRATA_BUILD_DIR:-build}  # another build directory of the same tree, e.g. a developer's
-cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo >/dev/null
-cmake --build "$build" -j "$(nproc)" --target strata
-strata=$PWD/$build/src/cli/strata
+if [[ -n "${STRATA_BIN:-}" ]]; then
+  strata=$(realpath "$STRATA_BIN")  # a strata binary built elsewhere (e.g. copied aside while the tree changes)
+else
+  build=${STRATA_BUILD_DIR:-build}  # another build directory of the same tree, e.g. a developer's
+  cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo >/dev/null
+  cmake --build "$build" -j "$(nproc)" --target strata
+  strata=$PWD/$build/src/cli/strata
+fi
 
 if [[ -z "$data" ]]; then
   data=example/data-$size
