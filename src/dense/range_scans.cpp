@@ -43,7 +43,8 @@ std::vector<Eigen::Vector3d> scan_ray_directions(const RangeScanInput& scan, con
 double scan_point_spacing(const std::vector<RangeScanInput>& scans) {
   std::unordered_map<std::int64_t, std::uint32_t> cells;
   for (const auto& scan : scans) {
-    scan.read([&](const std::vector<Eigen::Vector3d>& points, const std::vector<Eigen::Vector3f>&) {
+    scan.read([&](const std::vector<Eigen::Vector3d>& points, const std::vector<Eigen::Vector3f>&,
+                  const std::vector<Rgb8>&) {
       for (const auto& p : points) {
         const auto i = static_cast<std::int64_t>(std::floor(p.x() / kSpacingCell));
         const auto j = static_cast<std::int64_t>(std::floor(p.y() / kSpacingCell));
@@ -66,7 +67,8 @@ ScanFusionFigures fuse_scans(TsdfVolume& volume, const std::vector<RangeScanInpu
     check_cancelled();
     std::uint64_t points = 0;
     std::vector<double> relative;  // (sigma_m / point sigma)^2, when the noise varies
-    scan.read([&](const std::vector<Eigen::Vector3d>& chunk, const std::vector<Eigen::Vector3f>& normals) {
+    scan.read([&](const std::vector<Eigen::Vector3d>& chunk, const std::vector<Eigen::Vector3f>& normals,
+                  const std::vector<Rgb8>& colours) {
       relative.clear();
       if (scan.point_sigma) {
         relative.reserve(chunk.size());
@@ -76,7 +78,7 @@ ScanFusionFigures fuse_scans(TsdfVolume& volume, const std::vector<RangeScanInpu
           relative.push_back(std::pow(scan.sigma_m / sigma, 2));
         }
       }
-      volume.add_scan_points(chunk, scan_ray_directions(scan, chunk, normals), relative);
+      volume.add_scan_points(chunk, scan_ray_directions(scan, chunk, normals), relative, colours);
       points += chunk.size();
     });
     // Inverse variance in the fusion's unit weight (FusionOptions::photo_depth_sigma_gsd).
