@@ -196,10 +196,18 @@ class TsdfVolume {
 std::vector<Eigen::Vector3d> scan_ray_directions(const RangeScanInput& scan,
                                                  const std::vector<Eigen::Vector3d>& points,
                                                  const std::vector<Eigen::Vector3f>& normals);
-// Median spacing of the scans' points over the ground, metres: per 1 cm cell of the
-// XY plane that holds points, 1 cm / sqrt(points in it); the median over cells.
-// Reads every scan once.
-double scan_point_spacing(const std::vector<RangeScanInput>& scans);
+// How finely the scans sample the ground, what a layer without photos takes its
+// voxel from (docs/range.md, "Voxel size").
+struct ScanSampling {
+  // Median spacing of all the scans' points over the ground, metres: per 1 cm cell of
+  // the XY plane that holds points, 1 cm / sqrt(points in it); the median over cells.
+  double spacing_m = 0;
+  // The points' noise, one sigma, metres: per scan the median of its points' sigmas
+  // (RangeScanInput::point_sigma, else sigma_m); the median over the scans.
+  double noise_m = 0;
+};
+// Reads every scan once; throws ProcessingError when they hold no point.
+ScanSampling scan_sampling(const std::vector<RangeScanInput>& scans);
 struct ScanFusionFigures {
   int scans = 0;
   std::uint64_t points = 0;

@@ -315,6 +315,39 @@ TEST(ScanFusion, ScanColoursAverageByTheirWeightsAndPhotosKeepTheirs) {
   EXPECT_LE(scan_off, kColourTolerance) << "the scan's colour where no photo saw the plane";
 }
 
+// ---- the voxel of a layer without photos --------------------------------------------
+// A square of points on a regular grid of `step`, shifted by `offset`.
+RangeScanInput grid_input(double step, const Eigen::Vector2d& offset, double sigma) {
+  std::vector<Eigen::Vector3d> points;
+  for (double y = 0; y < 0.5; y += step)
+    for (double x = 0; x < 0.5; x += step) points.emplace_back(x + offset.x(), y + offset.y(), 0.0);
+  return in_memory(points, Eigen::Vector3d(0, 0, 2), sigma);
+}
+
+TEST(ScanFusion, ScanSamplingIsAllPointsSpacingAndTheScansMedianNoise) {
+  // 5 mm: four points in every 1 cm cell, wherever the grid starts; sixteen inputs
+  // shifted from one another put 64 there: 1.25 mm.
+  constexpr double kStep = 0.005;
+  constexpr int kInputs = 16;
+  std::vector<RangeScanInput> inputs;
+  for (int i = 0; i < kInputs; ++i)
+    inputs.push_back(grid_input(kStep, Eigen::Vector2d(0.0003 * i, 0.0007 * ((i * 5) % kInputs)), 0.003));
+  EXPECT_NEAR(dense::scan_sampling({inputs[0]}).spacing_m, kStep, 1e-9);
+  dense::ScanSampling s = dense::scan_sampling(inputs);
+  EXPECT_NEAR(s.spacing_m, kStep / 4, 1e-9);
+  EXPECT_DOUBLE_EQ(s.noise_m, 0.003);
+  // Points of their own noise (a depth camera's): the median of each input's, then
+  // over the inputs: 5 of 16 inputs at 8 mm, the rest at 2 mm + 1 mm per metre of x.
+  for (int i = 0; i < kInputs; ++i)
+    inputs[i].point_sigma = [i](const Eigen::Vector3d& p) { return i < 5 ? 0.008 : 0.002 + 0.001 * p.x(); };
+  s = dense::scan_sampling(inputs);
+  EXPECT_NEAR(s.noise_m, 0.002 + 0.001 * 0.25, 2e-5) << "the middle input's median point, x = 0.25 m";
+  // An input without points does not count; none at all is an error.
+  EXPECT_DOUBLE_EQ(dense::scan_sampling({grid_input(kStep, {0, 0}, 0.003), in_memory({}, {0, 0, 2}, 0.009)}).noise_m,
+                   0.003);
+  EXPECT_THROW(dense::scan_sampling({in_memory({}, Eigen::Vector3d(0, 0, 2), 0.003)}), ProcessingError);
+}
+
 TEST(ScanFusion, RaysWithoutAStationFollowTheNormalsOrTheVertical) {
   RangeScanInput scan;
   scan.sigma_m = 0.003;
