@@ -342,15 +342,19 @@ void filter_depth_maps(const DenseOptions& options, Views& views, DenseSummary& 
 }
 
 // The voxel size the options ask for, or one from the depth maps' GSD (the scans' point
-// spacing without photo depth).
+// spacing and noise without photo depth).
 double voxel_size(const FusionOptions& fo, double gsd_m, const std::vector<RangeScanInput>& scans) {
   if (fo.voxel_size_m != 0) return fo.voxel_size_m;
   if (gsd_m > 0) return std::clamp(fo.voxel_gsd_factor * gsd_m, fo.min_voxel_size_m, fo.max_voxel_size_m);
   if (!scans.empty()) {
-    // No photo depth: the scans' own point spacing takes the place of the GSD.
-    const double spacing = dense::scan_point_spacing(scans);
-    const double voxel = std::clamp(fo.voxel_gsd_factor * spacing, fo.min_voxel_size_m, fo.max_voxel_size_m);
-    log::info("dense: no photo depth; voxel from the scans' median point spacing {:.1f} mm", spacing * 1e3);
+    // No photo depth: the scans' own point spacing takes the place of the GSD, but the
+    // voxel is no finer than one sigma of their points (overlapping depth frames are
+    // dense together, each point noisy: finer voxels are left with holes).
+    const dense::ScanSampling s = dense::scan_sampling(scans);
+    const double voxel = std::clamp(std::max(fo.voxel_gsd_factor * s.spacing_m, s.noise_m), fo.min_voxel_size_m,
+                                    fo.max_voxel_size_m);
+    log::info("dense: no photo depth; voxel from the scans' median point spacing {:.1f} mm and noise {:.1f} mm",
+              s.spacing_m * 1e3, s.noise_m * 1e3);
     return voxel;
   }
   throw ProcessingError("dense: no depth estimated, cannot choose a voxel size");

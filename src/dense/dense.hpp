@@ -136,9 +136,12 @@ struct RangeScanInput {
   // Empty: sigma_m for every point.
   std::function<double(const Eigen::Vector3d& point)> point_sigma;
   // Reads the scan: calls `sink` with consecutive chunks of points (site frame,
-  // metres) and their unit normals (site frame; empty when the file has none).
+  // metres), their unit normals (site frame; empty when the file has none) and their
+  // colours (8-bit sRGB, as the file or the colour frame holds them; empty when it
+  // has none). A scan's chunks all have colours or none do.
   using ChunkSink = std::function<void(const std::vector<Eigen::Vector3d>& points,
-                                       const std::vector<Eigen::Vector3f>& normals)>;
+                                       const std::vector<Eigen::Vector3f>& normals,
+                                       const std::vector<Rgb8>& colours)>;
   std::function<void(const ChunkSink& sink)> read;
 };
 

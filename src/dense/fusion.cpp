@@ -66,8 +66,32 @@ struct TsdfVolume::Impl {
   openvdb::FloatGrid::Ptr spread;  // weighted variance of the distances, m2 (may be null: older files)
   openvdb::FloatGrid::Ptr weight2; // sum of squared weights (null with spread)
   // The range scan being added (add_scan_points .. end_scan): per voxel, the sums of
-  // the lateral weights g, of g times the signed distance (metres) and of g^2.
+  // the lateral weights g, of g times the signed distance (metres) and of g^2; with
+  // colours, the sum of g times the colour (null when the scan has none).
   openvdb::Vec3SGrid::Ptr scan;
+  openvdb::Vec3SGrid::Ptr scan_colour;
+  std::optional<bool> scan_coloured;  // whether the scan's chunks have colours, once one came
+  // While scans are fused: the voxels whose colour came from photos (taken when the
+  // first scan starts; photos are fused first), and per voxel the weight of the scan
+  // colours averaged into `colour` elsewhere.
+  openvdb::MaskGrid::Ptr photo_coloured;
+  openvdb::FloatGrid::Ptr scan_colour_weight;
+
+  // The photo-coloured voxels: those photos gave weight before the first scan.
+  void mark_photo_colours() {
+    photo_coloured = openvdb::MaskGrid::create(false);
+    photo_coloured->setTransform(tsdf->transform().copy());
+    scan_colour_weight = openvdb::FloatGrid::create(0.f);
+    scan_colour_weight->setTransform(tsdf->transform().copy());
+    auto acc = photo_coloured->getAccessor();
+    for (auto it = weight->cbeginValueOn(); it; ++it) {
+      if (!(*it > 0)) continue;
+      if (it.isVoxelValue())
+        acc.setValueOn(it.getCoord());
+      else
+        photo_coloured->fill(it.getBoundingBox(), true, true);
+    }
+  }
 
   // True when the 2x2x2 voxels from `base` are all observed: a zero crossing there
   // is surface, not the edge of the narrow band next to unseen space.
@@ -117,6 +141,7 @@ void TsdfVolume::integrate(const PinholeCamera& cam, const DepthMap& depth,
   STRATA_CHECK(depth.width == cam.width && depth.height == cam.height, "depth/camera size mismatch");
   STRATA_CHECK(impl_->weight && impl_->colour && impl_->spread && impl_->weight2,
                "volume read from a file cannot integrate");
+  STRATA_CHECK(!impl_->photo_coloured, "depth maps are integrated before the scans");
   auto& I = *impl_;
   const auto& xform = I.tsdf->transform();
 
@@ -198,19 +223,33 @@ void TsdfVolume::integrate(const PinholeCamera& cam, const DepthMap& depth,
 }
 
 void TsdfVolume::add_scan_points(const std::vector<Eigen::Vector3d>& points,
-                                 const std::vector<Eigen::Vector3d>& dirs, const std::vector<double>& relative_weights) {
+                                 const std::vector<Eigen::Vector3d>& dirs, const std::vector<double>& relative_weights,
+                                 const std::vector<Rgb8>& colours) {
   STRATA_CHECK(points.size() == dirs.size(), "{} scan points but {} ray directions", points.size(), dirs.size());
   STRATA_CHECK(relative_weights.empty() || relative_weights.size() == points.size(), "{} scan points but {} weights",
                points.size(), relative_weights.size());
+  STRATA_CHECK(colours.empty() || colours.size() == points.size(), "{} scan points but {} colours", points.size(),
+               colours.size());
   STRATA_CHECK(impl_->weight && impl_->colour && impl_->spread && impl_->weight2,
                "volume read from a file cannot integrate");
   auto& I = *impl_;
+  if (!I.photo_coloured) I.mark_photo_colours();
   if (!I.scan) {
     I.scan = openvdb::Vec3SGrid::create(openvdb::Vec3s(0.f));
     I.scan->setTransform(I.tsdf->transform().copy());
   }
+  const bool coloured = !colours.empty();
+  if (points.empty()) return;
+  STRATA_CHECK(!I.scan_coloured || *I.scan_coloured == coloured, "a scan's chunks with and without colours");
+  I.scan_coloured = coloured;
+  if (coloured && !I.scan_colour) {
+    I.scan_colour = openvdb::Vec3SGrid::create(openvdb::Vec3s(0.f));
+    I.scan_colour->setTransform(I.tsdf->transform().copy());
+  }
   const auto& xform = I.tsdf->transform();
   auto acc = I.scan->getAccessor();
+  std::optional<openvdb::Vec3SGrid::Accessor> colour_acc;
+  if (coloured) colour_acc.emplace(I.scan_colour->getAccessor());
   const double step = 0.5 * I.voxel;
   const int n_steps = static_cast<int>(std::ceil(2 * I.trunc / step));
   const double inv_v2 = 1.0 / (I.voxel * I.voxel);
@@ -240,6 +279,10 @@ void TsdfVolume::add_scan_points(const std::vector<Eigen::Vector3d>& points,
       const float g = static_cast<float>(std::exp(-0.5 * lateral2 * inv_v2));
       const openvdb::Vec3s old = acc.getValue(c);
       acc.setValue(c, openvdb::Vec3s(old[0] + pw * g, old[1] + pw * g * static_cast<float>(d), old[2] + pw * g * g));
+      if (colour_acc) {
+        const Rgb8& rgb = colours[i];
+        colour_acc->setValue(c, colour_acc->getValue(c) + openvdb::Vec3s(rgb[0], rgb[1], rgb[2]) * (pw * g));
+      }
     }
   }
 }
@@ -259,6 +302,10 @@ TsdfVolume::ScanFusion TsdfVolume::end_scan(double weight_per_point) {
   auto cacc = I.colour->getAccessor();
   auto sacc = I.spread->getAccessor();
   auto qacc = I.weight2->getAccessor();
+  auto photo = I.photo_coloured->getConstAccessor();
+  auto scw = I.scan_colour_weight->getAccessor();
+  std::optional<openvdb::Vec3SGrid::ConstAccessor> scan_colour;
+  if (I.scan_colour) scan_colour.emplace(I.scan_colour->getConstAccessor());
   for (auto it = I.scan->cbeginValueOn(); it; ++it) {
     if (!it.isVoxelValue()) continue;
     const openvdb::Vec3s a = *it;
@@ -276,12 +323,24 @@ TsdfVolume::ScanFusion TsdfVolume::end_scan(double weight_per_point) {
     wacc.setValueOnly(c, Wn);
     sacc.setValueOnly(c, (sacc.getValue(c) * W + obs_w * (sdf - mean) * (sdf - mean_n)) / Wn);
     qacc.setValueOnly(c, qacc.getValue(c) + obs_w * obs_w);
-    // A scan brings no colour of the photos: keep theirs, grey where none saw it.
-    if (!(W > 0)) cacc.setValueOnly(c, openvdb::Vec3s(128.f));
+    // Colour: the photos' where they saw the voxel; else the weighted mean of the
+    // coloured scans' observations; grey where neither saw it.
+    if (!photo.isValueOn(c)) {
+      const float cw = scw.getValue(c);
+      if (scan_colour) {
+        const openvdb::Vec3s rgb = scan_colour->getValue(c) / a[0];
+        cacc.setValueOnly(c, cw > 0 ? (cacc.getValue(c) * cw + rgb * obs_w) / (cw + obs_w) : rgb);
+        scw.setValue(c, cw + obs_w);
+      } else if (!(cw > 0)) {
+        cacc.setValueOnly(c, openvdb::Vec3s(128.f));
+      }
+    }
     ++out.voxels;
     out.weight += obs_w;
   }
   I.scan = nullptr;
+  I.scan_colour = nullptr;
+  I.scan_coloured.reset();
   return out;
 }
 
@@ -316,6 +375,8 @@ void TsdfVolume::finalise(double min_weight) {
   openvdb::tools::pruneInactive(I.colour->tree());
   if (I.spread) openvdb::tools::pruneInactive(I.spread->tree());
   if (I.weight2) openvdb::tools::pruneInactive(I.weight2->tree());
+  I.photo_coloured = nullptr;  // the fusion is over: the scans' colour bookkeeping goes
+  I.scan_colour_weight = nullptr;
 }
 
 std::size_t TsdfVolume::remove_small_components(double min_fraction) {

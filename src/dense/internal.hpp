@@ -118,7 +118,8 @@ class TsdfVolume {
   static std::unique_ptr<TsdfVolume> read(const std::filesystem::path& vdb, LevelSetInfo* info);
 
   // Curless & Levoy (1996) running weighted average of truncated distances along
-  // the view rays of one depth map; colours averaged with the same weights.
+  // the view rays of one depth map; colours averaged with the same weights. Every
+  // depth map is integrated before the first scan.
   void integrate(const PinholeCamera& camera, const DepthMap& depth,
                  const std::vector<std::uint8_t>& rgb);
   // One range scan (a laser scanner's or phone LiDAR's points, site frame), fused
@@ -131,14 +132,20 @@ class TsdfVolume {
   // to the voxel one observation: the weighted mean distance, with the weight
   // `weight_per_point` x n_eff, n_eff = (sum g)^2 / sum g^2 the effective number of
   // points averaged (the inverse variance of their mean, in the fusion's unit
-  // weight). Voxels no photo saw get a mid grey colour.
+  // weight).
   // Points of unequal noise (a depth camera's k z^2) carry `relative_weights`, the
   // inverse variance of each relative to the scan's sigma: a voxel then sums w g,
   // w g d and w g^2, so its mean is inverse-variance weighted and n_eff = (sum w g)^2
   // / sum w g^2 is the inverse variance of that mean in units of the scan's sigma
   // (equal weights: as without). Empty: every point weighs 1.
+  // Colour: points with `colours` (a depth camera's colour frame, a PLY/LAS scan's
+  // RGB; all of a scan's chunks or none) give the voxel's observation the colour
+  // sum w g rgb / sum w g, averaged into the voxel's colour with the observation's
+  // weight, over every coloured scan. Photos' colour comes first: a voxel that a
+  // photo coloured (integrate() before any scan) keeps it. Voxels neither photos nor
+  // coloured scans saw are mid grey.
   void add_scan_points(const std::vector<Eigen::Vector3d>& points, const std::vector<Eigen::Vector3d>& dirs,
-                       const std::vector<double>& relative_weights = {});
+                       const std::vector<double>& relative_weights = {}, const std::vector<Rgb8>& colours = {});
   struct ScanFusion {
     std::size_t voxels = 0;  // voxels that received an observation from the scan
     double weight = 0;       // sum of the weights added
@@ -195,10 +202,18 @@ class TsdfVolume {
 std::vector<Eigen::Vector3d> scan_ray_directions(const RangeScanInput& scan,
                                                  const std::vector<Eigen::Vector3d>& points,
                                                  const std::vector<Eigen::Vector3f>& normals);
-// Median spacing of the scans' points over the ground, metres: per 1 cm cell of the
-// XY plane that holds points, 1 cm / sqrt(points in it); the median over cells.
-// Reads every scan once.
-double scan_point_spacing(const std::vector<RangeScanInput>& scans);
+// How finely the scans sample the ground, what a layer without photos takes its
+// voxel from (docs/range.md, "Voxel size").
+struct ScanSampling {
+  // Median spacing of all the scans' points over the ground, metres: per 1 cm cell of
+  // the XY plane that holds points, 1 cm / sqrt(points in it); the median over cells.
+  double spacing_m = 0;
+  // The points' noise, one sigma, metres: per scan the median of its points' sigmas
+  // (RangeScanInput::point_sigma, else sigma_m); the median over the scans.
+  double noise_m = 0;
+};
+// Reads every scan once; throws ProcessingError when they hold no point.
+ScanSampling scan_sampling(const std::vector<RangeScanInput>& scans);
 struct ScanFusionFigures {
   int scans = 0;
   std::uint64_t points = 0;

@@ -1,5 +1,5 @@
 // Range scans in the dense stage: the rays their points are fused along, their point
-// spacing (the voxel size of a layer without photos) and the loop that hands their
+// spacing and noise (the voxel size of a layer without photos) and the loop that hands their
 // chunks to the volume (fusion.cpp, the only file that includes OpenVDB).
 #include "core/error.hpp"
 #include "core/progress.hpp"
@@ -40,22 +40,31 @@ std::vector<Eigen::Vector3d> scan_ray_directions(const RangeScanInput& scan, con
   return dirs;
 }
 
-double scan_point_spacing(const std::vector<RangeScanInput>& scans) {
+ScanSampling scan_sampling(const std::vector<RangeScanInput>& scans) {
   std::unordered_map<std::int64_t, std::uint32_t> cells;
+  std::vector<double> noise;  // per input: the median of its points' sigmas
   for (const auto& scan : scans) {
-    scan.read([&](const std::vector<Eigen::Vector3d>& points, const std::vector<Eigen::Vector3f>&) {
-      for (const auto& p : points) {
+    check_cancelled();
+    std::vector<double> sigmas;
+    std::size_t points = 0;
+    scan.read([&](const std::vector<Eigen::Vector3d>& chunk, const std::vector<Eigen::Vector3f>&,
+                  const std::vector<Rgb8>&) {
+      for (const auto& p : chunk) {
         const auto i = static_cast<std::int64_t>(std::floor(p.x() / kSpacingCell));
         const auto j = static_cast<std::int64_t>(std::floor(p.y() / kSpacingCell));
         ++cells[(i << 32) ^ (j & 0xffffffff)];
+        if (scan.point_sigma) sigmas.push_back(scan.point_sigma(p));
       }
+      points += chunk.size();
     });
+    if (points == 0) continue;
+    noise.push_back(scan.point_sigma ? median_in_place(sigmas) : scan.sigma_m);
   }
   if (cells.empty()) throw ProcessingError("dense: the scans hold no points");
   std::vector<double> spacing;
   spacing.reserve(cells.size());
   for (const auto& [key, count] : cells) spacing.push_back(kSpacingCell / std::sqrt(double(count)));
-  return median_in_place(spacing);
+  return {median_in_place(spacing), median_in_place(noise)};
 }
 
 ScanFusionFigures fuse_scans(TsdfVolume& volume, const std::vector<RangeScanInput>& scans, double unit_sigma_m) {
@@ -66,7 +75,8 @@ ScanFusionFigures fuse_scans(TsdfVolume& volume, const std::vector<RangeScanInpu
     check_cancelled();
     std::uint64_t points = 0;
     std::vector<double> relative;  // (sigma_m / point sigma)^2, when the noise varies
-    scan.read([&](const std::vector<Eigen::Vector3d>& chunk, const std::vector<Eigen::Vector3f>& normals) {
+    scan.read([&](const std::vector<Eigen::Vector3d>& chunk, const std::vector<Eigen::Vector3f>& normals,
+                  const std::vector<Rgb8>& colours) {
       relative.clear();
       if (scan.point_sigma) {
         relative.reserve(chunk.size());
@@ -76,7 +86,7 @@ ScanFusionFigures fuse_scans(TsdfVolume& volume, const std::vector<RangeScanInpu
           relative.push_back(std::pow(scan.sigma_m / sigma, 2));
         }
       }
-      volume.add_scan_points(chunk, scan_ray_directions(scan, chunk, normals), relative);
+      volume.add_scan_points(chunk, scan_ray_directions(scan, chunk, normals), relative, colours);
       points += chunk.size();
     });
     // Inverse variance in the fusion's unit weight (FusionOptions::photo_depth_sigma_gsd).

@@ -151,8 +151,10 @@ DenseLayerResult dense_layer(Project& project, const std::string& layer_name, co
   }
   // The alignment, the scans and every option (a changed option recomputes; the
   // depth-map cache below still reuses what did not change). Version 3: the fused
-  // volume holds the observations' spread (per-cell height uncertainty).
-  const std::string inputs_key = CacheKey("dense v3")
+  // volume holds the observations' spread (per-cell height uncertainty). Version 4:
+  // scans' and depth frames' colours fused; without photos, the voxel no finer than
+  // the scans' point noise.
+  const std::string inputs_key = CacheKey("dense v4")
                                      .add(alignment ? alignment->inputs_key : std::string("no photos"))
                                      .add(scans.key)
                                      .add(options)

@@ -74,9 +74,12 @@ void add_depth_frames(Project& project, const LayerRecord& layer, LayerScans& ou
         unregistered = true;
         continue;
       }
-      out.registered.push_back(depth_frame_input(project.dir() / f.media_path, seq, f, kDepthFusionStride));
+      std::optional<fs::path> colour;
+      if (f.colour_media_path) colour = project.dir() / *f.colour_media_path;
+      out.registered.push_back(depth_frame_input(project.dir() / f.media_path, seq, f, kDepthFusionStride, colour));
       ++out.depth_frames;
       key.add(f.sha256).add(seq.noise_k).add(seq.depth_scale_m).add(*f.pose).add(kDepthFusionStride);
+      key.add(f.colour_sha256.value_or(std::string()));
       if (f.bounds) add_bounds(out, *f.bounds);
     }
     if (unregistered) out.unregistered_depth.push_back(seq.name);
@@ -88,7 +91,7 @@ void add_depth_frames(Project& project, const LayerRecord& layer, LayerScans& ou
 LayerScans layer_scans(Project& project, const LayerRecord& layer) {
   LayerScans out;
   const SiteInfo site = project.site();
-  CacheKey key("registered scans v1");
+  CacheKey key("registered scans v2");  // v2: colour frames fused
   for (const ScanRecord& s : list_scans(project.db(), layer.id)) {
     if (s.registration == ScanRegistration::unregistered) {
       out.unregistered.push_back(s.name);

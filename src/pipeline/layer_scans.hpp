@@ -28,7 +28,8 @@ struct LayerScans {
 // (RangeScanInput::station). Its points go through PROJ when its CRS is not the
 // site's, then the site origin is subtracted. A registered depth frame is fused like
 // a 'transform' scan from its camera centre, each point weighted by its noise k z^2
-// (every kDepthFusionStride-th pixel each way).
+// (every kDepthFusionStride-th pixel each way), with its pixel's colour when the
+// frame has a colour frame.
 LayerScans layer_scans(Project& project, const LayerRecord& layer);
 
 }  // namespace strata

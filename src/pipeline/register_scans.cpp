@@ -43,7 +43,7 @@ LayerRecord previous_layer(Database& db, const LayerRecord& layer) {
 // Every point of a file, mapped by `map` (points only; normals are not needed here).
 std::vector<Eigen::Vector3d> read_points(const fs::path& file, const ScanFrameMap& map) {
   std::vector<Eigen::Vector3d> out;
-  read_scan_points(file, map, [&](const std::vector<Eigen::Vector3d>& points, const std::vector<Eigen::Vector3f>&) {
+  read_scan_points(file, map, [&](const std::vector<Eigen::Vector3d>& points, const std::vector<Eigen::Vector3f>&, const auto&) {
     out.insert(out.end(), points.begin(), points.end());
   });
   return out;
@@ -113,7 +113,7 @@ ScanBounds bounds_under(const std::vector<Eigen::Vector3d>& raw, const Eigen::Ma
 ScanBounds bounds_under(const fs::path& file, const Eigen::Matrix4d& pose) {
   ScanBounds box = empty_bounds();
   read_scan_points(file, shifted_by(Eigen::Vector3d::Zero()),
-                   [&](const std::vector<Eigen::Vector3d>& points, const std::vector<Eigen::Vector3f>&) {
+                   [&](const std::vector<Eigen::Vector3d>& points, const std::vector<Eigen::Vector3f>&, const auto&) {
                      grow_under(box, points, pose);
                    });
   return box;

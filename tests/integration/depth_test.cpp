@@ -1,7 +1,9 @@
 // An RGB-D-only layer through the real CLI: a short simulated depth sequence imported
 // with its drifting recorded poses, registered (frame to model, loop closure) closer
-// to the true poses than the device recorded them, and fused into a DTM; a truncated
-// frame is refused in one line naming it, and the project stays as it was.
+// to the true poses than the device recorded them, and fused into a DTM whose points
+// carry the colour frames' colours; a truncated frame is refused in one line naming
+// it, and the project stays as it was.
+#include "importers/mesh/ply_mesh.hpp"
 #include "support/test_support.hpp"
 
 #include <nlohmann/json.hpp>
@@ -11,6 +13,7 @@
 #include <Eigen/Geometry>
 
 #include <algorithm>
+#include <cmath>
 #include <fstream>
 #include <map>
 #include <sstream>
@@ -24,6 +27,11 @@ constexpr int kFrames = 24;
 // The recorded poses drift by centimetres round the loop; registration must bring the
 // worst camera within a few depth-noise sigmas (~5 mm at 2 m) of its true place.
 constexpr double kMaxRegisteredErrorM = 0.01;
+// The fused points' colour from the colour frames: a grey point is one no coloured
+// frame reached (a few at the band's edges); the synthetic albedo's green varies by
+// tens of levels over soil and stones (grey points would give 0).
+constexpr double kMaxGreyShare = 0.01;
+constexpr double kMinColourSpreadLevels = 10;
 
 int lines(const std::string& s) { return int(std::count(s.begin(), s.end(), '\n')); }
 void ok(const CommandResult& r) { ASSERT_EQ(r.exit_code, 0) << r.err; }
@@ -117,6 +125,21 @@ TEST(DepthLayer, ImportRegisterAndFuseASimulatedSequence) {
   const nlohmann::json q = nlohmann::json::parse(r.out);
   EXPECT_EQ(q["dense"]["scans_fused"].get<int>(), kFrames);
   EXPECT_TRUE(fs::exists(dir / "site" / "products" / "L2" / "dtm.tif"));
+  // The colour frames reach the fused points: hardly a point is left mid grey, and
+  // their colours vary as the synthetic albedo does.
+  const DenseMesh points = read_ply(dir / "site" / "products" / "L2" / "dense" / "points.ply").mesh;
+  ASSERT_EQ(points.colours.size(), points.vertices.size());
+  ASSERT_GT(points.vertices.size(), 10000u);
+  std::size_t grey = 0;
+  double sum = 0, sum2 = 0;
+  for (const auto& c : points.colours) {
+    grey += c == Rgb8(128, 128, 128);
+    sum += c[1];
+    sum2 += double(c[1]) * c[1];
+  }
+  const double n = double(points.colours.size()), mean = sum / n;
+  EXPECT_LT(double(grey) / n, kMaxGreyShare);
+  EXPECT_GT(std::sqrt(sum2 / n - mean * mean), kMinColourSpreadLevels) << "green channel's spread over the points";
 }
 
 }  // namespace

@@ -2,6 +2,7 @@
 // analytic scene (a block on a plane) must give its surface to the millimetre, and
 // the weights must follow the noise: a 1 mm scan beside a noisier depth map pulls
 // the surface to itself, a 20 mm scan hardly moves the depth map's.
+#include "core/error.hpp"
 #include "dense/dense.hpp"
 #include "dense/internal.hpp"
 #include "support/box_scan.hpp"
@@ -10,6 +11,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
+#include <utility>
 
 namespace strata {
 namespace {
@@ -44,7 +47,7 @@ RangeScanInput in_memory(const std::vector<Eigen::Vector3d>& points, const Eigen
     for (std::size_t i = 0; i < points.size(); i += 50000) {
       const std::vector<Eigen::Vector3d> chunk(points.begin() + std::ptrdiff_t(i),
                                                points.begin() + std::ptrdiff_t(std::min(points.size(), i + 50000)));
-      sink(chunk, {});
+      sink(chunk, {}, {});
     }
   };
   return in;
@@ -201,6 +204,148 @@ TEST(ScanFusion, PointSigmasWeighEachPointByItsOwnNoise) {
   // Equal point sigmas: the same as a constant sigma_m.
   const double constant = plane_height({in_memory(raised, station, 0.002), in_memory(rays, station, 0.006)});
   EXPECT_NEAR(constant, raised_precise, 1e-6);
+}
+
+// ---- colour ---------------------------------------------------------------------
+// The plane's west half (x < 0) and east half in the coloured scans.
+const Rgb8 kWest(200, 40, 30), kEast(20, 90, 210), kGrey(128, 128, 128);
+// A fused colour within this of the scan's: the trilinear colour of a vertex mixes
+// only voxels of one patch away from its edge; float sums round to a level or so.
+constexpr int kColourTolerance = 3;  // 8-bit levels
+
+RangeScanInput with_colours(RangeScanInput in, const std::function<Rgb8(const Eigen::Vector3d&)>& colour) {
+  auto read = in.read;
+  in.read = [read, colour](const RangeScanInput::ChunkSink& sink) {
+    read([&](const std::vector<Eigen::Vector3d>& points, const std::vector<Eigen::Vector3f>& normals,
+             const std::vector<Rgb8>&) {
+      std::vector<Rgb8> colours;
+      for (const auto& p : points) colours.push_back(colour(p));
+      sink(points, normals, colours);
+    });
+  };
+  return in;
+}
+
+// The largest channel difference from `want` over the mesh's vertices on the plane
+// (z = 0) within the XY box, and how many there were.
+std::pair<int, int> worst_colour(const DenseMesh& mesh, const Rgb8& want, double x0, double x1, double y0, double y1) {
+  int worst = 0, n = 0;
+  for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
+    const Eigen::Vector3d& v = mesh.vertices[i];
+    if (v.x() < x0 || v.x() > x1 || v.y() < y0 || v.y() > y1 || std::abs(v.z()) > 0.003) continue;
+    ++n;
+    for (int k = 0; k < 3; ++k) worst = std::max(worst, std::abs(int(mesh.colours[i][k]) - int(want[k])));
+  }
+  return {worst, n};
+}
+
+TEST(ScanFusion, AScansColoursReachTheMeshAndAScanWithoutColoursStaysGrey) {
+  const Eigen::Vector3d station(-0.9, 0.05, 1.5);
+  const RangeScanInput plain = in_memory(scan_points(station, 0.001, 6), station, 0.001);
+  auto mesh_of = [](const RangeScanInput& scan) {
+    dense::TsdfVolume volume(kVoxel, kTruncation);
+    dense::fuse_scans(volume, {scan}, kVoxel);
+    volume.finalise(0.2);
+    return volume.extract_mesh(0.0);
+  };
+  const DenseMesh coloured = mesh_of(with_colours(plain, [](const Eigen::Vector3d& p) { return p.x() < 0 ? kWest : kEast; }));
+  ASSERT_EQ(coloured.colours.size(), coloured.vertices.size());
+  // Away from the patches' common edge (x = 0) and from the block.
+  const auto [west, n_west] = worst_colour(coloured, kWest, -0.3, -0.15, 0.15, 0.3);
+  const auto [east, n_east] = worst_colour(coloured, kEast, 0.15, 0.3, 0.15, 0.3);
+  EXPECT_GT(n_west, 500);
+  EXPECT_GT(n_east, 500);
+  EXPECT_LE(west, kColourTolerance);
+  EXPECT_LE(east, kColourTolerance);
+  const DenseMesh grey = mesh_of(plain);
+  const auto [off_grey, n_grey] = worst_colour(grey, kGrey, -0.3, 0.3, -0.3, 0.3);
+  EXPECT_GT(n_grey, 2000);
+  EXPECT_EQ(off_grey, 0) << "a scan without colours leaves its voxels mid grey";
+}
+
+// Two coloured scans of the same rays average their colours as their geometry: by
+// the inverse variances of their points, (100 / 2^2 + 200 / 6^2) / (1 / 2^2 + 1 /
+// 6^2) = 110. Where a photo coloured the voxel, its colour stays.
+TEST(ScanFusion, ScanColoursAverageByTheirWeightsAndPhotosKeepTheirs) {
+  const Eigen::Vector3d station(-0.9, 0.0, 1.5);
+  const std::vector<Eigen::Vector3d> rays = scan_points(station, 0.0, 7);
+  auto grey_scan = [&](double sigma, std::uint8_t level) {
+    RangeScanInput in = in_memory(rays, station, 0.001);
+    in.point_sigma = [sigma](const Eigen::Vector3d&) { return sigma; };
+    return with_colours(in, [level](const Eigen::Vector3d&) { return Rgb8(level, level, level); });
+  };
+  {
+    dense::TsdfVolume volume(kVoxel, 2 * kTruncation);
+    dense::fuse_scans(volume, {grey_scan(0.002, 100), grey_scan(0.006, 200)}, kVoxel);
+    volume.finalise(0.2);
+    const double expected = (100 / 4.0 + 200 / 36.0) / (1 / 4.0 + 1 / 36.0);
+    const auto [off, n] = worst_colour(volume.extract_mesh(0.0), Rgb8(110, 110, 110), -0.3, 0.3, 0.15, 0.3);
+    EXPECT_GT(n, 500);
+    EXPECT_NEAR(expected, 110.0, 0.5);
+    EXPECT_LE(off, 1);
+  }
+  // A photo of the west half (x < 0) in green, then a scan of the whole plane in the
+  // west patch's red. Its pixels 3.1 mm apart on the plane, finer than the voxel as
+  // the automatic voxel makes them (1.25 GSD): every voxel under it is on a ray.
+  dense::PinholeCamera cam;
+  cam.width = cam.height = 320;
+  cam.fx = cam.fy = 320;
+  cam.cx = cam.cy = 159.5;
+  cam.pose.R << 1, 0, 0, 0, -1, 0, 0, 0, -1;  // looking straight down from (0, 0, 1): u grows with x
+  cam.pose.t = Eigen::Vector3d(0, 0, 1);
+  dense::DepthMap west_half = plane_depth(cam, 0.0);
+  std::vector<std::uint8_t> green(std::size_t(cam.width) * cam.height * 3);
+  for (std::size_t p = 0; p < west_half.depth.size(); ++p) {
+    if (int(p % std::size_t(cam.width)) >= cam.width / 2) west_half.depth[p] = 0;
+    green[3 * p] = 30;
+    green[3 * p + 1] = 160;
+    green[3 * p + 2] = 40;
+  }
+  dense::TsdfVolume volume(kVoxel, 2 * kTruncation);
+  volume.integrate(cam, west_half, green);
+  dense::fuse_scans(volume, {with_colours(in_memory(rays, station, 0.001), [](const Eigen::Vector3d&) { return kWest; })},
+                    kVoxel);
+  volume.finalise(0.2);
+  const DenseMesh mesh = volume.extract_mesh(0.0);
+  const auto [photo_off, n_photo] = worst_colour(mesh, Rgb8(30, 160, 40), -0.3, -0.15, 0.15, 0.3);
+  const auto [scan_off, n_scan] = worst_colour(mesh, kWest, 0.15, 0.3, 0.15, 0.3);
+  EXPECT_GT(n_photo, 500);
+  EXPECT_GT(n_scan, 500);
+  EXPECT_LE(photo_off, kColourTolerance) << "the photo's colour stays where it saw the plane";
+  EXPECT_LE(scan_off, kColourTolerance) << "the scan's colour where no photo saw the plane";
+}
+
+// ---- the voxel of a layer without photos --------------------------------------------
+// A square of points on a regular grid of `step`, shifted by `offset`.
+RangeScanInput grid_input(double step, const Eigen::Vector2d& offset, double sigma) {
+  std::vector<Eigen::Vector3d> points;
+  for (double y = 0; y < 0.5; y += step)
+    for (double x = 0; x < 0.5; x += step) points.emplace_back(x + offset.x(), y + offset.y(), 0.0);
+  return in_memory(points, Eigen::Vector3d(0, 0, 2), sigma);
+}
+
+TEST(ScanFusion, ScanSamplingIsAllPointsSpacingAndTheScansMedianNoise) {
+  // 5 mm: four points in every 1 cm cell, wherever the grid starts; sixteen inputs
+  // shifted from one another put 64 there: 1.25 mm.
+  constexpr double kStep = 0.005;
+  constexpr int kInputs = 16;
+  std::vector<RangeScanInput> inputs;
+  for (int i = 0; i < kInputs; ++i)
+    inputs.push_back(grid_input(kStep, Eigen::Vector2d(0.0003 * i, 0.0007 * ((i * 5) % kInputs)), 0.003));
+  EXPECT_NEAR(dense::scan_sampling({inputs[0]}).spacing_m, kStep, 1e-9);
+  dense::ScanSampling s = dense::scan_sampling(inputs);
+  EXPECT_NEAR(s.spacing_m, kStep / 4, 1e-9);
+  EXPECT_DOUBLE_EQ(s.noise_m, 0.003);
+  // Points of their own noise (a depth camera's): the median of each input's, then
+  // over the inputs: 5 of 16 inputs at 8 mm, the rest at 2 mm + 1 mm per metre of x.
+  for (int i = 0; i < kInputs; ++i)
+    inputs[i].point_sigma = [i](const Eigen::Vector3d& p) { return i < 5 ? 0.008 : 0.002 + 0.001 * p.x(); };
+  s = dense::scan_sampling(inputs);
+  EXPECT_NEAR(s.noise_m, 0.002 + 0.001 * 0.25, 2e-5) << "the middle input's median point, x = 0.25 m";
+  // An input without points does not count; none at all is an error.
+  EXPECT_DOUBLE_EQ(dense::scan_sampling({grid_input(kStep, {0, 0}, 0.003), in_memory({}, {0, 0, 2}, 0.009)}).noise_m,
+                   0.003);
+  EXPECT_THROW(dense::scan_sampling({in_memory({}, Eigen::Vector3d(0, 0, 2), 0.003)}), ProcessingError);
 }
 
 TEST(ScanFusion, RaysWithoutAStationFollowTheNormalsOrTheVertical) {
