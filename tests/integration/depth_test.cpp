@@ -1,7 +1,10 @@
 // An RGB-D-only layer through the real CLI: a short simulated depth sequence imported
 // with its drifting recorded poses, registered (frame to model, loop closure) closer
 // to the true poses than the device recorded them, and fused into a DTM; a truncated
-// frame is refused in one line naming it, and the project stays as it was.
+// frame is refused in one line naming it, and the project stays as it was. A sequence
+// imported without poses: tracked from its colour frames' features and placed in the
+// site frame on the surveyed markers they see; with fewer than 3 markers surveyed it
+// is refused in one line naming it, the project unchanged.
 #include "support/test_support.hpp"
 
 #include <nlohmann/json.hpp>
@@ -117,6 +120,79 @@ TEST(DepthLayer, ImportRegisterAndFuseASimulatedSequence) {
   const nlohmann::json q = nlohmann::json::parse(r.out);
   EXPECT_EQ(q["dense"]["scans_fused"].get<int>(), kFrames);
   EXPECT_TRUE(fs::exists(dir / "site" / "products" / "L2" / "dtm.tif"));
+}
+
+// Placed on the markers: the survey (3 mm), the marker centres' depth and the tracking
+// (a few mm each) leave the cameras within a couple of centimetres of their true places.
+constexpr double kMaxMarkerDatumErrorM = 0.02;
+
+TEST(DepthLayer, ASequenceWithoutPosesIsPlacedOnTheMarkers) {
+  ScratchDir dir("depth_markers");
+  const fs::path data = dir / "data";
+  // The wider loop of the synthetic camera, which sees the markers round the trench.
+  ok(run_strata({"-q", "synth", data.string(), "--stages", "1", "--photos", "3", "--width", "200", "--depth",
+                 "--depth-frames", std::to_string(kFrames), "--depth-offset", "0.9", "--depth-aim", "0.6"}));
+  const fs::path seq = data / "depth" / "L2";
+  std::vector<std::string> frames;
+  for (const auto& e : fs::directory_iterator(seq / "depth")) frames.push_back(e.path().string());
+  std::sort(frames.begin(), frames.end());
+  auto project = [&](const std::string& name, const fs::path& markers) {
+    const std::string site = (dir / name).string();
+    ok(run_strata({"-q", "init", site, "--crs", "EPSG:32636", "--origin", "734000,4174000,1450"}));
+    ok(run_strata({"-q", "unit", "add", site, "102"}));
+    ok(run_strata({"-q", "layer", "add", site, "L2", "--unit", "102"}));
+    ok(run_strata({"-q", "import", "markers", site, markers.string()}));
+    std::vector<std::string> args = {"import", "depth", site, "--layer", "L2", "--intrinsics",
+                                     (seq / "intrinsics.txt").string(), "--colour", (seq / "colour").string()};
+    args.insert(args.end(), frames.begin(), frames.end());
+    const CommandResult r = run_strata(args);
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_NE(r.out.find("24 with colour, 0 with a recorded pose"), std::string::npos) << r.out;
+    return site;
+  };
+
+  // Only two of the markers surveyed: refused, naming the sequence, nothing changed.
+  {
+    std::istringstream all(read_text(data / "markers.csv"));
+    std::string line, two;
+    for (int i = 0; i < 3 && std::getline(all, line); ++i) two += line + "\n";  // the header and 2 markers
+    write_text(dir / "two_markers.csv", two);
+  }
+  const std::string few = project("few", dir / "two_markers.csv");
+  const std::string before = tree_fingerprint(few);
+  CommandResult r = run_strata({"-q", "register", "depth", few, "--layer", "L2"});
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_EQ(lines(r.err), 1) << r.err;
+  EXPECT_NE(r.err.find("register.depth: sequence 'depth': "), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("at least 3 are needed"), std::string::npos) << r.err;
+  EXPECT_EQ(tree_fingerprint(few), before);
+  // Asking for the device's datum without recorded poses: refused too.
+  r = run_strata({"-q", "register", "depth", few, "--layer", "L2", "--datum", "device"});
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.err.find("imported without --poses"), std::string::npos) << r.err;
+  EXPECT_EQ(tree_fingerprint(few), before);
+
+  const std::string site = project("site", data / "markers.csv");
+  r = run_strata({"register", "depth", site, "--layer", "L2", "--json"});
+  ok(r);
+  const nlohmann::json reg = nlohmann::json::parse(r.out);
+  const auto& s = reg["sequences"][0];
+  EXPECT_EQ(s["datum"]["datum"], "markers");
+  EXPECT_GE(s["datum"]["inliers"].get<int>(), 3);
+  EXPECT_NEAR(s["datum"]["scale"].get<double>(), 1.0, 0.01);
+  const auto truth = centres(seq / "poses_true.txt");
+  int from_features = 0;
+  double worst = 0;
+  for (const auto& f : s["frames"]) {
+    EXPECT_FALSE(f.contains("recorded_pose"));
+    from_features += f["start"] == "features";
+    const Eigen::Vector3d t = truth.at(f["frame"].get<std::string>());
+    const nlohmann::json& m = f["pose"];
+    worst = std::max(worst, (Eigen::Vector3d(m[3], m[7], m[11]) - t).norm());
+  }
+  // 24 frames a loop are 15 degrees apart: most, not all, pairs share enough features.
+  EXPECT_GE(from_features, kFrames / 2);
+  EXPECT_LT(worst, kMaxMarkerDatumErrorM);
 }
 
 }  // namespace
