@@ -60,6 +60,9 @@ class VoxelHash {
         for (int dy = -k; dy <= k; ++dy)
           for (int dx = -k; dx <= k; ++dx) {
             if (std::max({std::abs(dx), std::abs(dy), std::abs(dz)}) != k) continue;  // the shell only
+            // A cell whose box is no nearer than the best point so far cannot hold a
+            // nearer one: skipped without a lookup (most of the 26 round a close match).
+            if (box_distance2(q, c, {dx, dy, dz}) >= best_d2) continue;
             auto it = cells_.find(cell_key(c + Eigen::Vector3i(dx, dy, dz)));
             if (it == cells_.end()) continue;
             for (int i : it->second) {
@@ -88,6 +91,16 @@ class VoxelHash {
   static constexpr int kBlock = 4;  // cells a block side
   Eigen::Vector3i cell_of(const Eigen::Vector3d& p) const { return (p / cell_).array().floor().cast<int>(); }
   static Eigen::Vector3i block_of(const Eigen::Vector3i& c) { return floor_div(c, kBlock); }
+  // Squared distance from q (in cell c) to the box of the cell at offset d from c.
+  double box_distance2(const Eigen::Vector3d& q, const Eigen::Vector3i& c, const Eigen::Vector3i& d) const {
+    double sum = 0;
+    for (int a = 0; a < 3; ++a) {
+      if (d[a] == 0) continue;
+      const double gap = d[a] > 0 ? (c[a] + d[a]) * cell_ - q[a] : q[a] - (c[a] + d[a] + 1) * cell_;
+      if (gap > 0) sum += gap * gap;
+    }
+    return sum;
+  }
   // Whether a block holding points meets the box of +-radius (plus a cell) about q.
   bool any_block_near(const Eigen::Vector3d& q, double radius) const {
     const Eigen::Vector3d pad = Eigen::Vector3d::Constant(radius + cell_);
