@@ -155,8 +155,8 @@ void register_synth_command(CLI::App& app) {
                 "poses under depth/L<k>/ (docs/range.md)");
   cmd->add_option("--depth-frames", args->depth_frames, "depth frames per layer, one loop round the trench [60]");
   cmd->add_option("--depth-offset", args->depth_offset,
-                  "metres: the depth camera's loop runs this far outside the trench edge [0.3]; 0.9 with\n"
-                  "--depth-aim 0.6 brings the markers into most frames");
+                  "metres: the depth camera's loop runs this far outside the trench edge [0.3]; at 1.0 most\n"
+                  "frames also see a marker or two (0..1)");
   cmd->add_option("--depth-aim", args->depth_aim,
                   "the depth camera aims at the floor this share of the way from the trench centre towards\n"
                   "itself [0.3]");

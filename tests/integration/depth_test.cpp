@@ -131,7 +131,7 @@ TEST(DepthLayer, ASequenceWithoutPosesIsPlacedOnTheMarkers) {
   const fs::path data = dir / "data";
   // The wider loop of the synthetic camera, which sees the markers round the trench.
   ok(run_strata({"-q", "synth", data.string(), "--stages", "1", "--photos", "3", "--width", "200", "--depth",
-                 "--depth-frames", std::to_string(kFrames), "--depth-offset", "0.9", "--depth-aim", "0.6"}));
+                 "--depth-frames", std::to_string(kFrames), "--depth-offset", "1.0"}));
   const fs::path seq = data / "depth" / "L2";
   std::vector<std::string> frames;
   for (const auto& e : fs::directory_iterator(seq / "depth")) frames.push_back(e.path().string());
