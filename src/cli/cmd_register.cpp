@@ -209,11 +209,11 @@ void register_depth_registration(CLI::App& reg) {
   cmd->add_option("--sequence", *sequence, "one sequence, by name (default: every sequence of the layer)");
   cmd->add_option("--rounds", *rounds, "rounds of re-registration against the model of all frames (0..10)")
       ->capture_default_str();
-  auto start = std::make_shared<std::string>("features");
+  auto start = std::make_shared<std::string>("recorded");
   auto datum = std::make_shared<std::string>("auto");
   cmd->add_option("--start", *start,
-                  "what starts each frame's fit when both are at hand: features (the colour frames' motion) or\n"
-                  "recorded (the device's); either falls back on the other, then on constant velocity")
+                  "what starts each frame's fit when both are at hand: recorded (the device's motion) or\n"
+                  "features (the colour frames'); either falls back on the other, then on constant velocity")
       ->check(CLI::IsMember({"features", "recorded"}))
       ->capture_default_str();
   cmd->add_option("--datum", *datum,
