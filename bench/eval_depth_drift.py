@@ -3,7 +3,8 @@
 
 Usage: eval_depth_drift.py REGISTER.json POSES_TRUE.txt
 
-REGISTER.json is the output of `strata register depth --json` (one sequence); the
+REGISTER.json is the output of `strata register depth --json` (one sequence; a
+sequence imported without --poses has no recorded poses to evaluate); the
 true poses are the synthetic sequence's poses_true.txt ('file tx ty tz qx qy qz qw',
 camera -> site frame). For the poses the device recorded, those after frame-to-model
 tracking and the final ones (after loop closure and re-registration), per frame: the
@@ -58,7 +59,15 @@ def main():
     out = {"frames": len(frames), "loop_closed": seq["loop_closed"], "loop_correction_mm": 1000 * seq["loop_correction_m"],
            "loop_correction_mrad": 1000 * seq["loop_correction_rad"], "seconds": seq["seconds"]}
     for name, key in (("recorded", "recorded_pose"), ("tracked", "tracked_pose"), ("final", "pose")):
-        out[name] = errors(frames, truth, key)
+        if all(key in f for f in frames):  # no recorded poses: imported without --poses
+            out[name] = errors(frames, truth, key)
+    out["datum"] = seq.get("datum", {}).get("datum", "device")
+    out["starts"] = {s: sum(1 for f in frames if f.get("start") == s)
+                     for s in ("features", "recorded", "constant-velocity")}
+    if "rms_m" in seq.get("datum", {}):
+        out["marker_rms_mm"] = 1000 * seq["datum"]["rms_m"]
+        out["marker_inliers"] = seq["datum"]["inliers"]
+        out["markers_seen"] = len(seq["datum"]["markers"])
     out["residual_rms_median_mm"] = 1000 * float(np.median([f["rms_m"] for f in frames]))
     out["residual_rms_max_mm"] = 1000 * float(max(f["rms_m"] for f in frames))
     out["inlier_share_min"] = float(min(f["inlier_share"] for f in frames))

@@ -209,7 +209,9 @@ void register_depth_import(CLI::App& import) {
       "record it: 16-bit greyscale PNG depth frames (0 = no depth; --depth-scale metres a unit), in\n"
       "the order given, the camera's intrinsics (a text file: width, height, fx, fy, cx, cy), optional\n"
       "colour frames (8-bit PNG, same file names, in --colour) and the poses the device recorded\n"
-      "(--poses: 'file tx ty tz qx qy qz qw' a line, camera -> site frame). Every file is read and\n"
+      "(--poses: 'file tx ty tz qx qy qz qw' a line, camera -> site frame; without them the\n"
+      "registration tracks the colour frames and places the sequence on the surveyed markers they\n"
+      "see). Every file is read and\n"
       "checked; a wrong header, a truncated or damaged file, a frame of another size or without a\n"
       "pose imports nothing. 'strata register depth' then places the frames. See docs/range.md.");
   auto dir = std::make_shared<std::string>();
@@ -226,7 +228,9 @@ void register_depth_import(CLI::App& import) {
   cmd->add_option("--noise-k", options->noise_k,
                   fmt::format("depth noise: one sigma = K z^2, K in 1/m (default {}: 1.5 mm at 1 m)",
                               kDefaultDepthNoiseK));
-  cmd->add_option("--poses", *poses, "the poses the device recorded, one line a frame (needed by 'register depth')");
+  cmd->add_option("--poses", *poses,
+                  "the poses the device recorded, one line a frame (without them 'register depth' needs\n"
+                  "--colour and 3 surveyed markers in view)");
   cmd->add_option("--colour", *colour, "folder of the colour frames, named as the depth frames");
   cmd->add_option("--sequence", *sequence, "name of the sequence (default: the folder of the first frame)");
   cmd->add_option("FRAME", *files, "depth frames (.png), in the order they were taken")->required();

@@ -93,20 +93,45 @@ nlohmann::json registration_json(const DepthRegistrationSummary& s) {
   for (const DepthSequenceResult& q : s.sequences) {
     nlohmann::json frames = nlohmann::json::array();
     for (const DepthFrameResult& r : q.frames) {
-      frames.push_back({{"frame", r.frame.name},
+      nlohmann::json frame = {{"frame", r.frame.name},
                         {"method", r.frame.fit->method},
+                        {"start", r.start},
+                        {"feature_matches", r.features.matches},
+                        {"feature_inliers", r.features.inliers},
+                        {"markers_seen", r.markers_seen},
                         {"pose", matrix_json(r.pose)},
                         {"tracked_pose", matrix_json(r.tracked)},
-                        {"recorded_pose", matrix_json(r.recorded)},
                         {"rms_m", r.fit.rms_m},
                         {"inlier_share", r.fit.inlier_share},
                         {"sigma_translation_m", r.fit.sigma_translation_m},
                         {"sigma_rotation_rad", r.fit.sigma_rotation_rad},
                         {"iterations", r.fit.iterations},
                         {"median_depth_m", r.median_depth_m},
-                        {"points_used", r.points_used}});
+                        {"points_used", r.points_used}};
+      if (r.has_recorded) frame["recorded_pose"] = matrix_json(r.recorded);
+      frames.push_back(std::move(frame));
     }
+    nlohmann::json markers = nlohmann::json::array();
+    for (const DepthMarkerSighting& m : q.markers) {
+      nlohmann::json one = {{"name", m.name},
+                            {"frames", m.frames},
+                            {"position", {m.position.x(), m.position.y(), m.position.z()}}};
+      if (q.marker_fit)
+        for (const TargetResidual& t : q.marker_fit->targets)
+          if (t.name == m.name) one.update({{"residual_m", t.residual_m}, {"inlier", t.inlier}});
+      markers.push_back(std::move(one));
+    }
+    nlohmann::json datum = {{"datum", q.datum}, {"markers", markers}, {"unmatched", q.unmatched}};
+    if (q.marker_fit)
+      datum.update({{"transform", matrix_json(q.marker_fit->pose)},
+                    {"scale", q.marker_fit->scale},
+                    {"rms_m", q.marker_fit->rms_m},
+                    {"inliers", q.marker_fit->inliers},
+                    {"gate_m", q.marker_fit->gate_m},
+                    {"sigma_translation_m", q.marker_fit->sigma_translation_m},
+                    {"sigma_rotation_rad", q.marker_fit->sigma_rotation_rad}});
     out["sequences"].push_back({{"sequence", q.sequence.name},
+                                {"datum", datum},
                                 {"frames", frames},
                                 {"loop_closed", q.loop_closed},
                                 {"loop_frames", q.loop_frames},
@@ -132,6 +157,16 @@ void print_registration(const DepthRegistrationSummary& s) {
                "largest {:.2f} mm; pose sigma at most {:.3f} mm / {:.4f} mrad (lower bounds)\n",
                s.layer, q.sequence.name, q.frames.size(), q.seconds, 1000 * rms[rms.size() / 2], 1000 * rms.back(),
                1000 * worst_t, 1000 * worst_r);
+    const auto started = [&](const char* what) {
+      return std::count_if(q.frames.begin(), q.frames.end(), [&](const auto& r) { return r.start == what; });
+    };
+    fmt::print("  frames started from their features' motion: {}, the recorded motion: {}, constant velocity: {}\n",
+               started("features"), started("recorded"), started("constant-velocity"));
+    if (q.marker_fit)
+      fmt::print("  placed on {} of {} surveyed markers seen: RMS {:.1f} mm, scale {:.4f}\n", q.marker_fit->inliers,
+                 q.marker_fit->targets.size(), 1000 * q.marker_fit->rms_m, q.marker_fit->scale);
+    else
+      fmt::print("  placed by the device's first recorded pose\n");
     if (q.loop_closed)
       fmt::print("  loop closed on the first {} frames: the last camera moved {:.1f} mm and turned {:.2f} mrad\n",
                  q.loop_frames, 1000 * q.loop_correction_m, 1000 * q.loop_correction_rad);
@@ -156,10 +191,13 @@ void register_depth_registration(CLI::App& reg) {
   auto* cmd = reg.add_subcommand(
       "depth",
       "register a layer's RGB-D depth sequences in the site frame: each frame fitted by robust\n"
-      "point-to-plane ICP to the model of the frames before it, starting from the motion the device\n"
-      "recorded (its first frame keeps its recorded pose); then the loop closed by fitting the last\n"
-      "frame to the first ones and spreading the correction along the sequence; then every frame\n"
-      "fitted again to the model of all frames. Per frame: RMS residual, inlier share, pose sigma.\n"
+      "point-to-plane ICP to the model of the frames before it, starting from the motion its colour\n"
+      "frame's features (ORB, RANSAC) measured against the previous frame or the motion the device\n"
+      "recorded (--start); then the loop closed by fitting the last frame to the first ones and\n"
+      "spreading the correction along the sequence; then every frame fitted again to the model of all\n"
+      "frames. The sequence is placed in the site frame by the device's first recorded pose, or, when\n"
+      "it has no recorded poses (or with --datum markers), on the surveyed markers (coded targets)\n"
+      "its colour frames see, at least 3. Per frame: RMS residual, inlier share, pose sigma.\n"
       "When any frame cannot be registered, nothing is changed. See docs/range.md.");
   auto dir = std::make_shared<std::string>();
   auto layer = std::make_shared<std::string>();
@@ -171,10 +209,26 @@ void register_depth_registration(CLI::App& reg) {
   cmd->add_option("--sequence", *sequence, "one sequence, by name (default: every sequence of the layer)");
   cmd->add_option("--rounds", *rounds, "rounds of re-registration against the model of all frames (0..10)")
       ->capture_default_str();
+  auto start = std::make_shared<std::string>("recorded");
+  auto datum = std::make_shared<std::string>("auto");
+  cmd->add_option("--start", *start,
+                  "what starts each frame's fit when both are at hand: recorded (the device's motion) or\n"
+                  "features (the colour frames'); either falls back on the other, then on constant velocity")
+      ->check(CLI::IsMember({"features", "recorded"}))
+      ->capture_default_str();
+  cmd->add_option("--datum", *datum,
+                  "what places a sequence in the site frame: device (its first recorded pose), markers (the\n"
+                  "surveyed markers its colour frames see) or auto (device with recorded poses, else markers)")
+      ->check(CLI::IsMember({"auto", "device", "markers"}))
+      ->capture_default_str();
   cmd->add_flag("--json", *json, "print the registration figures as JSON (every frame's poses and fit)");
   cmd->footer("Example: strata register depth site --layer L4 --json > L4_depth.json");
   cmd->callback([=] {
     DepthRegistrationOptions options;
+    options.start = *start == "recorded" ? DepthStart::recorded : DepthStart::features;
+    options.datum = *datum == "device"    ? DepthDatum::device
+                    : *datum == "markers" ? DepthDatum::markers
+                                          : DepthDatum::automatic;
     if (!sequence->empty()) options.sequence = *sequence;
     options.tracking.refine_rounds = *rounds;
     run_registration(*dir, *json, [&](Project& p) { return register_layer_depth(p, *layer, options); });

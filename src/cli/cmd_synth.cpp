@@ -25,6 +25,7 @@ struct SynthArgs {
   double scan_step_mrad = 0, scan_sigma = -1;
   bool depth = false;
   int depth_frames = -1;
+  double depth_offset = -1, depth_aim = -1;
 };
 
 // The camera of each synthetic lens (docs/cameras.md, "Synthetic lenses").
@@ -64,6 +65,8 @@ void run_synth(const SynthArgs& a) {
   if (a.scan_sigma >= 0) o.scans.sigma_m = a.scan_sigma;
   o.depth.enabled = a.depth;
   if (a.depth_frames >= 0) o.depth.frames = a.depth_frames;
+  if (a.depth_offset >= 0) o.depth.edge_offset_m = a.depth_offset;
+  if (a.depth_aim >= 0) o.depth.aim_share = a.depth_aim;
   if (a.stages >= 0) o.site.stages = a.stages;
   if (a.photos >= 0) o.photos.per_layer = a.photos;
   // A different width keeps the preset's aspect unless --height is given, and
@@ -151,6 +154,12 @@ void register_synth_command(CLI::App& app) {
                 "depth in millimetres and RGB PNG per frame, intrinsics, true and drifting recorded\n"
                 "poses under depth/L<k>/ (docs/range.md)");
   cmd->add_option("--depth-frames", args->depth_frames, "depth frames per layer, one loop round the trench [60]");
+  cmd->add_option("--depth-offset", args->depth_offset,
+                  "metres: the depth camera's loop runs this far outside the trench edge [0.3]; at 1.0 most\n"
+                  "frames also see a marker or two (0..1)");
+  cmd->add_option("--depth-aim", args->depth_aim,
+                  "the depth camera aims at the floor this share of the way from the trench centre towards\n"
+                  "itself [0.3]");
   cmd->add_option("--scan-sigma", args->scan_sigma, "range noise of the simulated scans, metres, one sigma [0.003]");
   cmd->callback([args] { run_synth(*args); });
 }

@@ -52,25 +52,55 @@ void DepthTrackingOptions::validate() const {
 DepthTrackingSummary track_depth_sequence(const std::vector<std::vector<Eigen::Vector3d>>& frames,
                                           const std::vector<Eigen::Isometry3d>& recorded,
                                           const DepthTrackingOptions& o) {
+  STRATA_CHECK(!recorded.empty() && recorded.size() == frames.size(), "{} frames, {} recorded poses", frames.size(),
+               recorded.size());
+  std::vector<std::optional<Eigen::Isometry3d>> steps(recorded.size());
+  for (std::size_t i = 1; i < recorded.size(); ++i) steps[i] = recorded[i - 1].inverse() * recorded[i];
+  return track_depth_sequence(frames, recorded[0], steps, o);
+}
+
+DepthTrackingSummary track_depth_sequence(const std::vector<std::vector<Eigen::Vector3d>>& frames,
+                                          const Eigen::Isometry3d& first,
+                                          const std::vector<std::optional<Eigen::Isometry3d>>& steps,
+                                          const DepthTrackingOptions& o) {
   o.validate();
   const std::size_t n = frames.size();
-  STRATA_CHECK(n >= 2 && recorded.size() == n, "{} frames, {} recorded poses", n, recorded.size());
+  STRATA_CHECK(n >= 2 && steps.size() == n, "{} frames, {} steps", n, steps.size());
   DepthTrackingSummary s;
 
   // 1. Frame to model.
-  s.tracked.assign(n, recorded[0]);
+  s.tracked.assign(n, first);
   s.tracking_fit.assign(n, IcpSummary{});
   {
     Progress progress("depth: tracking", n - 1);
-    VoxelMeans model(o.model_voxel_m);  // grows by each frame once registered
-    for (const auto& p : frames[0]) model.add(s.tracked[0] * p);
+    GrowingModel model(o.model_voxel_m, o.normal_radius_m);  // grows by each frame once registered
+    const auto add = [&](std::size_t i) {
+      std::vector<Eigen::Vector3d> site;
+      site.reserve(frames[i].size());
+      for (const auto& p : frames[i]) site.push_back(s.tracked[i] * p);
+      model.add(site);
+    };
+    add(0);
     for (std::size_t i = 1; i < n; ++i) {
       check_cancelled();
-      const Eigen::Isometry3d start = s.tracked[i - 1] * (recorded[i - 1].inverse() * recorded[i]);
-      s.tracking_fit[i] =
-          register_point_to_plane(frames[i], estimate_normals(model.points(), o.normal_radius_m), start, o.icp);
+      if (steps[i]) {
+        s.tracking_fit[i] = register_point_to_plane(frames[i], model.oriented(), s.tracked[i - 1] * *steps[i], o.icp);
+      } else {
+        // No step measured: constant velocity (the previous frame's motion again) and
+        // no motion are both tried, the fit keeping more points within the gate wins
+        // (a hand-held camera that turned a corner may have stopped or slowed down).
+        const Eigen::Isometry3d velocity =
+            i >= 2 ? Eigen::Isometry3d(s.tracked[i - 2].inverse() * s.tracked[i - 1]) : Eigen::Isometry3d::Identity();
+        s.tracking_fit[i] = register_point_to_plane(frames[i], model.oriented(), s.tracked[i - 1] * velocity, o.icp);
+        if (i >= 2) {
+          IcpSummary still = register_point_to_plane(frames[i], model.oriented(), s.tracked[i - 1], o.icp);
+          if (still.converged && (!s.tracking_fit[i].converged ||
+                                  still.inlier_share > s.tracking_fit[i].inlier_share))
+            s.tracking_fit[i] = std::move(still);
+        }
+      }
       s.tracked[i] = s.tracking_fit[i].pose;
-      for (const auto& p : frames[i]) model.add(s.tracked[i] * p);
+      add(i);
       progress.step();
     }
     progress.finish();
@@ -104,8 +134,8 @@ DepthTrackingSummary track_depth_sequence(const std::vector<std::vector<Eigen::V
     Progress progress(fmt::format("depth: re-registration {}/{}", round + 1, o.refine_rounds), n);
     for (std::size_t i = 0; i < n; ++i) {
       s.fit[i] = register_point_to_plane(frames[i], model, s.poses[i], o.icp);
-      // The first frame stays where the device put it: it fixes the sequence in the
-      // site frame (its fit is computed for its residuals only).
+      // The first frame stays where it was put: it fixes the sequence's frame (its
+      // fit is computed for its residuals only).
       next[i] = i == 0 ? s.poses[0] : s.fit[i].pose;
       progress.step();
     }

@@ -4,10 +4,12 @@
 //
 // 1. Frame to model (as KinectFusion, Newcombe et al. 2011, with the point-to-plane
 //    ICP of geometry/icp.hpp in place of its projective association): the first
-//    frame keeps the pose the device recorded (it fixes the sequence in the site
-//    frame); every later frame starts from the previous frame's registered pose
-//    moved by the device's recorded motion between the two, and is fitted to the
-//    model of every frame registered before it (their points, thinned, with normals).
+//    frame keeps the pose it is given (the device's recorded one, or the identity:
+//    it fixes the sequence's frame); every later frame starts from the previous
+//    frame's registered pose moved by a step (the motion measured by the colour
+//    frames' features, or the one the device recorded; else the previous step again),
+//    and is fitted to the model of every frame registered before it (their points,
+//    thinned, with normals; geometry/icp.hpp GrowingModel).
 // 2. Loop closure: the last frame is fitted to the model of the first frames alone
 //    (the sequence ends where it began). The correction it needs is the drift
 //    accumulated round the loop; it is spread along the sequence in proportion to
@@ -20,6 +22,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include <optional>
 #include <vector>
 
 namespace strata {
@@ -55,8 +58,18 @@ struct DepthTrackingSummary {
   std::vector<IcpSummary> fit;             // each frame's fit in the last round (tracking_fit without rounds)
 };
 
-// `frames[i]`: frame i's points in its camera frame (metres, thinned); `recorded[i]`:
-// the device's pose of frame i (camera -> site frame). At least 2 frames.
+// `frames[i]`: frame i's points in its camera frame (metres, thinned); `first`: frame
+// 0's pose (camera -> the sequence's frame); `steps[i]`, i >= 1: the motion of frame i
+// relative to frame i - 1 (camera i -> camera i - 1) that starts its fit, or empty for
+// the constant-velocity guess (the step before it again; frame 1: no motion);
+// `steps[0]` is not used. At least 2 frames.
+DepthTrackingSummary track_depth_sequence(const std::vector<std::vector<Eigen::Vector3d>>& frames,
+                                          const Eigen::Isometry3d& first,
+                                          const std::vector<std::optional<Eigen::Isometry3d>>& steps,
+                                          const DepthTrackingOptions& options);
+
+// The same started from the device's recorded poses (camera -> site frame): frame 0
+// at recorded[0], the steps between consecutive recorded poses.
 DepthTrackingSummary track_depth_sequence(const std::vector<std::vector<Eigen::Vector3d>>& frames,
                                           const std::vector<Eigen::Isometry3d>& recorded,
                                           const DepthTrackingOptions& options);

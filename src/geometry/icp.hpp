@@ -10,6 +10,7 @@
 
 #include <cstdint>
 #include <map>
+#include <unordered_map>
 #include <utility>
 #include <vector>
 
@@ -42,6 +43,37 @@ class VoxelMeans {
 // of them; points with fewer are dropped), turned to face +z (surfaces seen from
 // above: floors, trench sides).
 OrientedPoints estimate_normals(const std::vector<Eigen::Vector3d>& points, double radius_m);
+
+// The growing model of frame-to-model tracking: the running mean of each cube of
+// `voxel_m` (as VoxelMeans) with its normal from the means within `normal_radius_m`
+// (as estimate_normals), kept up to date as frames are added: a frame's points change
+// the means of the cubes they fall in, and only the cubes within the radius of one of
+// those get their normal estimated again (KinectFusion's model is incremental for the
+// same reason: the cost of a frame should not grow with the whole model).
+class GrowingModel {
+ public:
+  GrowingModel(double voxel_m, double normal_radius_m);
+  void add(const std::vector<Eigen::Vector3d>& points);  // one frame's points, the model's frame
+  // The cubes with a normal (at least 5 neighbours), in the cubes' key order: the same
+  // points and normals as estimate_normals(VoxelMeans::points(), radius), up to rounding.
+  const OrientedPoints& oriented() const { return oriented_; }
+  std::size_t cubes() const { return cubes_.size(); }
+  std::size_t normals_estimated() const { return normals_estimated_; }  // over every add(), for the tests
+
+ private:
+  struct Cube {
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    int count = 0;
+    Eigen::Vector3d normal = Eigen::Vector3d::Zero();
+    bool has_normal = false;
+  };
+  double voxel_, radius_;
+  int bin_cubes_;  // cubes a bin side: a bin is at least the radius wide
+  std::map<std::int64_t, Cube> cubes_;
+  std::unordered_map<std::int64_t, std::vector<Cube*>> bins_;  // bin key -> its cubes (map nodes stay put)
+  OrientedPoints oriented_;
+  std::size_t normals_estimated_ = 0;
+};
 
 struct IcpOptions {
   int max_iterations = 100;

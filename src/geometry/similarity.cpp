@@ -125,9 +125,9 @@ Similarity3 fit_similarity_weighted(const std::vector<Eigen::Vector3d>& src,
 
 namespace {
 
-// Residuals of every pair under `s`, and which lie within the gate.
+// Residuals of every pair under `s`, and which lie within their gate.
 RobustSimilarity score(const Similarity3& s, const std::vector<Eigen::Vector3d>& src,
-                       const std::vector<Eigen::Vector3d>& dst, double gate_m) {
+                       const std::vector<Eigen::Vector3d>& dst, const std::vector<double>& gate_m) {
   RobustSimilarity r;
   r.fit = s;
   r.inlier.assign(src.size(), false);
@@ -135,7 +135,7 @@ RobustSimilarity score(const Similarity3& s, const std::vector<Eigen::Vector3d>&
   double sum2 = 0;
   for (std::size_t i = 0; i < src.size(); ++i) {
     r.residual_m[i] = (s.apply(src[i]) - dst[i]).norm();
-    if (r.residual_m[i] <= gate_m) {
+    if (r.residual_m[i] <= gate_m[i]) {
       r.inlier[i] = true;
       ++r.inliers;
       sum2 += r.residual_m[i] * r.residual_m[i];
@@ -149,23 +149,59 @@ bool better(const RobustSimilarity& a, const RobustSimilarity& b) {
   return a.inliers != b.inliers ? a.inliers > b.inliers : a.rms_m < b.rms_m;
 }
 
-// The triples to try: all of them when there are few enough, else a fixed-seed sample.
-std::vector<std::array<std::size_t, 3>> triples(std::size_t n) {
-  constexpr std::size_t kMaxTriples = 20000;
+// The triples to try: all of them when there are at most `max_triples`, else that
+// many drawn with `seed`.
+std::vector<std::array<std::size_t, 3>> triples(std::size_t n, std::size_t max_triples, std::uint64_t seed) {
   std::vector<std::array<std::size_t, 3>> out;
-  if (n * (n - 1) * (n - 2) / 6 <= kMaxTriples) {
+  if (n * (n - 1) * (n - 2) / 6 <= max_triples) {
     for (std::size_t a = 0; a < n; ++a)
       for (std::size_t b = a + 1; b < n; ++b)
         for (std::size_t c = b + 1; c < n; ++c) out.push_back({a, b, c});
     return out;
   }
-  std::mt19937_64 rng(0x5EED5u);
+  std::mt19937_64 rng(seed);
   std::uniform_int_distribution<std::size_t> pick(0, n - 1);
-  while (out.size() < kMaxTriples) {
+  while (out.size() < max_triples) {
     const std::size_t a = pick(rng), b = pick(rng), c = pick(rng);
     if (a != b && b != c && a != c) out.push_back({a, b, c});
   }
   return out;
+}
+
+// The hypothesise-and-verify fit shared by the marker similarity and the RGB-D rigid
+// RANSAC: each triple proposes a fit (Umeyama, with or without the scale), the one
+// that brings the most pairs within their gates wins (ties: the smaller RMS), then
+// least squares on its inliers, re-gated until the set no longer changes. Empty when
+// no well-spread triple brings 3 pairs within their gates.
+std::optional<RobustSimilarity> robust_umeyama(const std::vector<Eigen::Vector3d>& src,
+                                               const std::vector<Eigen::Vector3d>& dst,
+                                               const std::vector<double>& gate_m, bool with_scale,
+                                               std::size_t max_triples, std::uint64_t seed,
+                                               double min_spread_ratio) {
+  std::optional<RobustSimilarity> best;
+  for (const auto& t : triples(src.size(), max_triples, seed)) {
+    const std::vector<Eigen::Vector3d> a = {src[t[0]], src[t[1]], src[t[2]]};
+    const std::vector<Eigen::Vector3d> b = {dst[t[0]], dst[t[1]], dst[t[2]]};
+    if (std::min(planar_spread_ratio(a), planar_spread_ratio(b)) < min_spread_ratio) continue;
+    RobustSimilarity r = score(fit_umeyama(a, b, min_spread_ratio, with_scale), src, dst, gate_m);
+    if (!best || better(r, *best)) best = std::move(r);
+  }
+  if (!best || best->inliers < 3) return std::nullopt;
+  for (int round = 0; round < 10; ++round) {  // at most a few rounds in practice
+    std::vector<Eigen::Vector3d> a, b;
+    for (std::size_t i = 0; i < src.size(); ++i) {
+      if (!best->inlier[i]) continue;
+      a.push_back(src[i]);
+      b.push_back(dst[i]);
+    }
+    if (std::min(planar_spread_ratio(a), planar_spread_ratio(b)) < min_spread_ratio) break;
+    RobustSimilarity r = score(fit_umeyama(a, b, min_spread_ratio, with_scale), src, dst, gate_m);
+    const bool same = r.inlier == best->inlier;
+    if (r.inliers < 3) break;
+    best = std::move(r);
+    if (same) break;
+  }
+  return best;
 }
 
 }  // namespace
@@ -177,33 +213,33 @@ RobustSimilarity fit_similarity_robust(const std::vector<Eigen::Vector3d>& src,
   STRATA_CHECK(gate_m > 0);
   if (src.size() < 3)
     throw InputError(fmt::format("a similarity needs at least 3 point pairs, {} given", src.size()));
-  std::optional<RobustSimilarity> best;
-  for (const auto& t : triples(src.size())) {
-    const std::vector<Eigen::Vector3d> a = {src[t[0]], src[t[1]], src[t[2]]};
-    const std::vector<Eigen::Vector3d> b = {dst[t[0]], dst[t[1]], dst[t[2]]};
-    if (std::min(planar_spread_ratio(a), planar_spread_ratio(b)) < min_spread_ratio) continue;
-    RobustSimilarity r = score(fit_similarity(a, b, min_spread_ratio), src, dst, gate_m);
-    if (!best || better(r, *best)) best = std::move(r);
-  }
-  if (!best || best->inliers < 3)
+  constexpr std::size_t kMaxTriples = 20000;
+  std::optional<RobustSimilarity> best = robust_umeyama(src, dst, std::vector<double>(src.size(), gate_m), true,
+                                                        kMaxTriples, 0x5EED5u, min_spread_ratio);
+  if (!best)
     throw InputError(fmt::format("no three of the {} point pairs agree on one similarity within {:.0f} mm (or "
                                  "they lie on a line)",
                                  src.size(), 1000 * gate_m));
-  // Least squares on the inliers, re-gated until the set is stable (at most a few rounds).
-  for (int round = 0; round < 10; ++round) {
-    std::vector<Eigen::Vector3d> a, b;
-    for (std::size_t i = 0; i < src.size(); ++i) {
-      if (!best->inlier[i]) continue;
-      a.push_back(src[i]);
-      b.push_back(dst[i]);
-    }
-    RobustSimilarity r = score(fit_similarity(a, b, min_spread_ratio), src, dst, gate_m);
-    const bool same = r.inlier == best->inlier;
-    if (r.inliers < 3) break;
-    best = std::move(r);
-    if (same) break;
-  }
   return *best;
+}
+
+void RigidRansacOptions::validate() const {
+  auto need = [](bool ok, const char* field, const char* what) {
+    if (!ok) throw InputError(fmt::format("rigid RANSAC: {} must be {}", field, what));
+  };
+  need(hypotheses >= 1, "hypotheses", ">= 1");
+  need(min_spread_ratio > 0 && min_spread_ratio < 1, "min_spread_ratio", "in (0, 1)");
+}
+
+std::optional<RobustSimilarity> fit_rigid_ransac(const std::vector<Eigen::Vector3d>& src,
+                                                 const std::vector<Eigen::Vector3d>& dst,
+                                                 const std::vector<double>& gate_m, const RigidRansacOptions& options) {
+  options.validate();
+  STRATA_CHECK(src.size() == dst.size() && gate_m.size() == src.size());
+  for (double g : gate_m) STRATA_CHECK(g > 0, "gate {}", g);
+  if (src.size() < 3) return std::nullopt;
+  return robust_umeyama(src, dst, gate_m, false, std::size_t(options.hypotheses), options.seed,
+                        options.min_spread_ratio);
 }
 
 }  // namespace strata

@@ -3,6 +3,8 @@
 // reconstruction onto surveyed markers.
 #include <Eigen/Core>
 
+#include <cstdint>
+#include <optional>
 #include <vector>
 
 namespace strata {
@@ -59,6 +61,27 @@ struct RobustSimilarity {
 RobustSimilarity fit_similarity_robust(const std::vector<Eigen::Vector3d>& src,
                                        const std::vector<Eigen::Vector3d>& dst, double gate_m,
                                        double min_spread_ratio = 0.02);
+
+// A rigid motion (scale 1) fitted to 3D point pairs of which many are wrong: matched
+// image features back-projected through two depth frames (Arun et al. 1987 / Umeyama
+// 1991 inside RANSAC, Fischler & Bolles 1981, as Almeida et al. and the RGB-D SLAM
+// systems start frame-to-frame tracking). Each pair has its own gate, metres (the
+// depth noise k z^2 grows with the range, so a far pair is allowed more). The same
+// hypothesise-and-verify as fit_similarity_robust: up to `hypotheses` triples (all
+// of them when there are fewer), the one bringing the most pairs within their gates,
+// then least squares on those inliers, re-gated until the set is stable.
+struct RigidRansacOptions {
+  int hypotheses = 1000;          // triples tried; 1000 finds a clean triple at 30 % inliers (p = 1 - 1e-12)
+  std::uint64_t seed = 0x5EED5u;  // of the triples drawn: the fit is deterministic
+  double min_spread_ratio = 0.02; // triples (and inlier sets) flatter than this are skipped
+  void validate() const;          // throws InputError naming the field
+};
+// Empty when fewer than 3 pairs are given or no well-spread triple brings 3 pairs
+// within their gates. `fit.scale` is 1.
+std::optional<RobustSimilarity> fit_rigid_ransac(const std::vector<Eigen::Vector3d>& src,
+                                                 const std::vector<Eigen::Vector3d>& dst,
+                                                 const std::vector<double>& gate_m,
+                                                 const RigidRansacOptions& options = {});
 
 // Ratio of the second to the first singular value of a centred point set:
 // 0 for collinear points, about 1 for well spread ones.

@@ -5,14 +5,18 @@
 #include "core/progress.hpp"
 #include "core/resources.hpp"
 #include "core/statistics.hpp"
+#include "importers/depth/depth_files.hpp"
 #include "pipeline/depth_frames.hpp"
 #include "project/database.hpp"
 #include "project/records.hpp"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <map>
 
 namespace strata {
 namespace {
@@ -56,6 +60,161 @@ ScanBounds bounds_under(const std::vector<Eigen::Vector3d>& points, const Eigen:
   return b;
 }
 
+// A frame as the registration reads it.
+struct FrameInput {
+  std::vector<Eigen::Vector3d> points;                   // thinned, camera frame
+  std::optional<RgbdFeatures> features;                  // with a colour frame, when features are used
+  std::vector<std::pair<std::string, Eigen::Vector3d>> targets;  // markers seen, camera frame (markers datum)
+};
+
+RgbdCamera rgbd_camera(const DepthSequenceRecord& seq) {
+  const DepthIntrinsics& k = seq.intrinsics;
+  return {k.width, k.height, k.fx, k.fy, k.cx, k.cy, seq.depth_scale_m, seq.noise_k};
+}
+
+// The coded targets of a colour frame with a depth at their centre: the median of the
+// depths within `window` pixels of it (the print is flat; a few pixels average the
+// noise), back-projected to the camera frame. Targets whose id names no marker, or
+// with no depth there, are left out.
+std::vector<std::pair<std::string, Eigen::Vector3d>> targets_with_depth(const std::vector<std::uint8_t>& grey,
+                                                                        const DepthImage& depth,
+                                                                        const DepthSequenceRecord& seq,
+                                                                        const DepthRegistrationOptions& o) {
+  const DepthIntrinsics& k = seq.intrinsics;
+  std::vector<std::pair<std::string, Eigen::Vector3d>> out;
+  for (const TargetDetection& t : detect_targets(o.targets, grey.data(), k.width, k.height)) {
+    const std::string name = target_name(o.naming, t.id);
+    if (name.empty()) continue;
+    const int u0 = int(std::lround(t.centre.x())), v0 = int(std::lround(t.centre.y()));
+    std::vector<double> z;
+    for (int v = v0 - o.marker_window_px; v <= v0 + o.marker_window_px; ++v)
+      for (int u = u0 - o.marker_window_px; u <= u0 + o.marker_window_px; ++u) {
+        if (u < 0 || v < 0 || u >= k.width || v >= k.height) continue;
+        const std::uint16_t d = depth.values[std::size_t(v) * std::size_t(k.width) + std::size_t(u)];
+        if (d > 0) z.push_back(d * seq.depth_scale_m);
+      }
+    if (z.size() < 3) continue;  // an edge or a hole: no depth to trust
+    const double zc = median_in_place(z);
+    out.emplace_back(name, Eigen::Vector3d((t.centre.x() - k.cx) * zc / k.fx, (t.centre.y() - k.cy) * zc / k.fy, zc));
+  }
+  return out;
+}
+
+// Reads every frame: its thinned points and figures into `out.frames`, its colour
+// frame's features and markers when they are needed.
+std::vector<FrameInput> read_frames(Project& project, const DepthSequenceRecord& seq,
+                                    const std::vector<DepthFrameRecord>& records, bool features, bool markers,
+                                    const DepthRegistrationOptions& o, DepthSequenceResult& out) {
+  std::vector<FrameInput> frames;
+  Progress progress(fmt::format("depth: reading {}", seq.name), records.size());
+  for (const auto& f : records) {
+    check_cancelled();
+    FrameInput in;
+    std::vector<Eigen::Vector3d> points = depth_frame_points(project.dir() / f.media_path, seq);
+    std::erase_if(points, [&](const Eigen::Vector3d& p) { return p.z() > o.max_depth_m; });
+    if (points.empty())
+      throw InputError(fmt::format("{}: sequence '{}': frame {} has no depth nearer than {} m", kStage, seq.name,
+                                   f.name, o.max_depth_m));
+    std::vector<double> z;
+    z.reserve(points.size());
+    for (const auto& p : points) z.push_back(p.z());
+    DepthFrameResult r;
+    r.frame = f;
+    r.has_recorded = f.recorded_pose.has_value();
+    if (f.recorded_pose) r.recorded = *f.recorded_pose;
+    r.median_depth_m = median_in_place(z);
+    in.points = voxel_subsample(points, o.frame_voxel_m);
+    r.points_used = in.points.size();
+    if (f.colour_media_path && (features || markers)) {
+      const DepthImage depth = read_depth_png(project.dir() / f.media_path, seq.intrinsics);
+      const std::vector<std::uint8_t> grey =
+          read_grey_frame(project.dir() / *f.colour_media_path, seq.intrinsics.width, seq.intrinsics.height);
+      if (features) in.features = extract_rgbd_features(grey, depth.values, rgbd_camera(seq), o.features);
+      if (markers) in.targets = targets_with_depth(grey, depth, seq, o);
+      r.markers_seen = int(in.targets.size());
+    }
+    frames.push_back(std::move(in));
+    out.frames.push_back(std::move(r));
+    progress.step();
+  }
+  progress.finish();
+  return frames;
+}
+
+// The step that starts each frame's fit (frame i relative to frame i - 1), by the
+// preference of `start`: the features' motion, the recorded one, or neither (constant
+// velocity). Records in each frame what was chosen.
+std::vector<std::optional<Eigen::Isometry3d>> choose_steps(const std::vector<FrameInput>& frames, DepthStart start,
+                                                           const RgbdFeatureOptions& features,
+                                                           DepthSequenceResult& out) {
+  std::vector<std::optional<Eigen::Isometry3d>> steps(frames.size());
+  for (std::size_t i = 1; i < frames.size(); ++i) {
+    DepthFrameResult& r = out.frames[i];
+    if (frames[i].features && frames[i - 1].features)
+      r.features = rgbd_relative_motion(*frames[i - 1].features, *frames[i].features, features);
+    std::optional<Eigen::Isometry3d> recorded;
+    if (r.has_recorded && out.frames[i - 1].has_recorded)
+      recorded = Eigen::Isometry3d(out.frames[i - 1].recorded).inverse() * Eigen::Isometry3d(r.recorded);
+    const bool use_features = r.features.found && (start == DepthStart::features || !recorded);
+    if (use_features) {
+      steps[i] = r.features.motion;
+      r.start = "features";
+    } else if (recorded) {
+      steps[i] = recorded;
+      r.start = "recorded";
+    } else {
+      r.start = "constant-velocity";
+    }
+  }
+  return steps;
+}
+
+// Each marker's position in the sequence's frame: its camera-frame points moved by
+// the frames' poses, the median per axis over the frames that saw it.
+std::vector<DepthMarkerSighting> locate_markers(const std::vector<FrameInput>& frames,
+                                                const std::vector<Eigen::Isometry3d>& poses) {
+  std::map<std::string, std::array<std::vector<double>, 3>> seen;
+  for (std::size_t i = 0; i < frames.size(); ++i)
+    for (const auto& [name, camera] : frames[i].targets) {
+      const Eigen::Vector3d p = poses[i] * camera;
+      for (int a = 0; a < 3; ++a) seen[name][std::size_t(a)].push_back(p[a]);
+    }
+  std::vector<DepthMarkerSighting> out;
+  for (auto& [name, axes] : seen) {
+    DepthMarkerSighting m;
+    m.name = name;
+    m.frames = int(axes[0].size());
+    for (int a = 0; a < 3; ++a) m.position[a] = median_in_place(axes[std::size_t(a)]);
+    out.push_back(std::move(m));
+  }
+  return out;
+}
+
+// The sequence's frame -> the site frame, fitted on the surveyed markers it saw.
+Eigen::Isometry3d place_on_markers(Project& project, const DepthSequenceRecord& seq,
+                                   const DepthRegistrationOptions& o, DepthSequenceResult& out) {
+  std::vector<NamedPoint> seen;
+  for (const DepthMarkerSighting& m : out.markers) seen.push_back({m.name, m.position});
+  const MarkerPairs pairs = pair_with_markers(project, seen);
+  out.unmatched = pairs.unmatched;
+  if (pairs.names.size() < 3) {
+    std::vector<std::string> names;
+    for (const DepthMarkerSighting& m : out.markers) names.push_back(fmt::format("{} ({} frames)", m.name, m.frames));
+    throw InputError(fmt::format(
+        "{}: sequence '{}': {} surveyed marker(s) seen in its colour frames{}{}; at least 3 are needed to place a "
+        "sequence without recorded poses in the site frame. Nothing was changed. Record the markers in the "
+        "sequence, or import it with --poses",
+        kStage, seq.name, pairs.names.size(), names.empty() ? std::string() : ": ", fmt::join(names, ", ")));
+  }
+  out.marker_fit = fit_on_markers(pairs, o.marker_fit, fmt::format("{}: sequence '{}'", kStage, seq.name),
+                                  "the markers seen in its colour frames");
+  for (const TargetResidual& t : out.marker_fit->targets)
+    if (!t.inlier)
+      log::warn("{}: sequence '{}': marker {} is {:.1f} mm from its survey, beyond the {:.1f} mm gate: left out",
+                kStage, seq.name, t.name, 1000 * t.residual_m, 1000 * out.marker_fit->gate_m);
+  return Eigen::Isometry3d(out.marker_fit->pose);
+}
+
 DepthSequenceResult register_sequence(Project& project, const DepthSequenceRecord& seq,
                                       const DepthRegistrationOptions& o) {
   const Stopwatch sw;
@@ -65,39 +224,43 @@ DepthSequenceResult register_sequence(Project& project, const DepthSequenceRecor
   if (records.size() < 2)
     throw InputError(fmt::format("{}: sequence '{}' has {} frame(s); tracking needs at least 2", kStage, seq.name,
                                  records.size()));
-  std::vector<std::vector<Eigen::Vector3d>> frames;
-  std::vector<Eigen::Isometry3d> recorded;
-  {
-    Progress progress(fmt::format("depth: reading {}", seq.name), records.size());
-    for (const auto& f : records) {
-      check_cancelled();
-      if (!f.recorded_pose) {
-        throw InputError(fmt::format("{}: sequence '{}': frame {} has no recorded pose; import the sequence with "
-                                     "--poses (the device's own tracking) so that its first frame places it in the "
-                                     "site frame",
-                                     kStage, seq.name, f.name));
-      }
-      std::vector<Eigen::Vector3d> points = depth_frame_points(project.dir() / f.media_path, seq);
-      std::erase_if(points, [&](const Eigen::Vector3d& p) { return p.z() > o.max_depth_m; });
-      if (points.empty())
-        throw InputError(fmt::format("{}: sequence '{}': frame {} has no depth nearer than {} m", kStage, seq.name,
-                                     f.name, o.max_depth_m));
-      std::vector<double> z;
-      z.reserve(points.size());
-      for (const auto& p : points) z.push_back(p.z());
-      DepthFrameResult r;
-      r.frame = f;
-      r.recorded = *f.recorded_pose;
-      r.median_depth_m = median_in_place(z);
-      frames.push_back(voxel_subsample(points, o.frame_voxel_m));
-      r.points_used = frames.back().size();
-      recorded.emplace_back(*f.recorded_pose);
-      out.frames.push_back(std::move(r));
-      progress.step();
-    }
-    progress.finish();
+  const bool recorded = std::all_of(records.begin(), records.end(), [](const auto& f) { return f.recorded_pose; });
+  const bool colour = std::all_of(records.begin(), records.end(), [](const auto& f) { return f.colour_media_path; });
+  const DepthDatum datum =
+      o.datum == DepthDatum::automatic ? (recorded ? DepthDatum::device : DepthDatum::markers) : o.datum;
+  out.datum = datum == DepthDatum::device ? "device" : "markers";
+  if (datum == DepthDatum::device && !recorded)
+    throw InputError(fmt::format("{}: sequence '{}' was imported without --poses: no device pose places it in the "
+                                 "site frame; register it on the markers its colour frames see (--datum markers)",
+                                 kStage, seq.name));
+  if (datum == DepthDatum::markers && !colour)
+    throw InputError(fmt::format("{}: sequence '{}' has {}: the markers that place it in the site frame are found in "
+                                 "its colour frames; import it with --colour (or with --poses)",
+                                 kStage, seq.name,
+                                 recorded ? "frames without a colour frame" : "no recorded poses and frames without a "
+                                                                              "colour frame"));
+  if (datum == DepthDatum::markers && !project.site().origin_set)
+    throw InputError(fmt::format("{}: sequence '{}': the site has no surveyed markers yet: import them first (strata "
+                                 "import markers); the sequence is placed on them",
+                                 kStage, seq.name));
+  const bool features = colour && (o.start == DepthStart::features || !recorded);
+  const std::vector<FrameInput> frames =
+      read_frames(project, seq, records, features, datum == DepthDatum::markers, o, out);
+
+  std::vector<std::vector<Eigen::Vector3d>> points;
+  for (const FrameInput& f : frames) points.push_back(f.points);
+  const std::vector<std::optional<Eigen::Isometry3d>> steps = choose_steps(frames, o.start, o.features, out);
+  // The device datum: frame 0 where the device recorded it. The markers datum: tracked
+  // in frame 0's camera frame, then the whole sequence moved onto the markers.
+  const Eigen::Isometry3d first =
+      datum == DepthDatum::device ? Eigen::Isometry3d(out.frames[0].recorded) : Eigen::Isometry3d::Identity();
+  DepthTrackingSummary t = track_depth_sequence(points, first, steps, o.tracking);
+  if (datum == DepthDatum::markers) {
+    out.markers = locate_markers(frames, t.poses);
+    const Eigen::Isometry3d to_site = place_on_markers(project, seq, o, out);
+    for (auto& p : t.poses) p = to_site * p;
+    for (auto& p : t.tracked) p = to_site * p;
   }
-  const DepthTrackingSummary t = track_depth_sequence(frames, recorded, o.tracking);
   out.loop_closed = t.loop_closed;
   out.loop_frames = t.loop_frames;
   out.loop_inlier_share = t.loop_fit.inlier_share;
@@ -115,13 +278,21 @@ DepthSequenceResult register_sequence(Project& project, const DepthSequenceRecor
                                    "the sequence without it",
                                    kStage, seq.name, r.frame.name, why));
     r.frame.pose = r.pose;
-    r.frame.bounds = bounds_under(frames[i], t.poses[i]);
+    r.frame.bounds = bounds_under(frames[i].points, t.poses[i]);
     r.frame.fit = DepthFrameFit{t.loop_closed ? "loop-closure" : "tracking", r.fit.rms_m, r.fit.inlier_share,
                                 r.fit.sigma_translation_m, r.fit.sigma_rotation_rad};
   }
   out.seconds = sw.seconds();
-  log::info("{}: sequence '{}': {} frames registered in {:.1f} s; loop {}", kStage, seq.name, out.frames.size(),
-            out.seconds,
+  const auto starts = [&](const char* what) {
+    return std::count_if(out.frames.begin(), out.frames.end(), [&](const auto& r) { return r.start == what; });
+  };
+  log::info("{}: sequence '{}': {} frames registered in {:.1f} s (started from features {}, recorded motion {}, "
+            "constant velocity {}); datum: {}; loop {}",
+            kStage, seq.name, out.frames.size(), out.seconds, starts("features"), starts("recorded"),
+            starts("constant-velocity"),
+            out.marker_fit ? fmt::format("{} of {} markers, RMS {:.1f} mm", out.marker_fit->inliers,
+                                         out.marker_fit->targets.size(), 1000 * out.marker_fit->rms_m)
+                           : std::string("the device's first pose"),
             t.loop_closed ? fmt::format("closed on the first {} frames (the last camera moved {:.1f} mm, {:.2f} mrad)",
                                         t.loop_frames, 1000 * t.loop_correction_m, 1000 * t.loop_correction_rad)
                           : std::string("not closed (the last frame does not overlap the first ones)"));
@@ -138,7 +309,15 @@ void DepthRegistrationOptions::validate() const {
   need(max_depth_m > 0, "max_depth_m", "> 0 (metres)");
   need(min_inlier_share > 0 && min_inlier_share < 1, "min_inlier_share", "in (0, 1)");
   need(max_rms_ratio > 0, "max_rms_ratio", "> 0");
+  need(marker_fit.point_sigma_m > 0, "marker_fit.point_sigma_m", "> 0 (metres)");
+  need(marker_fit.gate_sigmas > 0, "marker_fit.gate_sigmas", "> 0");
+  need(marker_fit.min_gate_m > 0, "marker_fit.min_gate_m", "> 0 (metres)");
+  need(marker_fit.max_scale_error > 0 && marker_fit.max_scale_error < 1, "marker_fit.max_scale_error", "in (0, 1)");
+  need(marker_window_px >= 0 && marker_window_px <= 10, "marker_window_px", "0..10 (pixels)");
   tracking.validate();
+  features.validate();
+  targets.validate();
+  naming.validate();
 }
 
 DepthRegistrationSummary register_layer_depth(Project& project, const std::string& layer_name,

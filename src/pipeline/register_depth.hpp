@@ -1,11 +1,17 @@
 #pragma once
 // The registration controller of RGB-D depth sequences (docs/range.md, "Registration
 // of depth sequences"): each sequence of a layer read from media/, its frames
-// back-projected and thinned, tracked frame to model from the poses the device
-// recorded, closed on its first frames and re-registered against the model of all
-// its frames (geometry/depth_tracking.hpp). Every frame is fitted and checked before
-// anything is written; then all are stored in one transaction, or none.
+// back-projected and thinned, tracked frame to model (geometry/depth_tracking.hpp),
+// each frame started from the motion its colour frame's features measured against
+// the previous one (features/rgbd_motion.hpp) or the motion the device recorded,
+// closed on its first frames and re-registered against the model of all its frames;
+// then placed in the site frame by the device's first pose or by the surveyed
+// markers its colour frames saw (pipeline/marker_fit.hpp). Every frame is fitted and
+// checked before anything is written; then all are stored in one transaction, or none.
+#include "features/rgbd_motion.hpp"
+#include "features/targets.hpp"
 #include "geometry/depth_tracking.hpp"
+#include "pipeline/marker_fit.hpp"
 #include "project/depth_records.hpp"
 #include "project/project.hpp"
 
@@ -15,8 +21,31 @@
 
 namespace strata {
 
+// What starts each frame's fit when both are at hand: the motion the colour frames'
+// features measured, or the one the device recorded. Either falls back on the other,
+// then on constant velocity (the previous step again).
+enum class DepthStart { features, recorded };
+
+// What places the sequence in the site frame: the device's recorded first pose, or the
+// surveyed markers seen in the colour frames; automatic: the device's when the
+// sequence has recorded poses, else the markers.
+enum class DepthDatum { automatic, device, markers };
+
 struct DepthRegistrationOptions {
   std::optional<std::string> sequence;  // one sequence by name; default every sequence of the layer
+  // docs/range.md, "Depth sequences, measured": with recorded poses the recorded start
+  // came out marginally better (RMS 5.46 against 5.56 mm); without them, features.
+  DepthStart start = DepthStart::recorded;
+  DepthDatum datum = DepthDatum::automatic;
+  RgbdFeatureOptions features;
+  TargetOptions targets;                // coded-target detection in the colour frames
+  TargetNaming naming;                  // target id -> marker name
+  // A marker centre in the sequence's frame: its depth (k z^2 at 2-3 m: 6-14 mm a
+  // pixel, the median of a few pixels and frames) and the tracked poses (5-10 mm).
+  // The gate is 3 sigmas of it and of the survey; the scale check is looser than a
+  // scanner's (a depth camera's scale is good to a few parts in a thousand).
+  MarkerFitOptions marker_fit = {0.010, 3.0, 0.005, 0.01};
+  int marker_window_px = 2;             // pixels: a marker centre's depth is the median within this of it
   double frame_voxel_m = 0.015;   // metres: each frame thinned to one point a cube, in its camera frame
   double max_depth_m = 3.0;       // metres: farther pixels are left out of the registration (noise k z^2
                                   // grows past 1 cm there); the fusion still uses them, weighted down
@@ -34,14 +63,29 @@ struct DepthFrameResult {
   Eigen::Matrix4d recorded = Eigen::Matrix4d::Identity();     // the device's pose
   Eigen::Matrix4d tracked = Eigen::Matrix4d::Identity();      // after frame-to-model tracking
   Eigen::Matrix4d pose = Eigen::Matrix4d::Identity();         // final: camera -> site frame
+  bool has_recorded = false;                                  // the device recorded a pose
   IcpSummary fit;                                             // the last fit of the frame
+  std::string start;             // what started its tracking fit: features, recorded, constant-velocity ('' frame 0)
+  RgbdMotion features;           // the colour frame's features against the previous frame's
+  int markers_seen = 0;          // coded targets with a depth in its colour frame
   double median_depth_m = 0;
   std::size_t points_used = 0;                                // thinned
+};
+
+// A surveyed marker as the sequence saw it.
+struct DepthMarkerSighting {
+  std::string name;
+  int frames = 0;                                    // colour frames it was found in, with a depth
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();  // median over them, the sequence's frame (frame 0's camera), metres
 };
 
 struct DepthSequenceResult {
   DepthSequenceRecord sequence;
   std::vector<DepthFrameResult> frames;
+  std::string datum;                         // 'device' or 'markers'
+  std::vector<DepthMarkerSighting> markers;  // every marker seen (markers datum), by name
+  std::optional<MarkerFit> marker_fit;       // the sequence -> site fit (markers datum)
+  std::vector<std::string> unmatched;        // targets seen whose name no surveyed marker has
   bool loop_closed = false;
   int loop_frames = 0;
   double loop_inlier_share = 0;
@@ -57,8 +101,9 @@ struct DepthRegistrationSummary {
 
 // Registers the layer's depth sequences (or options.sequence) and stores every frame's
 // pose, box and fit. Throws InputError, the database unchanged, when the layer has no
-// sequence, a sequence has no recorded poses, or any frame's fit fails its checks
-// (the message names the frame and what to do).
+// sequence, a sequence without recorded poses has no colour frames or sees fewer than
+// 3 surveyed markers, the markers do not agree, or any frame's fit fails its checks
+// (the message names the sequence or frame and what to do).
 DepthRegistrationSummary register_layer_depth(Project& project, const std::string& layer,
                                               const DepthRegistrationOptions& options);
 

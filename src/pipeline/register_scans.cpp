@@ -222,48 +222,6 @@ LayerRegistrationSummary register_layer_scans(Project& project, const std::strin
   return out;
 }
 
-namespace {
-
-// The scanner-frame targets paired with the surveyed markers of the same name (site
-// frame); names without a marker go to `unmatched`.
-struct TargetPairs {
-  std::vector<std::string> names;
-  std::vector<Eigen::Vector3d> scanner, site;
-  double largest_marker_sigma_m = 0;
-  std::vector<std::string> unmatched;
-};
-
-TargetPairs pair_targets(Project& project, const std::vector<ScanTarget>& targets) {
-  std::map<std::string, MarkerRecord> markers;
-  for (MarkerRecord& m : list_markers(project.db())) markers.emplace(m.name, std::move(m));
-  const Eigen::Vector3d origin = project.site().origin;
-  TargetPairs out;
-  for (const ScanTarget& t : targets) {
-    const auto it = markers.find(t.name);
-    if (it == markers.end()) {
-      out.unmatched.push_back(t.name);
-      continue;
-    }
-    out.names.push_back(t.name);
-    out.scanner.push_back(t.scanner);
-    out.site.push_back(it->second.position - origin);
-    out.largest_marker_sigma_m = std::max(out.largest_marker_sigma_m, it->second.sigma.norm());
-  }
-  return out;
-}
-
-// First-order pose sigmas of a fit on `points` (site frame) with residual RMS `rms`.
-std::pair<double, double> pose_sigmas(const std::vector<Eigen::Vector3d>& points, double rms) {
-  Eigen::Vector3d c = Eigen::Vector3d::Zero();
-  for (const auto& p : points) c += p;
-  c /= double(points.size());
-  double spread2 = 0;
-  for (const auto& p : points) spread2 += (p - c).squaredNorm();
-  return {rms / std::sqrt(double(points.size())), spread2 > 0 ? rms / std::sqrt(spread2) : INFINITY};
-}
-
-}  // namespace
-
 TargetRegistrationResult register_scan_on_targets(Project& project, const std::string& layer_name,
                                                   const TargetRegistrationOptions& options) {
   options.validate();
@@ -275,7 +233,9 @@ TargetRegistrationResult register_scan_on_targets(Project& project, const std::s
     throw InputError(fmt::format("{}: {}: the site has no surveyed markers yet: import them first (strata import "
                                  "markers), the targets are matched to them by name",
                                  kStage, scan.name));
-  const TargetPairs pairs = pair_targets(project, read_scan_targets(options.targets));
+  std::vector<NamedPoint> measured;
+  for (const ScanTarget& t : read_scan_targets(options.targets)) measured.push_back({t.name, t.scanner});
+  const MarkerPairs pairs = pair_with_markers(project, measured);
   if (pairs.names.size() < 3)
     throw InputError(fmt::format("{}: {}: {} of the {} targets in {} name a surveyed marker, at least 3 needed{}",
                                  kStage, scan.name, pairs.names.size(), pairs.names.size() + pairs.unmatched.size(),
@@ -283,43 +243,20 @@ TargetRegistrationResult register_scan_on_targets(Project& project, const std::s
                                  pairs.unmatched.empty()
                                      ? std::string()
                                      : fmt::format(" (no marker named {})", fmt::join(pairs.unmatched, ", "))));
+  const MarkerFit fit = fit_on_markers(
+      pairs, MarkerFitOptions{options.target_sigma_m, options.gate_sigmas, options.min_gate_m, options.max_scale_error},
+      fmt::format("{}: {}", kStage, scan.name), fmt::format("the targets of {}", file));
   TargetRegistrationResult r;
   r.scan = scan;
   r.unmatched = pairs.unmatched;
-  r.gate_m = std::max(options.min_gate_m, options.gate_sigmas * std::hypot(options.target_sigma_m,
-                                                                            pairs.largest_marker_sigma_m));
-  RobustSimilarity fit;
-  try {
-    fit = fit_similarity_robust(pairs.scanner, pairs.site, r.gate_m);
-  } catch (const InputError& e) {
-    throw InputError(fmt::format("{}: {}: cannot register it on the targets of {}: {}. Nothing was changed",
-                                 kStage, scan.name, file, e.what()));
-  }
-  if (std::abs(fit.fit.scale - 1) > options.max_scale_error)
-    throw InputError(fmt::format("{}: {}: the targets of {} fit with a scale of {:.5f}, not 1 within {}: their "
-                                 "coordinates are not in metres, or names are mismatched. Nothing was changed",
-                                 kStage, scan.name, file, fit.fit.scale, options.max_scale_error));
-  // The scanner measures in metres: the pose is the rigid motion fitted to the inliers
-  // (a free scale would only absorb their noise); the similarity's scale stays a check.
-  std::vector<Eigen::Vector3d> inlier_scanner, inlier_site;
-  for (std::size_t i = 0; i < pairs.names.size(); ++i) {
-    if (!fit.inlier[i]) continue;
-    inlier_scanner.push_back(pairs.scanner[i]);
-    inlier_site.push_back(pairs.site[i]);
-  }
-  const Similarity3 rigid = fit_rigid(inlier_scanner, inlier_site);
-  double sum2 = 0;
-  for (std::size_t i = 0; i < pairs.names.size(); ++i) {
-    const double residual = (rigid.apply(pairs.scanner[i]) - pairs.site[i]).norm();
-    r.targets.push_back({pairs.names[i], residual, bool(fit.inlier[i])});
-    if (fit.inlier[i]) sum2 += residual * residual;
-  }
-  r.scale = fit.fit.scale;
+  r.pose = fit.pose;
+  r.scale = fit.scale;
+  r.gate_m = fit.gate_m;
+  r.rms_m = fit.rms_m;
   r.inliers = fit.inliers;
-  r.rms_m = std::sqrt(sum2 / double(r.inliers));
-  std::tie(r.sigma_translation_m, r.sigma_rotation_rad) = pose_sigmas(inlier_site, r.rms_m);
-  r.pose.topLeftCorner<3, 3>() = rigid.R;
-  r.pose.topRightCorner<3, 1>() = rigid.t;
+  r.targets = fit.targets;
+  r.sigma_translation_m = fit.sigma_translation_m;
+  r.sigma_rotation_rad = fit.sigma_rotation_rad;
   for (const TargetResidual& t : r.targets) {
     if (!t.inlier)
       log::warn("{}: {}: target {} is {:.1f} mm from its marker, beyond the {:.1f} mm gate: left out", kStage,

@@ -8,6 +8,7 @@
 // anything is written; then all are stored in one transaction, or none.
 #include "geometry/icp.hpp"
 #include "geometry/similarity.hpp"
+#include "pipeline/marker_fit.hpp"
 #include "project/project.hpp"
 #include "project/scan_records.hpp"
 
@@ -75,12 +76,6 @@ struct TargetRegistrationOptions {
   // this means other units or mismatched names.
   double max_scale_error = 0.005;
   void validate() const;  // throws InputError naming the field
-};
-
-struct TargetResidual {
-  std::string name;
-  double residual_m = 0;  // |pose(scanner) - surveyed|, metres
-  bool inlier = false;
 };
 
 struct TargetRegistrationResult {

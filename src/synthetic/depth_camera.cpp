@@ -17,9 +17,6 @@ constexpr double kTwoPi = 2 * std::numbers::pi;
 constexpr double kWobblePositionM = 0.03;  // metres, amplitude of the camera's sway
 constexpr double kWobbleAimM = 0.08;       // metres, amplitude of the aim point's wander on the floor
 constexpr double kWobbleRollRad = 0.05;    // radians (3 degrees), amplitude of the roll
-// The camera aims at the floor this share of the way from the trench centre towards
-// itself: it sees the near half and the middle; the loop covers the rest.
-constexpr double kAimShare = 0.3;
 constexpr double kPathExponent = 6.0;  // of the superellipse the path follows round the trench
 constexpr double kFloorNormalZ = 0.7;  // a hit with a steeper normal is a section face (material bands)
 
@@ -78,7 +75,7 @@ std::vector<DepthFramePlan> plan_depth_sequence(const Scene& scene, int layer, s
     Eigen::Vector2d xy = centre + offset;
     xy += kWobblePositionM * Eigen::Vector2d(wobble(0, s), wobble(1, s));
     const Eigen::Vector3d c(xy.x(), xy.y(), surface.sample(xy.x(), xy.y()) + o.height_m + kWobblePositionM * wobble(2, s));
-    const Eigen::Vector2d aim_xy = centre + kAimShare * offset + kWobbleAimM * Eigen::Vector2d(wobble(3, s), wobble(4, s));
+    const Eigen::Vector2d aim_xy = centre + o.aim_share * offset + kWobbleAimM * Eigen::Vector2d(wobble(3, s), wobble(4, s));
     const Eigen::Vector3d aim(aim_xy.x(), aim_xy.y(), floor_z);
     Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
     pose.linear() = look_rotation(aim - c, kWobbleRollRad * wobble(5, s));
@@ -130,7 +127,13 @@ DepthFrame render_depth_frame(const Scene& scene, int layer, const Eigen::Isomet
       const Eigen::Vector3d& p = hit.point;
       const Eigen::Vector3d n = hit.where == RayHit::Where::grid ? grid.normal(p.x(), p.y()) : Eigen::Vector3d::UnitZ();
       const Material mat = scene.material_at(p.x(), p.y(), p.z(), layer, n.z() > kFloorNormalZ);
-      const Rgb rgb = scene.albedo(mat, p.x(), p.y(), hit.t / f);
+      Rgb rgb = scene.albedo(mat, p.x(), p.y(), hit.t / f);
+      // The printed targets on the ground, drawn as the photo renderer draws them
+      // (render.cpp), unlit as the rest of the colour frame.
+      if (hit.where == RayHit::Where::grid) {
+        const Scene::Print print = scene.marker_print(p.x(), p.y(), hit.t / f);
+        if (print.coverage > 0) rgb = lerp(rgb, Rgb{1, 1, 1} * float(print.reflectance), print.coverage);
+      }
       out.rgb[3 * index] = to_srgb8(rgb.r);
       out.rgb[3 * index + 1] = to_srgb8(rgb.g);
       out.rgb[3 * index + 2] = to_srgb8(rgb.b);

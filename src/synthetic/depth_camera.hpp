@@ -33,7 +33,7 @@ std::vector<DepthFramePlan> plan_depth_sequence(const Scene& scene, int layer, s
 
 struct DepthFrame {
   std::vector<std::uint16_t> depth_mm;  // row-major width x height, 0 = no return
-  std::vector<std::uint8_t> rgb;        // row-major, 3 bytes a pixel, sRGB (unlit albedo)
+  std::vector<std::uint8_t> rgb;        // row-major, 3 bytes a pixel, sRGB (unlit albedo, the marker prints on it)
   std::int64_t valid = 0;               // pixels with a depth
 };
 

@@ -585,6 +585,8 @@ void write_site_json(const synthetic::Scene& scene, const SyntheticExcavationOpt
                   {"focal_px", o.depth.focal_px},
                   {"noise_k", o.depth.noise_k},
                   {"depth_scale_m", 0.001},
+                  {"edge_offset_m", o.depth.edge_offset_m},
+                  {"aim_share", o.depth.aim_share},
                   {"drift_rotation_mrad", o.depth.drift_rotation_mrad},
                   {"drift_translation_m", o.depth.drift_translation_m},
                   {"drift_bias_mrad", o.depth.drift_bias_mrad}};
@@ -694,6 +696,7 @@ void SyntheticExcavationOptions::validate() const {
   require(depth.height_m >= 0.3 && depth.height_m <= 3, "depth.height_m", depth.height_m, "0.3..3 m");
   require(depth.edge_offset_m >= 0 && depth.edge_offset_m <= 1, "depth.edge_offset_m", depth.edge_offset_m,
           "0..1 m (inside the scene's fine grid)");
+  require(depth.aim_share >= 0 && depth.aim_share <= 0.95, "depth.aim_share", depth.aim_share, "0..0.95");
   require(depth.drift_rotation_mrad >= 0 && depth.drift_rotation_mrad <= 20, "depth.drift_rotation_mrad",
           depth.drift_rotation_mrad, "0..20 mrad");
   require(depth.drift_translation_m >= 0 && depth.drift_translation_m <= 0.05, "depth.drift_translation_m",

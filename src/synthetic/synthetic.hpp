@@ -101,6 +101,10 @@ struct SyntheticExcavationOptions {
     double max_depth_m = 4.0;      // metres: farther than this the sensor returns nothing
     double height_m = 1.2;         // metres: the camera above the ground, held at chest height
     double edge_offset_m = 0.3;    // metres: the path runs this far outside the trench edge
+    // The camera aims at the floor this share of the way from the trench centre towards
+    // itself (0.3: it sees the near half and the middle; the loop covers the rest). With
+    // a wider path (edge_offset_m 1.0), most frames also see a marker or two.
+    double aim_share = 0.3;
     // The recorded poses' drift: per frame, one sigma per axis, in the camera frame.
     double drift_rotation_mrad = 1.0;  // milliradians
     double drift_translation_m = 0.002;  // metres

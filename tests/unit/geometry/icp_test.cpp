@@ -110,5 +110,38 @@ TEST(Icp, OptionsAreValidated) {
   EXPECT_THROW(register_point_to_plane({}, {}, Eigen::Isometry3d::Identity(), o), std::exception);
 }
 
+// The growing model of depth tracking gives the points and normals a full estimate on
+// all the frames' means gives, while estimating again only the normals near what a
+// frame changed: here the second and third "frames" cover a corner of the first.
+TEST(GrowingModel, SameAsAFullEstimateButOnlyNearTheChange) {
+  constexpr double kVoxel = 0.015, kRadius = 0.045;
+  constexpr double kSameM = 1e-12;       // summation order only
+  constexpr double kSameNormal = 1e-9;   // |1 - n1 . n2|
+  const std::vector<Eigen::Vector3d> whole = boxes_on_plane(0.01, 0.002, 0.001, 5);
+  std::vector<std::vector<Eigen::Vector3d>> frames(3);
+  for (const auto& p : whole) {
+    frames[0].push_back(p);
+    if (p.x() > 0.3 && p.y() > 0.3) frames[1].push_back(p + Eigen::Vector3d(0.003, 0, 0.001));
+    if (p.x() < -0.5 && p.y() < -0.5) frames[2].push_back(p + Eigen::Vector3d(0, -0.002, 0.002));
+  }
+  GrowingModel model(kVoxel, kRadius);
+  VoxelMeans means(kVoxel);
+  std::size_t full_estimates = 0;
+  for (const auto& f : frames) {
+    const std::size_t before = model.normals_estimated();
+    model.add(f);
+    for (const auto& p : f) means.add(p);
+    const OrientedPoints full = estimate_normals(means.points(), kRadius);
+    full_estimates += means.points().size();
+    ASSERT_EQ(model.oriented().points.size(), full.points.size());
+    for (std::size_t i = 0; i < full.points.size(); ++i) {
+      ASSERT_LT((model.oriented().points[i] - full.points[i]).norm(), kSameM) << i;
+      ASSERT_LT(1 - std::abs(model.oriented().normals[i].dot(full.normals[i])), kSameNormal) << i;
+    }
+    if (&f != &frames[0]) EXPECT_LT(model.normals_estimated() - before, means.points().size() / 2);
+  }
+  EXPECT_LT(model.normals_estimated(), full_estimates);
+}
+
 }  // namespace
 }  // namespace strata
