@@ -98,24 +98,45 @@ std::vector<int> greedy_views(const Reconstruction& rec, const Covisibility& cv,
   return out;
 }
 
-// Per sparse point, the candidate images whose view holds it: in front of the
-// camera, inside the photo and inside its depth range. Not only the images that
-// matched it: a sparse track holds 3-4 of the 10-20 photos that see a spot of a
-// trench, so a cover counted on tracks alone needs nearly every photo.
-std::vector<std::vector<int>> frustum_visibility(const Reconstruction& rec, const std::vector<ViewNeighbours>& views,
-                                                 const std::vector<char>& candidate) {
-  std::vector<std::vector<int>> out(rec.points.size());
-  for (std::size_t i = 0; i < candidate.size(); ++i) {
-    if (!candidate[i]) continue;
+// A sparse point inside a photo's frustum (in front of the camera, inside the photo)
+// and its depth there.
+struct PointInView {
+  int point;
+  double depth;
+};
+
+// Per image, the sparse points inside its frustum.
+std::vector<std::vector<PointInView>> points_in_view(const Reconstruction& rec) {
+  std::vector<std::vector<PointInView>> out(rec.images.size());
+  for (std::size_t i = 0; i < rec.images.size(); ++i) {
     const auto& im = rec.images[i];
+    if (!im.registered) continue;
     const auto& intr = rec.groups.at(im.group).intrinsics;
     for (std::size_t k = 0; k < rec.points.size(); ++k) {
       const Eigen::Vector3d Xc = im.pose.to_camera(rec.points[k].X);
-      if (Xc.z() < views[i].depth_min || Xc.z() > views[i].depth_max) continue;
+      if (Xc.z() <= 0) continue;
       const Eigen::Vector2d px = intr.to_pixel(Xc.head<2>() / Xc.z());
       if (px.x() >= 0 && px.y() >= 0 && px.x() < intr.width && px.y() < intr.height) {
-        out[k].push_back(static_cast<int>(i));
+        out[i].push_back({static_cast<int>(k), Xc.z()});
       }
+    }
+  }
+  return out;
+}
+
+// Per sparse point, the candidate images whose view holds it: inside the frustum and
+// inside the image's depth range. Not only the images that matched it: a sparse track
+// holds 3-4 of the 10-20 photos that see a spot of a trench, so a cover counted on
+// tracks alone needs nearly every photo.
+std::vector<std::vector<int>> frustum_visibility(std::size_t points, const std::vector<std::vector<PointInView>>& in_view,
+                                                 const std::vector<ViewNeighbours>& views,
+                                                 const std::vector<char>& candidate) {
+  std::vector<std::vector<int>> out(points);
+  for (std::size_t i = 0; i < candidate.size(); ++i) {
+    if (!candidate[i]) continue;
+    for (const PointInView& v : in_view[i]) {
+      if (v.depth < views[i].depth_min || v.depth > views[i].depth_max) continue;
+      out[static_cast<std::size_t>(v.point)].push_back(static_cast<int>(i));
     }
   }
   return out;
@@ -123,10 +144,11 @@ std::vector<std::vector<int>> frustum_visibility(const Reconstruction& rec, cons
 
 // The fewest candidate images (greedy set multicover) such that every sparse point
 // lies in the views of `k` of them, or of all the candidates that see it when fewer do.
-std::vector<char> covering_references(const Reconstruction& rec, const std::vector<ViewNeighbours>& views,
-                                      const std::vector<char>& candidate, int k) {
+std::vector<char> covering_references(std::size_t points, const std::vector<std::vector<PointInView>>& in_view,
+                                      const std::vector<ViewNeighbours>& views, const std::vector<char>& candidate,
+                                      int k) {
   const std::size_t n = candidate.size();
-  const std::vector<std::vector<int>> visible = frustum_visibility(rec, views, candidate);
+  const std::vector<std::vector<int>> visible = frustum_visibility(points, in_view, views, candidate);
   std::vector<std::vector<int>> holds(n);  // per image, the points in its view
   for (std::size_t p = 0; p < visible.size(); ++p)
     for (int i : visible[p]) holds[static_cast<std::size_t>(i)].push_back(static_cast<int>(p));
@@ -163,6 +185,7 @@ std::vector<ViewNeighbours> select_views(const Reconstruction& rec, const ViewSe
   for (int i = 0; i < n; ++i) centres[i] = rec.images[i].pose.centre();
   const Covisibility cv = covisibility(rec);
   const std::vector<char> every(static_cast<std::size_t>(n), 1);
+  const std::vector<std::vector<PointInView>> in_view = points_in_view(rec);
 
   for (int i = 0; i < n; ++i) {
     if (!rec.images[i].registered) continue;
@@ -174,17 +197,8 @@ std::vector<ViewNeighbours> select_views(const Reconstruction& rec, const ViewSe
     // to them, and a range cut at this photo's own matches leaves them without depth.
     // Points hidden behind a wall only widen the range, which PatchMatch tolerates.
     std::vector<double> d;
-    {
-      const auto& intr = rec.groups.at(rec.images[i].group).intrinsics;
-      for (const auto& p : rec.points) {
-        const Eigen::Vector3d Xc = rec.images[i].pose.to_camera(p.X);
-        if (Xc.z() <= 0) continue;
-        const Eigen::Vector2d px = intr.to_pixel(Xc.head<2>() / Xc.z());
-        if (px.x() >= 0 && px.y() >= 0 && px.x() < intr.width && px.y() < intr.height) {
-          d.push_back(Xc.z());
-        }
-      }
-    }
+    d.reserve(in_view[i].size());
+    for (const PointInView& v : in_view[i]) d.push_back(v.depth);
     if (d.size() < 3) {
       out[i].sources.clear();  // no depth prior: cannot run stereo reliably
       continue;
@@ -202,7 +216,8 @@ std::vector<ViewNeighbours> select_views(const Reconstruction& rec, const ViewSe
   std::vector<char> candidate(static_cast<std::size_t>(n), 0);
   for (int i = 0; i < n; ++i) candidate[i] = out[i].sources.empty() ? 0 : 1;
   const std::vector<char> reference =
-      opt.reference_cover > 0 ? covering_references(rec, out, candidate, opt.reference_cover) : candidate;
+      opt.reference_cover > 0 ? covering_references(rec.points.size(), in_view, out, candidate, opt.reference_cover)
+                              : candidate;
   for (int i = 0; i < n; ++i) {
     if (!reference[i]) continue;
     out[i].reference = true;

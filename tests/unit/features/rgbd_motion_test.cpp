@@ -41,6 +41,15 @@ std::vector<std::uint8_t> grey_of(const synthetic::DepthFrame& f) {
   return out;
 }
 
+// The deepest layer of that site and its depth camera's planned loop.
+class RgbdFrames : public ::testing::Test {
+ protected:
+  const SyntheticExcavationOptions o = options();
+  const synthetic::Scene scene{o};
+  const int layer = scene.layers() - 1;
+  const std::vector<synthetic::DepthFramePlan> plan = synthetic::plan_depth_sequence(scene, layer, o.seed);
+};
+
 // Consecutive frames 6 degrees of the loop apart (about 20 cm): the features' motion
 // must be within the ICP's basin by a wide margin, and here it is far better than
 // that: a few millimetres and milliradians over hundreds of matches.
@@ -48,11 +57,7 @@ constexpr double kMaxStepErrorM = 0.01;
 constexpr double kMaxStepErrorRad = 0.005;
 constexpr int kMinInliers = 50;
 
-TEST(RgbdMotion, ConsecutiveSyntheticFramesGiveTheTrueMotion) {
-  const auto o = options();
-  const synthetic::Scene scene(o);
-  const int layer = scene.layers() - 1;
-  const auto plan = synthetic::plan_depth_sequence(scene, layer, o.seed);
+TEST_F(RgbdFrames, ConsecutiveSyntheticFramesGiveTheTrueMotion) {
   const RgbdFeatureOptions fo;
   for (const std::size_t i : {std::size_t(4), std::size_t(31)}) {
     const auto a = synthetic::render_depth_frame(scene, layer, plan[i].true_pose, 1);
@@ -82,11 +87,7 @@ TEST(RgbdMotion, ConsecutiveSyntheticFramesGiveTheTrueMotion) {
 // pose projects the markers' centres (the print's corners are sharp at 1.5-2.5 m).
 constexpr double kMaxMarkerCentrePx = 2.0;
 
-TEST(RgbdMotion, SyntheticColourFramesShowTheMarkers) {
-  const auto o = options();
-  const synthetic::Scene scene(o);
-  const int layer = scene.layers() - 1;
-  const auto plan = synthetic::plan_depth_sequence(scene, layer, o.seed);
+TEST_F(RgbdFrames, SyntheticColourFramesShowTheMarkers) {
   const RgbdCamera k = camera(o);
   int found = 0, false_ids = 0;
   std::set<int> ids;
