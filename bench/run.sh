@@ -5,7 +5,7 @@
 # the Debian `colmap` package is installed, runs COLMAP's CPU sparse pipeline on the
 # same photos for comparison (time ratio and camera accuracy after a similarity fit).
 #
-# Usage: [STRATA_BIN=path] bench/run.sh [--size full|small] [--layer L1] [--keep DIR] [--no-colmap] [--data DIR]
+# Usage: [STRATA_BIN=path] [STRATA_ALIGN_ARGS="..."] bench/run.sh [--size full|small] [--layer L1] [--keep DIR] [--no-colmap] [--data DIR]
 #   --data DIR: another synthetic excavation (strata synth DIR ...), e.g. 200 photos a layer:
 #               strata synth /tmp/p200 --size full --stages 1 --photos 200
 # Writes bench/results/<UTC timestamp>-<size>-<layer>.json and bench/results/latest-<size>-<layer>.json
@@ -80,12 +80,17 @@ echo "bench: $size $layer, $n_photos photos: alignment"
 # Other work on the machine makes the timings meaningless: the 1-minute load average
 # just before the timed stages is kept with the results (quiet: below about 0.5).
 load_before=$(cut -d' ' -f1 /proc/loadavg)
-sparse_s=$(timed sparse "$strata" -q process "$site" --layer "$layer" --until sparse --json)
+# STRATA_ALIGN_ARGS: extra options of the alignment (e.g. "--max-image-size 1200"), to compare; given to
+# every stage, since a stage whose alignment options differ would align the layer again.
+# shellcheck disable=SC2086
+sparse_s=$(timed sparse "$strata" -q process "$site" --layer "$layer" --until sparse --json ${STRATA_ALIGN_ARGS:-})
 "$strata" -q export cameras "$site" --layer "$layer" --out "$work/cameras.csv"
 echo "bench: dense surface"
-dense_s=$(timed dense "$strata" -q process "$site" --layer "$layer" --until dense --json)
+# shellcheck disable=SC2086
+dense_s=$(timed dense "$strata" -q process "$site" --layer "$layer" --until dense --json ${STRATA_ALIGN_ARGS:-})
 echo "bench: products"
-products_s=$(timed products "$strata" -q process "$site" --layer "$layer" --json)
+# shellcheck disable=SC2086
+products_s=$(timed products "$strata" -q process "$site" --layer "$layer" --json ${STRATA_ALIGN_ARGS:-})
 points=
 if [[ -f "$site/products/$layer/dense/points.ply" ]]; then
   /usr/bin/python3 bench/eval_points.py "$site/products/$layer/dense/points.ply" "$data/truth/$layer/surface.tif" \
@@ -126,10 +131,13 @@ label=$size  # another --data set is named by its folder
 [[ "$data" != example/data-$size ]] && label=$(basename "$data")
 out=bench/results/$stamp-$label-$layer.json
 latest=bench/results/latest-$label-$layer.json  # the previous run of the same layer
+# A run with other alignment options is compared with the default run but does not replace it.
+[[ -n "${STRATA_ALIGN_ARGS:-}" ]] && latest_out=/dev/null || latest_out=$latest
 /usr/bin/python3 bench/summarise.py --size "$size" --layer "$layer" --photos "$n_photos" \
   --sparse "$work/sparse.json" --sparse-seconds "$sparse_s" \
   --dense "$work/dense.json" --dense-seconds "$dense_s" --products-seconds "$products_s" --memdir "$work" \
   --cameras "$work/cameras.csv" --truth "$data/truth/$layer/cameras.csv" \
-  --surface "$surface" --points "$points" --colmap "$colmap_json" --previous "$latest" --load-before "$load_before" --out "$out"
-cp "$out" "$latest"
+  --surface "$surface" --points "$points" --colmap "$colmap_json" --previous "$latest" --load-before "$load_before" \
+  --align-args "${STRATA_ALIGN_ARGS:-}" --out "$out"
+cp "$out" "$latest_out"
 echo "bench: wrote $out"

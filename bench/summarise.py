@@ -81,7 +81,7 @@ def main():
     ap = argparse.ArgumentParser()
     for name in ["size", "layer", "photos", "sparse", "sparse-seconds", "dense", "dense-seconds",
                  "products-seconds", "memdir", "cameras", "truth", "colmap", "surface", "points", "previous", "load-before",
-                 "out"]:
+                 "align-args", "out"]:
         ap.add_argument("--" + name)
     a = ap.parse_args()
     sparse = read_json(a.sparse)
@@ -102,12 +102,14 @@ def main():
         "check_rmse_xyz_m": sparse.get("check_rmse", {}).get("xyz_m"),
         "camera_centres_georeferenced": stats(direct),
         "camera_centres_shape": stats(similarity_residuals(est, truth)),
+        "pairs": sparse.get("pairs"),
         "sparse_timings": sparse.get("timings"), "sparse_peak_memory_mb": sparse.get("peak_memory_mb"),
         "dense_steps": dense.get("steps"), "dense_completeness": dense.get("completeness"),
         "surface": read_json(a.surface) if a.surface and os.path.exists(a.surface) else None,
         "points": read_json(a.points) if a.points and os.path.exists(a.points) else None,
         "colmap": json.loads(a.colmap) if a.colmap and a.colmap != "null" else None,
         "load_average_before": float(a.load_before) if a.load_before else None,
+        "align_args": a.align_args or "",
     }
     if result["load_average_before"] is not None and result["load_average_before"] > QUIET_LOAD:
         result["timing_warning"] = (f"load average {result['load_average_before']:.2f} before the run: "

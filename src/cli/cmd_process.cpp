@@ -275,6 +275,11 @@ void register_process_commands(CLI::App& app) {
   cmd->add_option("--max-image-size", options->features.max_image_size,
                   "long side (px) photos are reduced to for feature detection (default 2000)");
   cmd->add_option("--max-features", options->features.max_features, "SIFT features per photo (default 8000)");
+  cmd->add_option("--pairs-per-photo", options->pairs.preview_best_per_photo,
+                  "layers of 20 photos or more: each photo is matched with at most its K most similar "
+                  "photos by a quick preview, a pair when either photo chooses it (default 8; 0: every pair "
+                  "the preview passes)")
+      ->check(CLI::Range(0, 1000));
   cmd->add_option("--camera-model", options->lens.model,
                   "lens model of every camera: auto (default: from the lens, see docs/cameras.md), "
                   "radial (k1, k2), brown (k1-k3, p1, p2; wide lenses) or fisheye (equidistant, k1-k4)")

@@ -52,6 +52,11 @@ struct PairSelectionOptions {
   int preview_features = 300;   // per photo; 0 disables the preview
   int preview_min_matches = 4;  // >= 1
   double preview_ratio = 0.8;   // Lowe's ratio on distances, in (0, 1]
+  // After the preview, each photo keeps its `preview_best_per_photo` pairs with the
+  // most preview matches; a pair goes on to full matching when either of its photos
+  // keeps it. Bounds the pairs to about n k (linear in the photo count) where a
+  // compact layer's photos all overlap. 0 keeps every pair that passes the preview.
+  int preview_best_per_photo = 8;
   Unkeyed<int> num_threads = 0;  // 0 = all hardware threads
 
   void validate() const;  // throws InputError naming the field
@@ -65,6 +70,7 @@ struct PairSelectionSummary {
   std::size_t retrieval_pairs = 0;// pairs contributed by retrieval (not already sequence)
   bool previewed = false;         // the preview ran (see PairSelectionOptions)
   std::size_t candidate_pairs = 0;// pairs before the preview
+  std::size_t preview_passed = 0; // pairs with enough preview matches (before preview_best_per_photo)
   double preview_seconds = 0;     // wall time of the preview
   double seconds = 0;
 };

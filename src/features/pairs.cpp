@@ -124,11 +124,34 @@ int preview_matches(const PreviewSet& a, const PreviewSet& b, float ratio2) {
   return count;
 }
 
+// Of the pairs in `passed`, those among the k with the most preview matches of
+// either of their photos (ties: the lower photo index first, so the choice does not
+// depend on thread timing).
+std::set<ImagePair> best_per_photo(const std::vector<ImagePair>& list, const std::vector<int>& counts,
+                                   const std::set<ImagePair>& passed, int n, int k) {
+  std::vector<std::vector<std::pair<int, int>>> of(n);  // per photo: (count, other photo)
+  for (std::size_t p = 0; p < list.size(); ++p) {
+    if (!passed.count(list[p])) continue;
+    of[list[p].first].push_back({counts[p], list[p].second});
+    of[list[p].second].push_back({counts[p], list[p].first});
+  }
+  std::set<ImagePair> kept;
+  for (int i = 0; i < n; ++i) {
+    auto& v = of[i];
+    const std::size_t keep = std::min<std::size_t>(k, v.size());
+    std::partial_sort(v.begin(), v.begin() + keep, v.end(), [](const auto& a, const auto& b) {
+      return a.first != b.first ? a.first > b.first : a.second < b.second;
+    });
+    for (std::size_t r = 0; r < keep; ++r) kept.insert(ordered(i, v[r].second));
+  }
+  return kept;
+}
+
 // Keeps the candidate pairs whose preview finds enough matches.
 std::set<ImagePair> preview_pairs(const PairSelectionOptions& o,
                                   const std::vector<ImageKeypoints>& images,
                                   const std::filesystem::path& cache_dir,
-                                  const std::set<ImagePair>& candidates) {
+                                  const std::set<ImagePair>& candidates, std::size_t* passed) {
   const int n = static_cast<int>(images.size());
   std::vector<PreviewSet> sets(n);
   parallel_for_index(n, o.num_threads, [&](std::size_t i) {
@@ -152,6 +175,8 @@ std::set<ImagePair> preview_pairs(const PairSelectionOptions& o,
   std::set<ImagePair> kept;
   for (std::size_t p = 0; p < list.size(); ++p)
     if (counts[p] >= o.preview_min_matches) kept.insert(list[p]);
+  *passed = kept.size();
+  if (o.preview_best_per_photo > 0) kept = best_per_photo(list, counts, kept, n, o.preview_best_per_photo);
   return kept;
 }
 
@@ -179,6 +204,8 @@ void PairSelectionOptions::validate() const {
     fail("preview_features", fmt::format("must be >= 0 (got {})", preview_features));
   if (preview_min_matches < 1)
     fail("preview_min_matches", fmt::format("must be >= 1 (got {})", preview_min_matches));
+  if (preview_best_per_photo < 0)
+    fail("preview_best_per_photo", fmt::format("must be >= 0 (got {})", preview_best_per_photo));
   if (!(preview_ratio > 0 && preview_ratio <= 1))
     fail("preview_ratio", fmt::format("must be in (0, 1] (got {})", preview_ratio));
   if (num_threads < 0) fail("num_threads", fmt::format("must be >= 0 (got {})", num_threads));
@@ -240,13 +267,16 @@ std::vector<ImagePair> select_pairs(const PairSelectionOptions& options,
   if (options.preview_features > 0 && n >= options.preview_min_images) {
     STRATA_CHECK(!cache_dir.empty(), "the pair preview needs the features cache folder");
     Stopwatch preview_clock;
-    pairs = preview_pairs(options, images, cache_dir, pairs);
+    pairs = preview_pairs(options, images, cache_dir, pairs, &s.preview_passed);
     s.previewed = true;
     s.preview_seconds = preview_clock.seconds();
     log::info("pair preview: {} of {} candidate pairs share >= {} of their {} largest-scale "
-              "features, {:.1f} s",
-              pairs.size(), s.candidate_pairs, options.preview_min_matches,
-              options.preview_features, s.preview_seconds);
+              "features{}, {:.1f} s",
+              s.preview_passed, s.candidate_pairs, options.preview_min_matches, options.preview_features,
+              options.preview_best_per_photo > 0
+                  ? fmt::format("; {} among the {} best of a photo", pairs.size(), options.preview_best_per_photo)
+                  : std::string(),
+              s.preview_seconds);
   }
   std::vector<ImagePair> out(pairs.begin(), pairs.end());
   s.pairs = out.size();

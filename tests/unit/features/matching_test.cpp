@@ -271,6 +271,26 @@ TEST(PairSelection, PreviewKeepsOverlappingPairsAndDropsUnrelatedOnes) {
   constexpr std::size_t kSameTexturePairs = 2 * 15;  // 2 x C(6, 2)
   EXPECT_EQ(pairs.size(), kSameTexturePairs);
   for (const auto& [a, b] : pairs) EXPECT_EQ(a % 2, b % 2) << a << "-" << b;
+  EXPECT_EQ(s.preview_passed, kSameTexturePairs);
+
+  // Each photo's 2 best pairs: the sweep's neighbours (40 px apart, the most overlap)
+  // are kept, the pairs chosen by neither photo are not, and every photo keeps 2.
+  po.preview_best_per_photo = 2;
+  const auto best = select_pairs(po, kp, dir / "cache", {}, &s);
+  EXPECT_EQ(s.preview_passed, kSameTexturePairs);
+  EXPECT_LE(best.size(), 12u * 2u);
+  EXPECT_LT(best.size(), pairs.size());
+  std::vector<int> per_photo(12, 0);
+  for (const auto& pr : best) {
+    EXPECT_TRUE(std::find(pairs.begin(), pairs.end(), pr) != pairs.end()) << pr.first << "-" << pr.second;
+    ++per_photo[pr.first];
+    ++per_photo[pr.second];
+  }
+  for (int i = 0; i < 12; ++i) EXPECT_GE(per_photo[i], 2) << "photo " << i;
+  for (int a = 0; a + 2 < 12; ++a)
+    EXPECT_TRUE(std::find(best.begin(), best.end(), ImagePair{a, a + 2}) != best.end()) << a << "-" << a + 2;
+  EXPECT_TRUE(std::find(best.begin(), best.end(), ImagePair{0, 10}) == best.end());  // 200 px apart
+  po.preview_best_per_photo = 0;
 
   // Below preview_min_images every candidate is kept.
   po.preview_min_images = 13;
@@ -292,6 +312,14 @@ TEST(Matching, RejectsBadPairsAndOptions) {
   PairSelectionOptions po;
   po.exhaustive_limit = 1;
   EXPECT_THROW(po.validate(), InputError);
+  po = {};
+  po.preview_best_per_photo = -1;
+  try {
+    po.validate();
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("preview_best_per_photo"), std::string::npos);
+  }
 }
 
 // Real photos, when the shared example data is present: three consecutive
