@@ -349,9 +349,9 @@ DepthSequenceResult register_sequence(Project& project, const DepthSequenceRecor
     return std::count_if(out.frames.begin(), out.frames.end(), [&](const auto& r) { return r.start == what; });
   };
   log::info("{}: sequence '{}': {} frames registered in {:.1f} s (started from features {}, recorded motion {}, "
-            "constant velocity {}); datum: {}; loop {}",
+            "constant velocity {}, no motion {}); datum: {}; loop {}",
             kStage, seq.name, out.frames.size(), out.seconds, starts("features"), starts("recorded"),
-            starts("constant-velocity"),
+            starts("constant-velocity"), starts("no-motion"),
             out.marker_fit ? fmt::format("{} of {} markers, RMS {:.1f} mm", out.marker_fit->inliers,
                                          out.marker_fit->targets.size(), 1000 * out.marker_fit->rms_m)
                            : std::string("the device's first pose"),
