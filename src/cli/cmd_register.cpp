@@ -160,8 +160,9 @@ void print_registration(const DepthRegistrationSummary& s) {
     const auto started = [&](const char* what) {
       return std::count_if(q.frames.begin(), q.frames.end(), [&](const auto& r) { return r.start == what; });
     };
-    fmt::print("  frames started from their features' motion: {}, the recorded motion: {}, constant velocity: {}\n",
-               started("features"), started("recorded"), started("constant-velocity"));
+    fmt::print("  frames started from their features' motion: {}, the recorded motion: {}, constant velocity: {}, "
+               "no motion: {}\n",
+               started("features"), started("recorded"), started("constant-velocity"), started("no-motion"));
     if (q.marker_fit)
       fmt::print("  placed on {} of {} surveyed markers seen: RMS {:.1f} mm, scale {:.4f}\n", q.marker_fit->inliers,
                  q.marker_fit->targets.size(), 1000 * q.marker_fit->rms_m, q.marker_fit->scale);

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <tuple>
 
 namespace strata {
 namespace {
@@ -32,6 +33,63 @@ Eigen::Isometry3d partial_motion(const Eigen::Isometry3d& c, const Eigen::Vector
   out.linear() = R;
   out.translation() = centre + s * t - R * centre;
   return out;
+}
+
+// Whether a frame's fit from its measured step can be kept without trying the other
+// starts: it converged and kept at least kConsistentShare of the share of points the
+// last frames' fits kept (their median); a step that put the frame on a wrong place
+// leaves much of it off the model.
+constexpr double kConsistentShare = 0.75;
+constexpr int kConsistentFrames = 5;
+
+bool consistent(const IcpSummary& fit, const std::vector<IcpSummary>& previous) {
+  if (!fit.converged) return false;
+  std::vector<double> shares;
+  for (auto it = previous.rbegin(); it != previous.rend() && int(shares.size()) < kConsistentFrames; ++it)
+    if (it->converged) shares.push_back(it->inlier_share);
+  if (shares.empty()) return true;
+  std::nth_element(shares.begin(), shares.begin() + long(shares.size() / 2), shares.end());
+  return fit.inlier_share >= kConsistentShare * shares[shares.size() / 2];
+}
+
+// Better of two fits: a converged one, then the larger share of points within the gate.
+bool better(const IcpSummary& a, const IcpSummary& b) {
+  if (a.converged != b.converged) return a.converged;
+  return a.inlier_share > b.inlier_share;
+}
+
+// Frame i's fit to the model and what started it. From the measured step when there
+// is one and its fit is consistent with the last frames'; else every other start is
+// ranked by a short fit of an eighth of the points (constant velocity, no motion) and
+// the best is fitted in full.
+std::pair<IcpSummary, TrackingStart> track_frame(const std::vector<Eigen::Vector3d>& frame, const OrientedPoints& model,
+                                                 const Eigen::Isometry3d& previous_pose,
+                                                 const std::optional<Eigen::Isometry3d>& step,
+                                                 const std::optional<Eigen::Isometry3d>& velocity,
+                                                 const std::vector<IcpSummary>& previous,
+                                                 const DepthTrackingOptions& o) {
+  std::pair<IcpSummary, TrackingStart> best{IcpSummary{}, TrackingStart::none};
+  if (step) {
+    best = {register_point_to_plane(frame, model, previous_pose * *step, o.icp), TrackingStart::step};
+    if (consistent(best.first, previous)) return best;
+  }
+  std::vector<std::pair<Eigen::Isometry3d, TrackingStart>> starts;
+  if (velocity) starts.emplace_back(previous_pose * *velocity, TrackingStart::constant_velocity);
+  starts.emplace_back(previous_pose, TrackingStart::no_motion);
+  constexpr std::size_t kShortEvery = 8;  // the short fits' points: every 8th
+  constexpr int kShortIterations = 30;
+  std::vector<Eigen::Vector3d> thin;
+  for (std::size_t k = 0; k < frame.size(); k += kShortEvery) thin.push_back(frame[k]);
+  IcpOptions short_icp = o.icp;
+  short_icp.max_iterations = kShortIterations;
+  std::optional<std::pair<IcpSummary, TrackingStart>> ranked;
+  for (const auto& [pose, how] : starts) {
+    IcpSummary fit = register_point_to_plane(thin, model, pose, short_icp);
+    if (!ranked || fit.inlier_share > ranked->first.inlier_share) ranked = {std::move(fit), how};
+  }
+  IcpSummary full = register_point_to_plane(frame, model, ranked->first.pose, o.icp);
+  if (best.second == TrackingStart::none || better(full, best.first)) best = {std::move(full), ranked->second};
+  return best;
 }
 
 }  // namespace
@@ -70,6 +128,7 @@ DepthTrackingSummary track_depth_sequence(const std::vector<std::vector<Eigen::V
 
   // 1. Frame to model.
   s.tracked.assign(n, first);
+  s.started.assign(n, TrackingStart::none);
   s.tracking_fit.assign(n, IcpSummary{});
   {
     Progress progress("depth: tracking", n - 1);
@@ -83,22 +142,11 @@ DepthTrackingSummary track_depth_sequence(const std::vector<std::vector<Eigen::V
     add(0);
     for (std::size_t i = 1; i < n; ++i) {
       check_cancelled();
-      if (steps[i]) {
-        s.tracking_fit[i] = register_point_to_plane(frames[i], model.oriented(), s.tracked[i - 1] * *steps[i], o.icp);
-      } else {
-        // No step measured: constant velocity (the previous frame's motion again) and
-        // no motion are both tried, the fit keeping more points within the gate wins
-        // (a hand-held camera that turned a corner may have stopped or slowed down).
-        const Eigen::Isometry3d velocity =
-            i >= 2 ? Eigen::Isometry3d(s.tracked[i - 2].inverse() * s.tracked[i - 1]) : Eigen::Isometry3d::Identity();
-        s.tracking_fit[i] = register_point_to_plane(frames[i], model.oriented(), s.tracked[i - 1] * velocity, o.icp);
-        if (i >= 2) {
-          IcpSummary still = register_point_to_plane(frames[i], model.oriented(), s.tracked[i - 1], o.icp);
-          if (still.converged && (!s.tracking_fit[i].converged ||
-                                  still.inlier_share > s.tracking_fit[i].inlier_share))
-            s.tracking_fit[i] = std::move(still);
-        }
-      }
+      const std::optional<Eigen::Isometry3d> velocity =
+          i >= 2 ? std::optional<Eigen::Isometry3d>(s.tracked[i - 2].inverse() * s.tracked[i - 1]) : std::nullopt;
+      const std::vector<IcpSummary> previous(s.tracking_fit.begin() + 1, s.tracking_fit.begin() + long(i));
+      std::tie(s.tracking_fit[i], s.started[i]) =
+          track_frame(frames[i], model.oriented(), s.tracked[i - 1], steps[i], velocity, previous, o);
       s.tracked[i] = s.tracking_fit[i].pose;
       add(i);
       progress.step();

@@ -9,7 +9,9 @@
 //    frame's registered pose moved by a step (the motion measured by the colour
 //    frames' features, or the one the device recorded; else the previous step again),
 //    and is fitted to the model of every frame registered before it (their points,
-//    thinned, with normals; geometry/icp.hpp GrowingModel).
+//    thinned, with normals; geometry/icp.hpp GrowingModel). A fit from the step that
+//    did not converge or kept much less of the frame within the gate than the last
+//    frames' fits did is not trusted: constant velocity and no motion are tried too.
 // 2. Loop closure: the last frame is fitted to the model of the first frames alone
 //    (the sequence ends where it began). The correction it needs is the drift
 //    accumulated round the loop; it is spread along the sequence in proportion to
@@ -46,8 +48,13 @@ struct DepthTrackingOptions {
   void validate() const;  // throws InputError naming the field
 };
 
+// What a frame's tracking fit started from: the step given, the previous step again
+// (constant velocity) or no motion.
+enum class TrackingStart { none, step, constant_velocity, no_motion };
+
 struct DepthTrackingSummary {
   std::vector<Eigen::Isometry3d> tracked;  // camera -> site frame after frame-to-model tracking
+  std::vector<TrackingStart> started;      // each frame's (frame 0: none)
   std::vector<IcpSummary> tracking_fit;    // the fit of each frame while tracking (frame 0: none, identity)
   bool loop_closed = false;
   IcpSummary loop_fit;                     // the last frame on the first frames' model

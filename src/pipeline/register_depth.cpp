@@ -141,21 +141,35 @@ std::vector<FrameInput> read_frames(Project& project, const DepthSequenceRecord&
   return frames;
 }
 
+// The motion of frame b relative to frame a from their features: the usual match, else
+// the wide one (a corner turned between the two frames: the ratio test leaves too few
+// matches; docs/range.md, "Depth sequences, measured").
+RgbdMotion feature_motion(const FrameInput& a, const FrameInput& b, const DepthRegistrationOptions& o) {
+  if (!a.features || !b.features) return {};
+  RgbdMotion m = rgbd_relative_motion(*a.features, *b.features, o.features);
+  if (!m.found) {
+    RgbdMotion wide = rgbd_relative_motion(*a.features, *b.features, o.wide_features);
+    if (wide.found) m = wide;
+  }
+  return m;
+}
+
 // The step that starts each frame's fit (frame i relative to frame i - 1), by the
 // preference of `start`: the features' motion, the recorded one, or neither (constant
 // velocity). Records in each frame what was chosen.
-std::vector<std::optional<Eigen::Isometry3d>> choose_steps(const std::vector<FrameInput>& frames, DepthStart start,
-                                                           const RgbdFeatureOptions& features,
+std::vector<std::optional<Eigen::Isometry3d>> choose_steps(const std::vector<FrameInput>& frames,
+                                                           const DepthRegistrationOptions& o,
                                                            DepthSequenceResult& out) {
   std::vector<std::optional<Eigen::Isometry3d>> steps(frames.size());
   for (std::size_t i = 1; i < frames.size(); ++i) {
     DepthFrameResult& r = out.frames[i];
-    if (frames[i].features && frames[i - 1].features)
-      r.features = rgbd_relative_motion(*frames[i - 1].features, *frames[i].features, features);
     std::optional<Eigen::Isometry3d> recorded;
     if (r.has_recorded && out.frames[i - 1].has_recorded)
       recorded = Eigen::Isometry3d(out.frames[i - 1].recorded).inverse() * Eigen::Isometry3d(r.recorded);
-    const bool use_features = r.features.found && (start == DepthStart::features || !recorded);
+    if (o.start == DepthStart::features || !recorded) r.features = feature_motion(frames[i - 1], frames[i], o);
+    else if (frames[i].features && frames[i - 1].features)
+      r.features = rgbd_relative_motion(*frames[i - 1].features, *frames[i].features, o.features);
+    const bool use_features = r.features.found && (o.start == DepthStart::features || !recorded);
     if (use_features) {
       steps[i] = r.features.motion;
       r.start = "features";
@@ -167,6 +181,24 @@ std::vector<std::optional<Eigen::Isometry3d>> choose_steps(const std::vector<Fra
     }
   }
   return steps;
+}
+
+// Why frame i's tracking fit shows the tracking was lost, or empty: it kept much less
+// of its points within the gate than the frames tracked before it (the median of the
+// last kRecentFrames), or did not converge and kept clearly less.
+std::string tracking_lost(const std::vector<IcpSummary>& fits, std::size_t i) {
+  constexpr std::size_t kRecentFrames = 5;
+  constexpr double kLostShare = 0.6, kUnconvergedShare = 0.75;
+  std::vector<double> shares;
+  for (std::size_t k = i; k-- > 1 && shares.size() < kRecentFrames;) shares.push_back(fits[k].inlier_share);
+  if (shares.empty()) return {};
+  const double typical = median_in_place(shares), share = fits[i].inlier_share;
+  if (share < kLostShare * typical || (!fits[i].converged && share < kUnconvergedShare * typical))
+    return fmt::format("{:.0f} % of its points within the gate of the model, against {:.0f} % for the frames "
+                       "before it{}",
+                       100 * share, 100 * typical,
+                       fits[i].converged ? "" : fmt::format(", no convergence in {} iterations", fits[i].iterations));
+  return {};
 }
 
 // Each marker's position in the sequence's frame: its camera-frame points moved by
@@ -215,6 +247,35 @@ Eigen::Isometry3d place_on_markers(Project& project, const DepthSequenceRecord& 
   return Eigen::Isometry3d(out.marker_fit->pose);
 }
 
+// Each frame's start as it was used (the step chosen above, unless its fit was not
+// consistent with the last frames' or there was none: then the start that won), and a
+// refusal at the first frame where the tracking was lost, naming it and why.
+void check_tracking(const DepthTrackingSummary& t, const DepthSequenceRecord& seq, DepthSequenceResult& out) {
+  for (std::size_t i = 1; i < out.frames.size(); ++i) {
+    DepthFrameResult& r = out.frames[i];
+    switch (t.started[i]) {
+      case TrackingStart::constant_velocity: r.start = "constant-velocity"; break;
+      case TrackingStart::no_motion: r.start = "no-motion"; break;
+      case TrackingStart::none:
+      case TrackingStart::step: break;
+    }
+    const IcpSummary& f = t.tracking_fit[i];
+    log::debug("{}: frame {}: tracking started from {} (features {} of {} agreeing), {} iterations{}, {:.0f} % of its "
+               "points within the gate, RMS {:.2f} mm{}; camera at {:.4f} {:.4f} {:.4f}",
+               kStage, r.frame.name, r.start, r.features.inliers, r.features.matches, f.iterations,
+               f.converged ? "" : " (not converged)", 100 * f.inlier_share, 1000 * f.rms_m,
+               f.degenerate ? ", degenerate" : "", t.tracked[i].translation().x(), t.tracked[i].translation().y(),
+               t.tracked[i].translation().z());
+    if (const std::string why = tracking_lost(t.tracking_fit, i); !why.empty())
+      throw InputError(fmt::format(
+          "{}: sequence '{}': frame {}: tracking lost after frame {}: {} (started from {}; its colour frame's "
+          "features against the frame before: {} matches, {} agreeing). Nothing was changed. Record the sequence "
+          "with smaller steps between frames (turn corners slowly), or import it with --poses",
+          kStage, seq.name, r.frame.name, out.frames[i - 1].frame.name, why, r.start, r.features.matches,
+          r.features.inliers));
+  }
+}
+
 DepthSequenceResult register_sequence(Project& project, const DepthSequenceRecord& seq,
                                       const DepthRegistrationOptions& o) {
   const Stopwatch sw;
@@ -249,12 +310,13 @@ DepthSequenceResult register_sequence(Project& project, const DepthSequenceRecor
 
   std::vector<std::vector<Eigen::Vector3d>> points;
   for (const FrameInput& f : frames) points.push_back(f.points);
-  const std::vector<std::optional<Eigen::Isometry3d>> steps = choose_steps(frames, o.start, o.features, out);
+  const std::vector<std::optional<Eigen::Isometry3d>> steps = choose_steps(frames, o, out);
   // The device datum: frame 0 where the device recorded it. The markers datum: tracked
   // in frame 0's camera frame, then the whole sequence moved onto the markers.
   const Eigen::Isometry3d first =
       datum == DepthDatum::device ? Eigen::Isometry3d(out.frames[0].recorded) : Eigen::Isometry3d::Identity();
   DepthTrackingSummary t = track_depth_sequence(points, first, steps, o.tracking);
+  check_tracking(t, seq, out);
   if (datum == DepthDatum::markers) {
     out.markers = locate_markers(frames, t.poses);
     const Eigen::Isometry3d to_site = place_on_markers(project, seq, o, out);
@@ -287,9 +349,9 @@ DepthSequenceResult register_sequence(Project& project, const DepthSequenceRecor
     return std::count_if(out.frames.begin(), out.frames.end(), [&](const auto& r) { return r.start == what; });
   };
   log::info("{}: sequence '{}': {} frames registered in {:.1f} s (started from features {}, recorded motion {}, "
-            "constant velocity {}); datum: {}; loop {}",
+            "constant velocity {}, no motion {}); datum: {}; loop {}",
             kStage, seq.name, out.frames.size(), out.seconds, starts("features"), starts("recorded"),
-            starts("constant-velocity"),
+            starts("constant-velocity"), starts("no-motion"),
             out.marker_fit ? fmt::format("{} of {} markers, RMS {:.1f} mm", out.marker_fit->inliers,
                                          out.marker_fit->targets.size(), 1000 * out.marker_fit->rms_m)
                            : std::string("the device's first pose"),
@@ -316,6 +378,7 @@ void DepthRegistrationOptions::validate() const {
   need(marker_window_px >= 0 && marker_window_px <= 10, "marker_window_px", "0..10 (pixels)");
   tracking.validate();
   features.validate();
+  wide_features.validate();
   targets.validate();
   naming.validate();
 }
