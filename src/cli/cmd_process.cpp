@@ -277,8 +277,10 @@ void register_process_commands(CLI::App& app) {
   cmd->add_option("--max-features", options->features.max_features, "SIFT features per photo (default 8000)");
   cmd->add_option("--pairs-per-photo", options->pairs.preview_best_per_photo,
                   "layers of 20 photos or more: each photo is matched with at most its K most similar "
-                  "photos by a quick preview, a pair when either photo chooses it (default 8; 0: every pair "
-                  "the preview passes)")
+                  "photos by a quick preview, a pair when either photo chooses it. 8 matches a 40-photo "
+                  "layer in about a third of the time, the check markers within 1 %, the camera shape "
+                  "within hundredths of a millimetre (docs/features.md). Default 0: every pair the preview "
+                  "passes")
       ->check(CLI::Range(0, 1000));
   cmd->add_option("--camera-model", options->lens.model,
                   "lens model of every camera: auto (default: from the lens, see docs/cameras.md), "

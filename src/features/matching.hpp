@@ -56,7 +56,7 @@ struct PairSelectionOptions {
   // most preview matches; a pair goes on to full matching when either of its photos
   // keeps it. Bounds the pairs to about n k (linear in the photo count) where a
   // compact layer's photos all overlap. 0 keeps every pair that passes the preview.
-  int preview_best_per_photo = 8;
+  int preview_best_per_photo = 0;
   Unkeyed<int> num_threads = 0;  // 0 = all hardware threads
 
   void validate() const;  // throws InputError naming the field
