@@ -12,32 +12,35 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <cmath>
 #include <memory>
 #include <vector>
 
 namespace strata::cli {
 namespace {
 
+// A fit to a photo surface (a scan's, or a depth sequence's surface datum).
+nlohmann::json surface_fit_json(const IcpSummary& icp, const CoarseResult& coarse) {
+  return {{"rms_m", icp.rms_m},
+          {"inlier_share", icp.inlier_share},
+          {"sigma_translation_m", icp.sigma_translation_m},
+          {"sigma_rotation_rad", icp.sigma_rotation_rad},
+          {"eigen_ratio", icp.eigen_ratio},
+          {"support_share", icp.support_share},
+          {"iterations", icp.iterations},
+          {"coarse_yaw_rad", coarse.yaw_rad},
+          {"coarse_score", coarse.score}};
+}
+
 nlohmann::json registration_json(const LayerRegistrationSummary& s) {
   nlohmann::json out = {{"layer", s.layer}, {"against", s.reference_layer}, {"scans", nlohmann::json::array()}};
   for (const ScanRegistrationResult& r : s.scans) {
     nlohmann::json pose = nlohmann::json::array();
     for (int k = 0; k < 16; ++k) pose.push_back(r.pose(k / 4, k % 4));
-    out["scans"].push_back({{"scan", r.scan.name},
-                            {"method", r.scan.fit->method},
-                            {"transform", pose},
-                            {"rms_m", r.icp.rms_m},
-                            {"inlier_share", r.icp.inlier_share},
-                            {"sigma_translation_m", r.icp.sigma_translation_m},
-                            {"sigma_rotation_rad", r.icp.sigma_rotation_rad},
-                            {"eigen_ratio", r.icp.eigen_ratio},
-                            {"support_share", r.icp.support_share},
-                            {"iterations", r.icp.iterations},
-                            {"coarse_yaw_rad", r.coarse.yaw_rad},
-                            {"coarse_score", r.coarse.score},
-                            {"points_used", r.points_used},
-                            {"surface_points", r.surface_points},
-                            {"seconds", r.seconds}});
+    nlohmann::json scan = {{"scan", r.scan.name}, {"method", r.scan.fit->method}, {"transform", pose}};
+    scan.update(surface_fit_json(r.icp, r.coarse));
+    scan.update({{"points_used", r.points_used}, {"surface_points", r.surface_points}, {"seconds", r.seconds}});
+    out["scans"].push_back(std::move(scan));
   }
   return out;
 }
@@ -130,6 +133,14 @@ nlohmann::json registration_json(const DepthRegistrationSummary& s) {
                     {"gate_m", q.marker_fit->gate_m},
                     {"sigma_translation_m", q.marker_fit->sigma_translation_m},
                     {"sigma_rotation_rad", q.marker_fit->sigma_rotation_rad}});
+    if (q.surface_fit) {
+      datum.update(surface_fit_json(q.surface_fit->icp, q.surface_fit->coarse));
+      datum.update({{"transform", matrix_json(q.surface_transform)},
+                    {"against", q.surface_layer},
+                    {"points_used", q.surface_points_used},
+                    {"ground_share", q.ground_share},
+                    {"level_rad", q.level_rad}});
+    }
     out["sequences"].push_back({{"sequence", q.sequence.name},
                                 {"datum", datum},
                                 {"frames", frames},
@@ -166,6 +177,13 @@ void print_registration(const DepthRegistrationSummary& s) {
     if (q.marker_fit)
       fmt::print("  placed on {} of {} surveyed markers seen: RMS {:.1f} mm, scale {:.4f}\n", q.marker_fit->inliers,
                  q.marker_fit->targets.size(), 1000 * q.marker_fit->rms_m, q.marker_fit->scale);
+    else if (q.surface_fit)
+      fmt::print("  placed on the photo surface of layer {} (levelled on its ground, turned {:.1f} degrees; coarse "
+                 "yaw search and ICP): RMS {:.1f} mm, {:.0f} % of its points within the gate, pose sigma {:.2f} mm / "
+                 "{:.3f} mrad (lower bounds)\n",
+                 q.surface_layer, q.level_rad * 180 / M_PI, 1000 * q.surface_fit->icp.rms_m,
+                 100 * q.surface_fit->icp.inlier_share, 1000 * q.surface_fit->icp.sigma_translation_m,
+                 1000 * q.surface_fit->icp.sigma_rotation_rad);
     else
       fmt::print("  placed by the device's first recorded pose\n");
     if (q.loop_closed)
@@ -198,7 +216,9 @@ void register_depth_registration(CLI::App& reg) {
       "spreading the correction along the sequence; then every frame fitted again to the model of all\n"
       "frames. The sequence is placed in the site frame by the device's first recorded pose, or, when\n"
       "it has no recorded poses (or with --datum markers), on the surveyed markers (coded targets)\n"
-      "its colour frames see, at least 3. Per frame: RMS residual, inlier share, pose sigma.\n"
+      "its colour frames see, at least 3; failing those (or with --datum surface), levelled on its\n"
+      "ground and fitted to the layer's photo surface (--against) by the coarse yaw search and ICP, as\n"
+      "an unregistered scan is. Per frame: RMS residual, inlier share, pose sigma.\n"
       "When any frame cannot be registered, nothing is changed. See docs/range.md.");
   auto dir = std::make_shared<std::string>();
   auto layer = std::make_shared<std::string>();
@@ -217,10 +237,16 @@ void register_depth_registration(CLI::App& reg) {
                   "features (the colour frames'); either falls back on the other, then on constant velocity")
       ->check(CLI::IsMember({"features", "recorded"}))
       ->capture_default_str();
+  auto against = std::make_shared<std::string>("layer");
   cmd->add_option("--datum", *datum,
                   "what places a sequence in the site frame: device (its first recorded pose), markers (the\n"
-                  "surveyed markers its colour frames see) or auto (device with recorded poses, else markers)")
-      ->check(CLI::IsMember({"auto", "device", "markers"}))
+                  "surveyed markers its colour frames see), surface (the photo surface) or auto (device with\n"
+                  "recorded poses, else markers when 3 are seen, else the surface when there is one)")
+      ->check(CLI::IsMember({"auto", "device", "markers", "surface"}))
+      ->capture_default_str();
+  cmd->add_option("--against", *against,
+                  "the surface datum's surface: the layer's own photo surface, or the previous layer's")
+      ->check(CLI::IsMember({"layer", "previous"}))
       ->capture_default_str();
   cmd->add_flag("--json", *json, "print the registration figures as JSON (every frame's poses and fit)");
   cmd->footer("Example: strata register depth site --layer L4 --json > L4_depth.json");
@@ -229,7 +255,9 @@ void register_depth_registration(CLI::App& reg) {
     options.start = *start == "recorded" ? DepthStart::recorded : DepthStart::features;
     options.datum = *datum == "device"    ? DepthDatum::device
                     : *datum == "markers" ? DepthDatum::markers
+                    : *datum == "surface" ? DepthDatum::surface
                                           : DepthDatum::automatic;
+    options.surface.against = *against == "previous" ? RegistrationReference::previous : RegistrationReference::layer;
     if (!sequence->empty()) options.sequence = *sequence;
     options.tracking.refine_rounds = *rounds;
     run_registration(*dir, *json, [&](Project& p) { return register_layer_depth(p, *layer, options); });

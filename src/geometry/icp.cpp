@@ -12,6 +12,7 @@
 #include <map>
 #include <numeric>
 #include <optional>
+#include <random>
 #include <set>
 #include <unordered_map>
 #include <unordered_set>
@@ -428,6 +429,41 @@ CoarseResult coarse_yaw_search(const std::vector<Eigen::Vector3d>& source, const
     const double score = double(close) / double(src.size());
     if (score > best.score) best = {fit.pose, yaw, score};
   }
+  return best;
+}
+
+PlaneFit dominant_plane(const std::vector<Eigen::Vector3d>& points, double tolerance_m, int hypotheses) {
+  STRATA_CHECK(tolerance_m > 0 && hypotheses > 0, "plane fit options");
+  PlaneFit best;
+  if (points.size() < 3) return best;
+  std::mt19937 rng(17);  // fixed: the same cloud gives the same plane
+  std::uniform_int_distribution<std::size_t> pick(0, points.size() - 1);
+  const auto count_within = [&](const Eigen::Vector3d& n, const Eigen::Vector3d& p0) {
+    std::size_t k = 0;
+    for (const auto& p : points) k += std::abs(n.dot(p - p0)) < tolerance_m;
+    return k;
+  };
+  std::size_t best_count = 0;
+  for (int h = 0; h < hypotheses; ++h) {
+    const Eigen::Vector3d &a = points[pick(rng)], &b = points[pick(rng)], &c = points[pick(rng)];
+    const Eigen::Vector3d n = (b - a).cross(c - a);
+    if (n.norm() < 1e-9) continue;  // collinear or repeated
+    const std::size_t k = count_within(n.normalized(), a);
+    if (k > best_count) best_count = k, best.normal = n.normalized(), best.point = a;
+  }
+  // Least squares on the inliers: the normal is the direction of least spread.
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  std::vector<const Eigen::Vector3d*> in;
+  for (const auto& p : points)
+    if (std::abs(best.normal.dot(p - best.point)) < tolerance_m) in.push_back(&p), mean += p;
+  if (in.size() < 3) return best;
+  mean /= double(in.size());
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (const Eigen::Vector3d* p : in) cov += (*p - mean) * (*p - mean).transpose();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
+  best.normal = eig.eigenvectors().col(0).normalized();
+  best.point = mean;
+  best.inlier_share = double(count_within(best.normal, mean)) / double(points.size());
   return best;
 }
 

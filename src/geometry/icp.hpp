@@ -139,4 +139,15 @@ struct CoarseResult {
 CoarseResult coarse_yaw_search(const std::vector<Eigen::Vector3d>& source, const std::vector<Eigen::Vector3d>& target,
                                const CoarseOptions& options = {});
 
+// The plane most points lie on (for a cloud of the ground, the ground: a hand-held
+// sequence's frame is not levelled; the normal of this plane is its up direction, up
+// to sign). RANSAC (Fischler & Bolles 1981) over planes through three points,
+// deterministic (a fixed seed), refined by principal components of its inliers.
+struct PlaneFit {
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  // unit; its sign is arbitrary
+  Eigen::Vector3d point = Eigen::Vector3d::Zero();    // the inliers' centroid, on the plane
+  double inlier_share = 0;                            // points within tolerance_m of it
+};
+PlaneFit dominant_plane(const std::vector<Eigen::Vector3d>& points, double tolerance_m, int hypotheses = 500);
+
 }  // namespace strata

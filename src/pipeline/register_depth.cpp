@@ -16,6 +16,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <filesystem>
 #include <map>
 
 namespace strata {
@@ -222,22 +223,35 @@ std::vector<DepthMarkerSighting> locate_markers(const std::vector<FrameInput>& f
   return out;
 }
 
-// The sequence's frame -> the site frame, fitted on the surveyed markers it saw.
-Eigen::Isometry3d place_on_markers(Project& project, const DepthSequenceRecord& seq,
-                                   const DepthRegistrationOptions& o, DepthSequenceResult& out) {
+// The surveyed markers the sequence saw (out.markers), paired by name with the survey.
+MarkerPairs surveyed_sightings(Project& project, DepthSequenceResult& out) {
   std::vector<NamedPoint> seen;
   for (const DepthMarkerSighting& m : out.markers) seen.push_back({m.name, m.position});
-  const MarkerPairs pairs = pair_with_markers(project, seen);
+  MarkerPairs pairs = pair_with_markers(project, seen);
   out.unmatched = pairs.unmatched;
-  if (pairs.names.size() < 3) {
-    std::vector<std::string> names;
-    for (const DepthMarkerSighting& m : out.markers) names.push_back(fmt::format("{} ({} frames)", m.name, m.frames));
-    throw InputError(fmt::format(
-        "{}: sequence '{}': {} surveyed marker(s) seen in its colour frames{}{}; at least 3 are needed to place a "
-        "sequence without recorded poses in the site frame. Nothing was changed. Record the markers in the "
-        "sequence, or import it with --poses",
-        kStage, seq.name, pairs.names.size(), names.empty() ? std::string() : ": ", fmt::join(names, ", ")));
-  }
+  return pairs;
+}
+
+// The refusal when fewer than 3 surveyed markers were seen and no other datum is at
+// hand; `no_surface`: why the photo surface cannot place it either, or empty.
+[[noreturn]] void refuse_too_few_markers(const DepthSequenceRecord& seq, const DepthSequenceResult& out,
+                                         std::size_t surveyed, const std::string& no_surface) {
+  std::vector<std::string> names;
+  for (const DepthMarkerSighting& m : out.markers) names.push_back(fmt::format("{} ({} frames)", m.name, m.frames));
+  throw InputError(fmt::format(
+      "{}: sequence '{}': {} surveyed marker(s) seen in its colour frames{}{}; at least 3 are needed to place a "
+      "sequence without recorded poses in the site frame{}. Nothing was changed. Record the markers in the "
+      "sequence, {}or import it with --poses",
+      kStage, seq.name, surveyed, names.empty() ? std::string() : ": ", fmt::join(names, ", "),
+      no_surface.empty() ? std::string() : ", and " + no_surface,
+      no_surface.empty() ? std::string() : "process the layer's photos first (strata process DIR --layer L --until "
+                                           "dense), "));
+}
+
+// The sequence's frame -> the site frame, fitted on the surveyed markers it saw.
+Eigen::Isometry3d place_on_markers(const MarkerPairs& pairs, const DepthSequenceRecord& seq,
+                                   const DepthRegistrationOptions& o, DepthSequenceResult& out) {
+  if (pairs.names.size() < 3) refuse_too_few_markers(seq, out, pairs.names.size(), {});
   out.marker_fit = fit_on_markers(pairs, o.marker_fit, fmt::format("{}: sequence '{}'", kStage, seq.name),
                                   "the markers seen in its colour frames");
   for (const TargetResidual& t : out.marker_fit->targets)
@@ -245,6 +259,69 @@ Eigen::Isometry3d place_on_markers(Project& project, const DepthSequenceRecord& 
       log::warn("{}: sequence '{}': marker {} is {:.1f} mm from its survey, beyond the {:.1f} mm gate: left out",
                 kStage, seq.name, t.name, 1000 * t.residual_m, 1000 * out.marker_fit->gate_m);
   return Eigen::Isometry3d(out.marker_fit->pose);
+}
+
+// Why the photo surface cannot place the sequence (its file is missing), or empty.
+std::string surface_missing(Project& project, const LayerRecord& layer, const ScanRegistrationOptions& o) {
+  const std::filesystem::path file = reference_surface_file(project, layer.name, o.against);
+  if (std::filesystem::exists(file)) return {};
+  return fmt::format("there is no photo surface to fit it to ({} is missing)",
+                     std::filesystem::relative(file, project.dir()).string());
+}
+
+// The whole sequence as one cloud in its frame (frame 0's camera): every frame's
+// thinned points moved by its pose, thinned again as a scan is.
+std::vector<Eigen::Vector3d> sequence_cloud(const std::vector<FrameInput>& frames,
+                                            const std::vector<Eigen::Isometry3d>& poses, double voxel_m) {
+  std::vector<Eigen::Vector3d> all;
+  for (std::size_t i = 0; i < frames.size(); ++i)
+    for (const auto& p : frames[i].points) all.push_back(poses[i] * p);
+  return voxel_subsample(all, voxel_m);
+}
+
+// The rotation that turns the sequence's up direction to +z: the normal of its ground
+// (the plane most of its points lie on), on the side of the cameras. A hand-held
+// sequence's frame is not levelled; the coarse search of the scans assumes it is.
+Eigen::Matrix3d level_on_ground(const std::vector<Eigen::Vector3d>& cloud, const std::vector<Eigen::Isometry3d>& poses,
+                                const DepthRegistrationOptions& o, DepthSequenceResult& out) {
+  const PlaneFit ground = dominant_plane(cloud, o.level_tolerance_m);
+  double above = 0;  // mean height of the cameras over the ground along its normal
+  for (const auto& p : poses) above += ground.normal.dot(p.translation() - ground.point);
+  const Eigen::Vector3d up = above >= 0 ? ground.normal : Eigen::Vector3d(-ground.normal);
+  const Eigen::Matrix3d level = Eigen::Quaterniond::FromTwoVectors(up, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  out.ground_share = ground.inlier_share;
+  out.level_rad = std::acos(std::clamp(up.z(), -1.0, 1.0));
+  return level;
+}
+
+// The sequence's frame -> the site frame, fitted to the photo surface as an
+// unregistered scan is: levelled on its ground, then the coarse yaw search and ICP,
+// refused on the scans' checks (the sequence's noise: k z^2 at the frames' median depth).
+Eigen::Isometry3d place_on_surface(Project& project, const LayerRecord& layer, const DepthSequenceRecord& seq,
+                                   const std::vector<FrameInput>& frames, const std::vector<Eigen::Isometry3d>& poses,
+                                   const DepthRegistrationOptions& o, DepthSequenceResult& out) {
+  const ReferenceSurface surface = load_reference_surface(project, layer.name, o.surface.against, o.surface);
+  const std::vector<Eigen::Vector3d> cloud = sequence_cloud(frames, poses, o.surface.scan_voxel_m);
+  const Eigen::Matrix3d level = level_on_ground(cloud, poses, o, out);
+  std::vector<Eigen::Vector3d> levelled;
+  levelled.reserve(cloud.size());
+  for (const auto& p : cloud) levelled.push_back(level * p);
+  SurfaceFit fit = fit_to_surface(levelled, surface, o.surface);
+  std::vector<double> depths;
+  for (const DepthFrameResult& r : out.frames) depths.push_back(r.median_depth_m);
+  const double z = median_in_place(depths), sigma_m = seq.noise_k * z * z;
+  if (const std::string why = surface_fit_refusal(sigma_m, fit.icp, o.surface); !why.empty())
+    throw InputError(fmt::format("{}: sequence '{}': cannot place it on the photo surface of layer {}: {}. Nothing "
+                                 "was changed. Record surveyed markers in the sequence (3 or more), or import it "
+                                 "with --poses",
+                                 kStage, seq.name, surface.layer, why));
+  Eigen::Isometry3d to_site = fit.icp.pose;
+  to_site.linear() = fit.icp.pose.linear() * level;
+  out.surface_layer = surface.layer;
+  out.surface_points_used = cloud.size();
+  out.surface_transform = to_site.matrix();
+  out.surface_fit = std::move(fit);
+  return to_site;
 }
 
 // Each frame's start as it was used (the step chosen above, unless its fit was not
@@ -276,7 +353,56 @@ void check_tracking(const DepthTrackingSummary& t, const DepthSequenceRecord& se
   }
 }
 
-DepthSequenceResult register_sequence(Project& project, const DepthSequenceRecord& seq,
+// The datum as far as it can be chosen before the frames are read: automatic stays
+// automatic for a sequence without recorded poses (markers if at least 3 are seen,
+// else the surface). Refuses a datum that cannot place the sequence.
+DepthDatum datum_before_reading(Project& project, const LayerRecord& layer, const DepthSequenceRecord& seq,
+                                bool recorded, bool colour, const DepthRegistrationOptions& o) {
+  DepthDatum datum = o.datum;
+  if (datum == DepthDatum::automatic && recorded) return DepthDatum::device;
+  if (datum == DepthDatum::automatic && (!colour || !project.site().origin_set)) {
+    // No markers can place it: the surface, if there is one.
+    const std::string missing = surface_missing(project, layer, o.surface);
+    if (missing.empty()) return DepthDatum::surface;
+    datum = DepthDatum::markers;  // refused below, saying what is missing
+  }
+  if (datum == DepthDatum::device && !recorded)
+    throw InputError(fmt::format("{}: sequence '{}' was imported without --poses: no device pose places it in the "
+                                 "site frame; register it on the markers its colour frames see (--datum markers) or "
+                                 "on the photo surface (--datum surface)",
+                                 kStage, seq.name));
+  const std::string no_surface =
+      o.datum == DepthDatum::automatic ? " (and " + surface_missing(project, layer, o.surface) + ")" : std::string();
+  if (datum == DepthDatum::markers && !colour)
+    throw InputError(fmt::format("{}: sequence '{}' has {}: the markers that place it in the site frame are found in "
+                                 "its colour frames{}; import it with --colour (or with --poses)",
+                                 kStage, seq.name,
+                                 recorded ? "frames without a colour frame" : "no recorded poses and frames without a "
+                                                                              "colour frame",
+                                 no_surface));
+  if (datum == DepthDatum::markers && !project.site().origin_set)
+    throw InputError(fmt::format("{}: sequence '{}': the site has no surveyed markers yet{}: import them first (strata "
+                                 "import markers); the sequence is placed on them",
+                                 kStage, seq.name, no_surface));
+  if (datum == DepthDatum::surface)
+    if (const std::string missing = surface_missing(project, layer, o.surface); !missing.empty())
+      throw InputError(fmt::format("{}: sequence '{}': {}: process the layer's photos first (strata process DIR "
+                                   "--layer {} --until dense)",
+                                   kStage, seq.name, missing, layer.name));
+  return datum;
+}
+
+const char* datum_name(DepthDatum d) {
+  switch (d) {
+    case DepthDatum::device: return "device";
+    case DepthDatum::markers: return "markers";
+    case DepthDatum::surface: return "surface";
+    case DepthDatum::automatic: break;
+  }
+  return "auto";
+}
+
+DepthSequenceResult register_sequence(Project& project, const LayerRecord& layer, const DepthSequenceRecord& seq,
                                       const DepthRegistrationOptions& o) {
   const Stopwatch sw;
   DepthSequenceResult out;
@@ -287,42 +413,41 @@ DepthSequenceResult register_sequence(Project& project, const DepthSequenceRecor
                                  records.size()));
   const bool recorded = std::all_of(records.begin(), records.end(), [](const auto& f) { return f.recorded_pose; });
   const bool colour = std::all_of(records.begin(), records.end(), [](const auto& f) { return f.colour_media_path; });
-  const DepthDatum datum =
-      o.datum == DepthDatum::automatic ? (recorded ? DepthDatum::device : DepthDatum::markers) : o.datum;
-  out.datum = datum == DepthDatum::device ? "device" : "markers";
-  if (datum == DepthDatum::device && !recorded)
-    throw InputError(fmt::format("{}: sequence '{}' was imported without --poses: no device pose places it in the "
-                                 "site frame; register it on the markers its colour frames see (--datum markers)",
-                                 kStage, seq.name));
-  if (datum == DepthDatum::markers && !colour)
-    throw InputError(fmt::format("{}: sequence '{}' has {}: the markers that place it in the site frame are found in "
-                                 "its colour frames; import it with --colour (or with --poses)",
-                                 kStage, seq.name,
-                                 recorded ? "frames without a colour frame" : "no recorded poses and frames without a "
-                                                                              "colour frame"));
-  if (datum == DepthDatum::markers && !project.site().origin_set)
-    throw InputError(fmt::format("{}: sequence '{}': the site has no surveyed markers yet: import them first (strata "
-                                 "import markers); the sequence is placed on them",
-                                 kStage, seq.name));
+  DepthDatum datum = datum_before_reading(project, layer, seq, recorded, colour, o);
+  const bool markers = datum == DepthDatum::markers || datum == DepthDatum::automatic;
   const bool features = colour && (o.start == DepthStart::features || !recorded);
-  const std::vector<FrameInput> frames =
-      read_frames(project, seq, records, features, datum == DepthDatum::markers, o, out);
+  const std::vector<FrameInput> frames = read_frames(project, seq, records, features, markers, o, out);
 
   std::vector<std::vector<Eigen::Vector3d>> points;
   for (const FrameInput& f : frames) points.push_back(f.points);
   const std::vector<std::optional<Eigen::Isometry3d>> steps = choose_steps(frames, o, out);
-  // The device datum: frame 0 where the device recorded it. The markers datum: tracked
-  // in frame 0's camera frame, then the whole sequence moved onto the markers.
+  // The device datum: frame 0 where the device recorded it. The markers and surface
+  // data: tracked in frame 0's camera frame, then the whole sequence moved onto them.
   const Eigen::Isometry3d first =
       datum == DepthDatum::device ? Eigen::Isometry3d(out.frames[0].recorded) : Eigen::Isometry3d::Identity();
   DepthTrackingSummary t = track_depth_sequence(points, first, steps, o.tracking);
   check_tracking(t, seq, out);
-  if (datum == DepthDatum::markers) {
+  if (markers) {
     out.markers = locate_markers(frames, t.poses);
-    const Eigen::Isometry3d to_site = place_on_markers(project, seq, o, out);
+    const MarkerPairs pairs = surveyed_sightings(project, out);
+    if (datum == DepthDatum::automatic && pairs.names.size() >= 3) datum = DepthDatum::markers;
+    else if (datum == DepthDatum::automatic) {
+      if (const std::string missing = surface_missing(project, layer, o.surface); !missing.empty())
+        refuse_too_few_markers(seq, out, pairs.names.size(), missing);
+      datum = DepthDatum::surface;
+    }
+    if (datum == DepthDatum::markers) {
+      const Eigen::Isometry3d to_site = place_on_markers(pairs, seq, o, out);
+      for (auto& p : t.poses) p = to_site * p;
+      for (auto& p : t.tracked) p = to_site * p;
+    }
+  }
+  if (datum == DepthDatum::surface) {
+    const Eigen::Isometry3d to_site = place_on_surface(project, layer, seq, frames, t.poses, o, out);
     for (auto& p : t.poses) p = to_site * p;
     for (auto& p : t.tracked) p = to_site * p;
   }
+  out.datum = datum_name(datum);
   out.loop_closed = t.loop_closed;
   out.loop_frames = t.loop_frames;
   out.loop_inlier_share = t.loop_fit.inlier_share;
@@ -352,9 +477,12 @@ DepthSequenceResult register_sequence(Project& project, const DepthSequenceRecor
             "constant velocity {}, no motion {}); datum: {}; loop {}",
             kStage, seq.name, out.frames.size(), out.seconds, starts("features"), starts("recorded"),
             starts("constant-velocity"), starts("no-motion"),
-            out.marker_fit ? fmt::format("{} of {} markers, RMS {:.1f} mm", out.marker_fit->inliers,
-                                         out.marker_fit->targets.size(), 1000 * out.marker_fit->rms_m)
-                           : std::string("the device's first pose"),
+            out.marker_fit    ? fmt::format("{} of {} markers, RMS {:.1f} mm", out.marker_fit->inliers,
+                                            out.marker_fit->targets.size(), 1000 * out.marker_fit->rms_m)
+            : out.surface_fit ? fmt::format("the photo surface of layer {}, RMS {:.1f} mm, {:.0f} % within the gate",
+                                            out.surface_layer, 1000 * out.surface_fit->icp.rms_m,
+                                            100 * out.surface_fit->icp.inlier_share)
+                              : std::string("the device's first pose"),
             t.loop_closed ? fmt::format("closed on the first {} frames (the last camera moved {:.1f} mm, {:.2f} mrad)",
                                         t.loop_frames, 1000 * t.loop_correction_m, 1000 * t.loop_correction_rad)
                           : std::string("not closed (the last frame does not overlap the first ones)"));
@@ -376,6 +504,8 @@ void DepthRegistrationOptions::validate() const {
   need(marker_fit.min_gate_m > 0, "marker_fit.min_gate_m", "> 0 (metres)");
   need(marker_fit.max_scale_error > 0 && marker_fit.max_scale_error < 1, "marker_fit.max_scale_error", "in (0, 1)");
   need(marker_window_px >= 0 && marker_window_px <= 10, "marker_window_px", "0..10 (pixels)");
+  need(level_tolerance_m > 0, "level_tolerance_m", "> 0 (metres)");
+  surface.validate();
   tracking.validate();
   features.validate();
   wide_features.validate();
@@ -391,7 +521,7 @@ DepthRegistrationSummary register_layer_depth(Project& project, const std::strin
   DepthRegistrationSummary out;
   out.layer = layer_name;
   for (const auto& seq : sequences_to_register(db, layer, options.sequence))
-    out.sequences.push_back(register_sequence(project, seq, options));
+    out.sequences.push_back(register_sequence(project, layer, seq, options));
   Transaction tx(db);
   for (const auto& s : out.sequences)
     for (const auto& r : s.frames) set_depth_frame_registered(db, r.frame.id, r.pose, *r.frame.bounds, *r.frame.fit);

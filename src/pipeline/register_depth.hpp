@@ -5,13 +5,16 @@
 // each frame started from the motion its colour frame's features measured against
 // the previous one (features/rgbd_motion.hpp) or the motion the device recorded,
 // closed on its first frames and re-registered against the model of all its frames;
-// then placed in the site frame by the device's first pose or by the surveyed
-// markers its colour frames saw (pipeline/marker_fit.hpp). Every frame is fitted and
+// then placed in the site frame by the device's first pose, by the surveyed markers
+// its colour frames saw (pipeline/marker_fit.hpp), or, levelled on its ground, fitted
+// to the layer's photo surface as an unregistered scan is (pipeline/register_scans.hpp).
+// Every frame is fitted and
 // checked before anything is written; then all are stored in one transaction, or none.
 #include "features/rgbd_motion.hpp"
 #include "features/targets.hpp"
 #include "geometry/depth_tracking.hpp"
 #include "pipeline/marker_fit.hpp"
+#include "pipeline/register_scans.hpp"
 #include "project/depth_records.hpp"
 #include "project/project.hpp"
 
@@ -26,10 +29,12 @@ namespace strata {
 // then on constant velocity (the previous step again).
 enum class DepthStart { features, recorded };
 
-// What places the sequence in the site frame: the device's recorded first pose, or the
-// surveyed markers seen in the colour frames; automatic: the device's when the
-// sequence has recorded poses, else the markers.
-enum class DepthDatum { automatic, device, markers };
+// What places the sequence in the site frame: the device's recorded first pose, the
+// surveyed markers seen in the colour frames, or the photo surface (the tracked
+// sequence levelled on its ground, then fitted by the coarse yaw search and ICP);
+// automatic: the device's when the sequence has recorded poses, else the markers when
+// its colour frames see at least 3, else the surface when the layer has one.
+enum class DepthDatum { automatic, device, markers, surface };
 
 struct DepthRegistrationOptions {
   std::optional<std::string> sequence;  // one sequence by name; default every sequence of the layer
@@ -66,6 +71,13 @@ struct DepthRegistrationOptions {
   // (k z^2, times sqrt(2): the model is made of such points too).
   double min_inlier_share = 0.30;
   double max_rms_ratio = 3.0;
+  // The surface datum: the whole tracked sequence treated as one scan (its points
+  // thinned to surface.scan_voxel_m; the refusals on its fit are the scans'), against
+  // surface.against. Its up direction: the normal of the plane most of its points lie
+  // on within level_tolerance_m (the ground round the trench; 3 frame voxels), turned
+  // to the side of the cameras.
+  ScanRegistrationOptions surface;
+  double level_tolerance_m = 0.045;
   DepthTrackingOptions tracking;
   void validate() const;  // throws InputError naming the field
 };
@@ -94,10 +106,19 @@ struct DepthMarkerSighting {
 struct DepthSequenceResult {
   DepthSequenceRecord sequence;
   std::vector<DepthFrameResult> frames;
-  std::string datum;                         // 'device' or 'markers'
+  std::string datum;                         // 'device', 'markers' or 'surface'
   std::vector<DepthMarkerSighting> markers;  // every marker seen (markers datum), by name
   std::optional<MarkerFit> marker_fit;       // the sequence -> site fit (markers datum)
   std::vector<std::string> unmatched;        // targets seen whose name no surveyed marker has
+  // The surface datum: the sequence frame -> site frame, the fit of its levelled points
+  // to the surface of `surface_layer`, the ground plane that levelled it and the angle
+  // the levelling turned it by.
+  std::optional<SurfaceFit> surface_fit;
+  Eigen::Matrix4d surface_transform = Eigen::Matrix4d::Identity();
+  std::string surface_layer;
+  std::size_t surface_points_used = 0;       // the sequence's points, thinned
+  double ground_share = 0;                   // of them on the levelling plane
+  double level_rad = 0;
   bool loop_closed = false;
   int loop_frames = 0;
   double loop_inlier_share = 0;
@@ -113,9 +134,10 @@ struct DepthRegistrationSummary {
 
 // Registers the layer's depth sequences (or options.sequence) and stores every frame's
 // pose, box and fit. Throws InputError, the database unchanged, when the layer has no
-// sequence, a sequence without recorded poses has no colour frames or sees fewer than
-// 3 surveyed markers, the markers do not agree, or any frame's fit fails its checks
-// (the message names the sequence or frame and what to do).
+// sequence, a sequence without recorded poses sees fewer than 3 surveyed markers and
+// the layer has no photo surface (or the datum asked for is not at hand), the markers
+// do not agree, the fit to the surface fails the scans' checks, or any frame's fit
+// fails its checks (the message names the sequence or frame and what to do).
 DepthRegistrationSummary register_layer_depth(Project& project, const std::string& layer,
                                               const DepthRegistrationOptions& options);
 

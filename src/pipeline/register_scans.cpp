@@ -55,10 +55,14 @@ ScanFrameMap shifted_by(const Eigen::Vector3d& offset) {
   return map;
 }
 
+fs::path photo_surface_file(const Project& project, const std::string& layer) {
+  return project.dir() / layer_product_dir(layer) / "dense" / "points.ply";
+}
+
 // The dense points of a processed layer in the site frame. The dense stage writes
 // site-frame floats unless it was asked for CRS coordinates; its header says which.
 std::vector<Eigen::Vector3d> surface_points(Project& project, const LayerRecord& ref, const std::string& layer) {
-  const fs::path file = project.dir() / layer_product_dir(ref.name) / "dense" / "points.ply";
+  const fs::path file = photo_surface_file(project, ref.name);
   if (!fs::exists(file))
     throw InputError(fmt::format("{}: layer {} has no photogrammetric surface yet ({}): run 'strata process "
                                  "DIR --layer {}' first{}, or import the scans with --transform",
@@ -68,27 +72,6 @@ std::vector<Eigen::Vector3d> surface_points(Project& project, const LayerRecord&
   std::ifstream(file, std::ios::binary).read(header.data(), std::streamsize(header.size()));
   const bool crs = header.find("coordinates: site CRS") != std::string::npos;
   return read_points(file, shifted_by(crs ? Eigen::Vector3d(-project.site().origin) : Eigen::Vector3d::Zero()));
-}
-
-// Why a fit cannot be trusted, or empty.
-std::string refusal(const ScanRecord& s, const IcpSummary& fit, const ScanRegistrationOptions& o) {
-  const double expected = std::hypot(s.sigma_m, o.surface_sigma_m);
-  if (fit.inlier_share < o.min_inlier_share)
-    return fmt::format("too little overlap with the surface ({:.0f} % of the scan within {:.0f} mm of it, at least "
-                       "{:.0f} % needed)",
-                       100 * fit.inlier_share, 1000 * o.icp.min_correspondence_m, 100 * o.min_inlier_share);
-  if (fit.degenerate)
-    return fmt::format("the surface does not fix the pose (degenerate geometry, e.g. a flat floor: its least "
-                       "constrained direction is supported by {:.2f} % of the points, at least {:.0f} % needed)",
-                       100 * fit.support_share, 100 * o.icp.min_support_share);
-  if (!fit.converged)
-    return fmt::format("ICP did not converge in {} iterations", o.icp.max_iterations);
-  if (fit.rms_m > o.max_rms_ratio * expected)
-    return fmt::format("residual RMS {:.1f} mm is far above the {:.1f} mm expected of its noise (sigma {:.1f} mm "
-                       "and the surface's {:.1f} mm; at most {:.1f} x)",
-                       1000 * fit.rms_m, 1000 * expected, 1000 * s.sigma_m, 1000 * o.surface_sigma_m,
-                       o.max_rms_ratio);
-  return {};
 }
 
 // The box of scanner-frame points under `pose` (scanner frame -> site frame), grown.
@@ -140,8 +123,7 @@ std::pair<LayerRecord, std::vector<ScanRecord>> scans_to_register(Database& db, 
   return {*layer, std::move(todo)};
 }
 
-ScanRegistrationResult register_one(Project& project, const ScanRecord& s, const OrientedPoints& surface,
-                                    const std::vector<Eigen::Vector3d>& surface_raw,
+ScanRegistrationResult register_one(Project& project, const ScanRecord& s, const ReferenceSurface& surface,
                                     const ScanRegistrationOptions& options) {
   const Stopwatch sw;
   ScanRegistrationResult r;
@@ -149,9 +131,10 @@ ScanRegistrationResult register_one(Project& project, const ScanRecord& s, const
   const std::vector<Eigen::Vector3d> raw = read_points(project.dir() / s.media_path, shifted_by(Eigen::Vector3d::Zero()));
   const std::vector<Eigen::Vector3d> thin = voxel_subsample(raw, options.scan_voxel_m);
   r.points_used = thin.size();
-  r.surface_points = surface.points.size();
-  r.coarse = coarse_yaw_search(thin, surface_raw, options.coarse);
-  r.icp = register_point_to_plane(thin, surface, r.coarse.pose, options.icp);
+  r.surface_points = surface.oriented.points.size();
+  SurfaceFit fit = fit_to_surface(thin, surface, options);
+  r.coarse = fit.coarse;
+  r.icp = std::move(fit.icp);
   r.pose = r.icp.pose.matrix();
   r.scan.registration = ScanRegistration::transform;
   r.scan.transform = r.pose;
@@ -161,6 +144,55 @@ ScanRegistrationResult register_one(Project& project, const ScanRecord& s, const
 }
 
 }  // namespace
+
+fs::path reference_surface_file(Project& project, const std::string& layer_name, RegistrationReference against) {
+  const LayerRecord layer = require_layer(project.db(), layer_name);
+  const LayerRecord ref = against == RegistrationReference::layer ? layer : previous_layer(project.db(), layer);
+  return photo_surface_file(project, ref.name);
+}
+
+ReferenceSurface load_reference_surface(Project& project, const std::string& layer_name, RegistrationReference against,
+                                        const ScanRegistrationOptions& options) {
+  Database& db = project.db();
+  const auto layer = find_layer(db, layer_name);
+  if (!layer) throw InputError(fmt::format("{}: no layer '{}' in the project", kStage, layer_name));
+  const LayerRecord ref = against == RegistrationReference::layer ? *layer : previous_layer(db, *layer);
+  ReferenceSurface out;
+  out.layer = ref.name;
+  const std::vector<Eigen::Vector3d> raw = surface_points(project, ref, layer_name);
+  out.raw_points = raw.size();
+  out.points = voxel_subsample(raw, options.surface_voxel_m);
+  out.oriented = estimate_normals(out.points, options.normal_radius_m);
+  return out;
+}
+
+SurfaceFit fit_to_surface(const std::vector<Eigen::Vector3d>& cloud, const ReferenceSurface& surface,
+                          const ScanRegistrationOptions& options) {
+  SurfaceFit out;
+  out.coarse = coarse_yaw_search(cloud, surface.points, options.coarse);
+  out.icp = register_point_to_plane(cloud, surface.oriented, out.coarse.pose, options.icp);
+  return out;
+}
+
+std::string surface_fit_refusal(double sigma_m, const IcpSummary& fit, const ScanRegistrationOptions& o) {
+  const double expected = std::hypot(sigma_m, o.surface_sigma_m);
+  if (fit.inlier_share < o.min_inlier_share)
+    return fmt::format("too little overlap with the surface ({:.0f} % of the scan within {:.0f} mm of it, at least "
+                       "{:.0f} % needed)",
+                       100 * fit.inlier_share, 1000 * o.icp.min_correspondence_m, 100 * o.min_inlier_share);
+  if (fit.degenerate)
+    return fmt::format("the surface does not fix the pose (degenerate geometry, e.g. a flat floor: its least "
+                       "constrained direction is supported by {:.2f} % of the points, at least {:.0f} % needed)",
+                       100 * fit.support_share, 100 * o.icp.min_support_share);
+  if (!fit.converged)
+    return fmt::format("ICP did not converge in {} iterations", o.icp.max_iterations);
+  if (fit.rms_m > o.max_rms_ratio * expected)
+    return fmt::format("residual RMS {:.1f} mm is far above the {:.1f} mm expected of its noise (sigma {:.1f} mm "
+                       "and the surface's {:.1f} mm; at most {:.1f} x)",
+                       1000 * fit.rms_m, 1000 * expected, 1000 * sigma_m, 1000 * o.surface_sigma_m,
+                       o.max_rms_ratio);
+  return {};
+}
 
 void TargetRegistrationOptions::validate() const {
   auto need = [](bool ok, const char* field, const char* what) {
@@ -195,23 +227,20 @@ LayerRegistrationSummary register_layer_scans(Project& project, const std::strin
 
   LayerRegistrationSummary out;
   out.layer = layer_name;
-  const LayerRecord ref = options.against == RegistrationReference::layer ? layer : previous_layer(db, layer);
-  out.reference_layer = ref.name;
-  const std::vector<Eigen::Vector3d> raw = surface_points(project, ref, layer_name);
-  const std::vector<Eigen::Vector3d> thin = voxel_subsample(raw, options.surface_voxel_m);
-  const OrientedPoints surface = estimate_normals(thin, options.normal_radius_m);
+  const ReferenceSurface surface = load_reference_surface(project, layer.name, options.against, options);
+  out.reference_layer = surface.layer;
   log::info("{}: layer {}: {} scan(s) against the surface of layer {} ({} points, {} after thinning to {:.0f} mm)",
-            kStage, layer_name, todo.size(), ref.name, raw.size(), surface.points.size(),
+            kStage, layer_name, todo.size(), surface.layer, surface.raw_points, surface.oriented.points.size(),
             1000 * options.surface_voxel_m);
 
   for (const ScanRecord& s : todo) {
-    ScanRegistrationResult r = register_one(project, s, surface, thin, options);
-    if (const std::string why = refusal(s, r.icp, options); !why.empty())
+    ScanRegistrationResult r = register_one(project, s, surface, options);
+    if (const std::string why = surface_fit_refusal(s.sigma_m, r.icp, options); !why.empty())
       throw InputError(fmt::format("{}: {}: cannot register it against the surface of layer {}: {}. Nothing was "
                                    "changed. Give its pose instead (strata import scan --transform FILE, from "
                                    "the scanner's registration software or surveyed targets)",
-                                   kStage, s.name, ref.name, why));
-    r.scan.fit = ScanFit{options.against == RegistrationReference::layer ? "icp-layer" : "icp-previous", ref.name,
+                                   kStage, s.name, surface.layer, why));
+    r.scan.fit = ScanFit{options.against == RegistrationReference::layer ? "icp-layer" : "icp-previous", surface.layer,
                          r.icp.rms_m, r.icp.inlier_share, r.icp.sigma_translation_m, r.icp.sigma_rotation_rad};
     out.scans.push_back(std::move(r));
   }

@@ -62,6 +62,42 @@ struct LayerRegistrationSummary {
 LayerRegistrationSummary register_layer_scans(Project& project, const std::string& layer,
                                               const ScanRegistrationOptions& options);
 
+// The photogrammetric surface a cloud is fitted to: the dense points of a layer
+// (products/<layer>/dense/points.ply), site frame, thinned to surface_voxel_m, and the
+// same with normals.
+struct ReferenceSurface {
+  std::string layer;                      // whose surface
+  std::size_t raw_points = 0;             // in the file
+  std::vector<Eigen::Vector3d> points;    // thinned (the coarse search's target)
+  OrientedPoints oriented;                // thinned, with normals (the ICP's target)
+};
+
+// The file holding the surface a layer's clouds are fitted to (the layer's own, or
+// the previous layer's), whether or not it exists yet. Throws InputError when there
+// is no previous layer.
+std::filesystem::path reference_surface_file(Project& project, const std::string& layer,
+                                             RegistrationReference against);
+
+// The surface of `layer` (against layer) or of the layer added before it (against
+// previous). Throws InputError naming what to run when there is none.
+ReferenceSurface load_reference_surface(Project& project, const std::string& layer, RegistrationReference against,
+                                        const ScanRegistrationOptions& options);
+
+struct SurfaceFit {
+  CoarseResult coarse;
+  IcpSummary icp;  // icp.pose: the cloud's frame -> site frame
+};
+
+// A levelled cloud (its z axis nearly the site's; metres, thinned to scan_voxel_m)
+// placed on the surface: the coarse yaw search, then robust point-to-plane ICP.
+SurfaceFit fit_to_surface(const std::vector<Eigen::Vector3d>& cloud, const ReferenceSurface& surface,
+                          const ScanRegistrationOptions& options);
+
+// Why a fit to the surface cannot be trusted (overlap, degenerate geometry,
+// convergence, RMS against sqrt(sigma_m^2 + surface_sigma_m^2)), or empty. sigma_m:
+// the cloud's own noise, metres.
+std::string surface_fit_refusal(double sigma_m, const IcpSummary& fit, const ScanRegistrationOptions& options);
+
 // Registration on targets: the scanner's own measurements of surveyed markers (sphere
 // or checkerboard centres, named like the markers), read by importers/scans/scan_targets.
 struct TargetRegistrationOptions {
