@@ -104,6 +104,20 @@ TEST(Icp, FeaturelessPlaneIsDegenerate) {
   EXPECT_LT(fit.support_share, IcpOptions{}.min_support_share);
 }
 
+// The ground of the boxes scene seen in a tilted frame: the plane found is the ground
+// (the boxes' tops and sides are off it), its normal the frame's up to the noise.
+TEST(DominantPlane, FindsTheGroundOfATiltedCloud) {
+  constexpr double kNormalTolerance = 2e-3;  // radians: 2 mm noise over a 2 m plane is far less
+  const std::vector<Eigen::Vector3d> site = boxes_on_plane(0.02, 0.0, 0.002, 5);
+  const Eigen::Isometry3d truth = motion(0.7, {0.5, -0.3, 0.0}, {2, -1, 0.5});
+  const PlaneFit ground = dominant_plane(into_frame(site, truth), 0.01);
+  const Eigen::Vector3d up = truth.linear().transpose() * Eigen::Vector3d::UnitZ();  // site +z in the frame
+  EXPECT_LT(std::acos(std::min(1.0, std::abs(ground.normal.dot(up)))), kNormalTolerance);
+  EXPECT_GT(ground.inlier_share, 0.6);  // the boxes' tops and sides: the rest
+  EXPECT_LT(ground.inlier_share, 0.95);
+  EXPECT_NEAR((truth * ground.point).z(), 0.0, 0.005);
+}
+
 TEST(Icp, OptionsAreValidated) {
   IcpOptions o;
   o.trim_share = 1.0;
