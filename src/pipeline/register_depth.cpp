@@ -233,9 +233,10 @@ MarkerPairs surveyed_sightings(Project& project, DepthSequenceResult& out) {
 }
 
 // The refusal when fewer than 3 surveyed markers were seen and no other datum is at
-// hand; `no_surface`: why the photo surface cannot place it either, or empty.
+// hand; `no_surface`: why the photo surface of `layer` cannot place it either, or empty.
 [[noreturn]] void refuse_too_few_markers(const DepthSequenceRecord& seq, const DepthSequenceResult& out,
-                                         std::size_t surveyed, const std::string& no_surface) {
+                                         std::size_t surveyed, const std::string& layer,
+                                         const std::string& no_surface) {
   std::vector<std::string> names;
   for (const DepthMarkerSighting& m : out.markers) names.push_back(fmt::format("{} ({} frames)", m.name, m.frames));
   throw InputError(fmt::format(
@@ -244,14 +245,16 @@ MarkerPairs surveyed_sightings(Project& project, DepthSequenceResult& out) {
       "sequence, {}or import it with --poses",
       kStage, seq.name, surveyed, names.empty() ? std::string() : ": ", fmt::join(names, ", "),
       no_surface.empty() ? std::string() : ", and " + no_surface,
-      no_surface.empty() ? std::string() : "process the layer's photos first (strata process DIR --layer L --until "
-                                           "dense), "));
+      no_surface.empty() ? std::string()
+                         : fmt::format("process the layer's photos first (strata process DIR --layer {} --until "
+                                       "dense), ",
+                                       layer)));
 }
 
 // The sequence's frame -> the site frame, fitted on the surveyed markers it saw.
 Eigen::Isometry3d place_on_markers(const MarkerPairs& pairs, const DepthSequenceRecord& seq,
                                    const DepthRegistrationOptions& o, DepthSequenceResult& out) {
-  if (pairs.names.size() < 3) refuse_too_few_markers(seq, out, pairs.names.size(), {});
+  if (pairs.names.size() < 3) refuse_too_few_markers(seq, out, pairs.names.size(), {}, {});
   out.marker_fit = fit_on_markers(pairs, o.marker_fit, fmt::format("{}: sequence '{}'", kStage, seq.name),
                                   "the markers seen in its colour frames");
   for (const TargetResidual& t : out.marker_fit->targets)
@@ -433,7 +436,7 @@ DepthSequenceResult register_sequence(Project& project, const LayerRecord& layer
     if (datum == DepthDatum::automatic && pairs.names.size() >= 3) datum = DepthDatum::markers;
     else if (datum == DepthDatum::automatic) {
       if (const std::string missing = surface_missing(project, layer, o.surface); !missing.empty())
-        refuse_too_few_markers(seq, out, pairs.names.size(), missing);
+        refuse_too_few_markers(seq, out, pairs.names.size(), layer.name, missing);
       datum = DepthDatum::surface;
     }
     if (datum == DepthDatum::markers) {
