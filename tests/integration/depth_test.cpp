@@ -284,7 +284,7 @@ TEST(DepthLayer, ASequenceWithoutPosesIsPlacedOnTheMarkers) {
 // The surface datum, measured (docs/range.md, "Depth sequences, measured"): on this
 // 24-frame loop 0.3 m outside the trench edge, placed on the photo surface of 14
 // photos (800 px wide) the cameras came out at most 7.7 mm (RMS 4.6 mm) and 2.4 mrad
-// from their true poses. The bound leaves twice that for the photo surface's own
+// from their true poses. The bound is 1.9 x and 2.5 x that, room for the surface's own
 // noise (its scans' allowance: 4 mm) and the tracking (10 mm with recorded poses,
 // kMaxRegisteredErrorM); it is below the markers datum's 20 mm.
 constexpr double kMaxSurfaceDatumErrorM = 0.015;
