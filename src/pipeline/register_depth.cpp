@@ -18,6 +18,7 @@
 #include <cmath>
 #include <filesystem>
 #include <map>
+#include <optional>
 
 namespace strata {
 namespace {
@@ -430,6 +431,7 @@ DepthSequenceResult register_sequence(Project& project, const LayerRecord& layer
       datum == DepthDatum::device ? Eigen::Isometry3d(out.frames[0].recorded) : Eigen::Isometry3d::Identity();
   DepthTrackingSummary t = track_depth_sequence(points, first, steps, o.tracking);
   check_tracking(t, seq, out);
+  std::optional<Eigen::Isometry3d> to_site;  // frame 0's camera frame -> the site frame (markers, surface)
   if (markers) {
     out.markers = locate_markers(frames, t.poses);
     const MarkerPairs pairs = surveyed_sightings(project, out);
@@ -439,16 +441,12 @@ DepthSequenceResult register_sequence(Project& project, const LayerRecord& layer
         refuse_too_few_markers(seq, out, pairs.names.size(), layer.name, missing);
       datum = DepthDatum::surface;
     }
-    if (datum == DepthDatum::markers) {
-      const Eigen::Isometry3d to_site = place_on_markers(pairs, seq, o, out);
-      for (auto& p : t.poses) p = to_site * p;
-      for (auto& p : t.tracked) p = to_site * p;
-    }
+    if (datum == DepthDatum::markers) to_site = place_on_markers(pairs, seq, o, out);
   }
-  if (datum == DepthDatum::surface) {
-    const Eigen::Isometry3d to_site = place_on_surface(project, layer, seq, frames, t.poses, o, out);
-    for (auto& p : t.poses) p = to_site * p;
-    for (auto& p : t.tracked) p = to_site * p;
+  if (datum == DepthDatum::surface) to_site = place_on_surface(project, layer, seq, frames, t.poses, o, out);
+  if (to_site) {
+    for (auto& p : t.poses) p = *to_site * p;
+    for (auto& p : t.tracked) p = *to_site * p;
   }
   out.datum = datum_name(datum);
   out.loop_closed = t.loop_closed;

@@ -55,6 +55,14 @@ ScanFrameMap shifted_by(const Eigen::Vector3d& offset) {
   return map;
 }
 
+// The layer whose surface `layer_name`'s clouds are fitted to: its own, or the one
+// added before it.
+LayerRecord reference_layer(Database& db, const std::string& layer_name, RegistrationReference against) {
+  const auto layer = find_layer(db, layer_name);
+  if (!layer) throw InputError(fmt::format("{}: no layer '{}' in the project", kStage, layer_name));
+  return against == RegistrationReference::layer ? *layer : previous_layer(db, *layer);
+}
+
 fs::path photo_surface_file(const Project& project, const std::string& layer) {
   return project.dir() / layer_product_dir(layer) / "dense" / "points.ply";
 }
@@ -146,17 +154,12 @@ ScanRegistrationResult register_one(Project& project, const ScanRecord& s, const
 }  // namespace
 
 fs::path reference_surface_file(Project& project, const std::string& layer_name, RegistrationReference against) {
-  const LayerRecord layer = require_layer(project.db(), layer_name);
-  const LayerRecord ref = against == RegistrationReference::layer ? layer : previous_layer(project.db(), layer);
-  return photo_surface_file(project, ref.name);
+  return photo_surface_file(project, reference_layer(project.db(), layer_name, against).name);
 }
 
 ReferenceSurface load_reference_surface(Project& project, const std::string& layer_name, RegistrationReference against,
                                         const ScanRegistrationOptions& options) {
-  Database& db = project.db();
-  const auto layer = find_layer(db, layer_name);
-  if (!layer) throw InputError(fmt::format("{}: no layer '{}' in the project", kStage, layer_name));
-  const LayerRecord ref = against == RegistrationReference::layer ? *layer : previous_layer(db, *layer);
+  const LayerRecord ref = reference_layer(project.db(), layer_name, against);
   ReferenceSurface out;
   out.layer = ref.name;
   const std::vector<Eigen::Vector3d> raw = surface_points(project, ref, layer_name);

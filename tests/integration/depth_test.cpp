@@ -41,6 +41,18 @@ constexpr double kMinColourSpreadLevels = 10;
 int lines(const std::string& s) { return int(std::count(s.begin(), s.end(), '\n')); }
 void ok(const CommandResult& r) { ASSERT_EQ(r.exit_code, 0) << r.err; }
 
+// `args` refused: a failing exit, one line of error holding every fragment, `dir` (the
+// project) as it was.
+void expect_refused(const std::vector<std::string>& args, const fs::path& dir,
+                    const std::vector<std::string>& fragments) {
+  const std::string before = tree_fingerprint(dir);
+  const CommandResult r = run_strata(args);
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_EQ(lines(r.err), 1) << r.err;
+  for (const std::string& f : fragments) EXPECT_NE(r.err.find(f), std::string::npos) << r.err;
+  EXPECT_EQ(tree_fingerprint(dir), before);
+}
+
 // file -> camera pose (camera -> site frame), from a poses file ('file tx ty tz qx qy qz qw').
 std::map<std::string, Eigen::Isometry3d> poses(const fs::path& file) {
   std::map<std::string, Eigen::Isometry3d> out;
@@ -101,17 +113,11 @@ TEST(DepthLayer, ImportRegisterAndFuseASimulatedSequence) {
                                    (seq / "intrinsics.txt").string()};
   std::vector<std::string> bad = args;
   bad.insert(bad.end(), {frames[1], cut.string()});
-  const std::string tree = tree_fingerprint(dir / "site");
-  CommandResult r = run_strata(bad);
-  EXPECT_NE(r.exit_code, 0);
-  EXPECT_EQ(lines(r.err), 1) << r.err;
-  EXPECT_NE(r.err.find("importer.depth.png: " + cut.string() + ": byte "), std::string::npos) << r.err;
-  EXPECT_NE(r.err.find("truncated"), std::string::npos) << r.err;
-  EXPECT_EQ(tree_fingerprint(dir / "site"), tree);
+  expect_refused(bad, dir / "site", {"importer.depth.png: " + cut.string() + ": byte ", "truncated"});
 
   args.insert(args.end(), {"--poses", (seq / "poses_recorded.txt").string(), "--colour", (seq / "colour").string()});
   args.insert(args.end(), frames.begin(), frames.end());
-  r = run_strata(args);
+  CommandResult r = run_strata(args);
   ok(r);
   EXPECT_NE(r.out.find("layer L2: depth sequence 'depth' imported: 24 frame(s) of 640 x 480 px, 24 with colour, "
                        "24 with a recorded pose"),
@@ -216,18 +222,11 @@ TEST(DepthLayer, ASequenceWithoutPosesAndTooFewMarkersIsRefused) {
     write_text(dir / "two_markers.csv", two);
   }
   const std::string few = project_without_poses(dir, m, "few", dir / "two_markers.csv");
-  const std::string before = tree_fingerprint(few);
-  CommandResult r = run_strata({"-q", "register", "depth", few, "--layer", "L2"});
-  EXPECT_NE(r.exit_code, 0);
-  EXPECT_EQ(lines(r.err), 1) << r.err;
-  EXPECT_NE(r.err.find("register.depth: sequence 'depth': "), std::string::npos) << r.err;
-  EXPECT_NE(r.err.find("at least 3 are needed"), std::string::npos) << r.err;
-  EXPECT_EQ(tree_fingerprint(few), before);
+  expect_refused({"-q", "register", "depth", few, "--layer", "L2"}, few,
+                 {"register.depth: sequence 'depth': ", "at least 3 are needed"});
   // Asking for the device's datum without recorded poses: refused too.
-  r = run_strata({"-q", "register", "depth", few, "--layer", "L2", "--datum", "device"});
-  EXPECT_NE(r.exit_code, 0);
-  EXPECT_NE(r.err.find("imported without --poses"), std::string::npos) << r.err;
-  EXPECT_EQ(tree_fingerprint(few), before);
+  expect_refused({"-q", "register", "depth", few, "--layer", "L2", "--datum", "device"}, few,
+                 {"imported without --poses"});
 }
 
 // Where the tracking without the device's motion breaks, the command is refused in one
@@ -241,14 +240,9 @@ TEST(DepthLayer, ASequenceWhoseTrackingIsLostIsRefusedNamingTheFrame) {
   for (std::size_t i = 0; i < m.frames.size(); i += 2) every_other.push_back(m.frames[i]);
   m.frames = every_other;
   const std::string site = project_without_poses(dir, m, "site", m.data / "markers.csv");
-  const std::string before = tree_fingerprint(site);
-  const CommandResult r = run_strata({"-q", "register", "depth", site, "--layer", "L2"});
-  EXPECT_NE(r.exit_code, 0);
-  EXPECT_EQ(lines(r.err), 1) << r.err;
-  EXPECT_NE(r.err.find("register.depth: sequence 'depth': frame 00"), std::string::npos) << r.err;
-  EXPECT_NE(r.err.find(": tracking lost after frame 00"), std::string::npos) << r.err;
-  EXPECT_NE(r.err.find("% of its points within the gate of the model"), std::string::npos) << r.err;
-  EXPECT_EQ(tree_fingerprint(site), before);
+  expect_refused({"-q", "register", "depth", site, "--layer", "L2"}, site,
+                 {"register.depth: sequence 'depth': frame 00", ": tracking lost after frame 00",
+                  "% of its points within the gate of the model"});
 }
 
 // Tracked from the colour frames' features round the loop, its corners (22-53 degrees
@@ -302,15 +296,9 @@ TEST(DepthLayer, ASequenceWithoutPosesOrMarkersAndNoPhotoSurfaceIsRefused) {
   MarkerLoop m = near_loop(dir);
   m.frames.resize(8);  // the refusal comes after the tracking: a third of the loop keeps it short
   const std::string site = project_without_poses(dir, m, "site", m.data / "markers.csv");
-  const std::string before = tree_fingerprint(site);
-  const CommandResult r = run_strata({"-q", "register", "depth", site, "--layer", "L2", "--datum", "auto"});
-  EXPECT_NE(r.exit_code, 0);
-  EXPECT_EQ(lines(r.err), 1) << r.err;
-  EXPECT_NE(r.err.find("register.depth: sequence 'depth': 0 surveyed marker(s) seen"), std::string::npos) << r.err;
-  EXPECT_NE(r.err.find("at least 3 are needed"), std::string::npos) << r.err;
-  EXPECT_NE(r.err.find("no photo surface"), std::string::npos) << r.err;
-  EXPECT_NE(r.err.find("--until dense"), std::string::npos) << r.err;
-  EXPECT_EQ(tree_fingerprint(site), before);
+  expect_refused({"-q", "register", "depth", site, "--layer", "L2", "--datum", "auto"}, site,
+                 {"register.depth: sequence 'depth': 0 surveyed marker(s) seen", "at least 3 are needed",
+                  "no photo surface", "--until dense"});
 }
 
 // The layer's photos processed to their dense surface; the sequence, imported without
