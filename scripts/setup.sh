@@ -3,7 +3,8 @@
 # Idempotent and quiet when everything is present.
 # Usage: scripts/setup.sh [--gis]   (--gis also installs GRASS, Graphviz and Chromium for
 #                                   the integration tests that drive real GIS clients and
-#                                   load the viewer page in a headless browser)
+#                                   load the viewer and the field station's pages in a
+#                                   headless browser, with Selenium)
 set -euo pipefail
 
 packages=(
@@ -12,11 +13,12 @@ packages=(
   libcgal-dev libopenvdb-dev libboost-iostreams-dev libopencv-dev libopencv-contrib-dev
   libceres-dev libeigen3-dev libtbb-dev libgtest-dev googletest libexiv2-dev
   nlohmann-json3-dev libcli11-dev libfmt-dev libspdlog-dev
-  libjs-three  # three.js r111, inlined by 'strata export viewer'
+  libjs-three  # three.js r111, inlined by 'strata export viewer', served by 'strata serve'
+  libjs-leaflet libcpp-httplib-dev  # the field station (strata serve): its map and its HTTP server
   python3  # bench scripts; the crash-injection sample of the test suite
 )
 if [[ "${1:-}" == "--gis" ]]; then
-  packages+=(grass-core graphviz chromium)
+  packages+=(grass-core graphviz chromium chromium-driver python3-selenium)
 fi
 
 missing=()

@@ -4,16 +4,10 @@
 #include "core/error.hpp"
 #include "core/log.hpp"
 #include "features/targets.hpp"
-#include "pipeline/align_layer.hpp"
-#include "pipeline/dense_layer.hpp"
-#include "pipeline/products_layer.hpp"
+#include "pipeline/process_layer.hpp"
 #include "pipeline/stage_json.hpp"
-#include "report/report.hpp"
-#include "project/media.hpp"
-#include "project/depth_records.hpp"
 #include "project/project.hpp"
 #include "project/records.hpp"
-#include "project/scan_records.hpp"
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -163,71 +157,6 @@ void print_products(const ProductsQuality& q, bool skipped) {
   fmt::print("    footprint           {:.2f} m2\n", q.footprint.area_m2);
 }
 
-// What one `process` run asks of every layer.
-struct ProcessRun {
-  AlignOptions align;
-  DenseOptions dense;
-  ProductsOptions products;
-  std::string until = "products";
-  bool cell_given = false;  // --cell; else the DTM cell follows the dense surface
-  bool json = false;
-};
-
-// One layer through the stages asked for; its figures as `--json` prints them.
-nlohmann::json process_layer(Project& p, const std::string& name, const ProcessRun& run) {
-  // A layer recorded by range scans or depth sequences alone has nothing to align:
-  // its registered scans and depth frames are fused directly (docs/range.md).
-  const LayerRecord rec = require_layer(p.db(), name);
-  const std::size_t scans = list_scans(p.db(), rec.id).size();
-  const std::size_t sequences = list_depth_sequences(p.db(), rec.id).size();
-  const bool scans_only = list_images(p.db(), rec.id).empty() && scans + sequences > 0;
-  nlohmann::json q;
-  bool aligned_anew = false;
-  if (scans_only) {
-    log::info("== layer {}: no photos, {} range scan(s), {} depth sequence(s): no alignment", name, scans, sequences);
-    q = {{"layer", name}, {"photos", false}};
-    if (!run.json) fmt::print("layer {}\n  no photos: the surface comes from its range scans and depth frames\n", name);
-  } else {
-    log::info("== layer {}: alignment", name);
-    const AlignResult r = align_layer(p, name, run.align);
-    if (!run.json) print_quality(r.quality, r.skipped);
-    q = to_json(r.quality);
-    aligned_anew = !r.skipped;
-  }
-  if (run.until != "sparse") {
-    log::info("== layer {}: dense surface", name);
-    const DenseLayerResult d = dense_layer(p, name, run.dense, run.align.force || aligned_anew);
-    q["dense"] = to_json(d.quality);
-    if (!run.json) print_dense(d.quality, d.skipped);
-    if (run.until == "products") {
-      log::info("== layer {}: DTM, orthophoto, site plan", name);
-      ProductsOptions po = run.products;
-      // Targets in the orthophoto are read as in the photos.
-      po.ortho_markers.targets = run.align.targets;
-      po.ortho_markers.naming = run.align.naming;
-      if (!run.cell_given) {
-        // Cells finer than the dense surface's sampling only interpolate; coarser
-        // ones lose detail. Round to the millimetre so reruns agree.
-        const double gsd = d.quality.figures.gsd_m;
-        po.dtm.cell_m = std::max(0.005, std::round(gsd * 1000.0) / 1000.0);
-      }
-      const ProductsLayerResult pr = products_layer(p, name, po, run.align.force || !d.skipped);
-      q["products"] = to_json(pr.quality);
-      if (!run.json) print_products(pr.quality, pr.skipped);
-    }
-  }
-  // The field report is rewritten after every run, so the trench edge always
-  // has the current verdict. A report failure is said, but does not undo the
-  // processing that succeeded.
-  try {
-    const auto report = write_layer_report_product(p, name);
-    log::info("field report: {}", report.string());
-  } catch (const Error& e) {
-    log::warn("layer {}: the field report could not be written: {}", name, e.what());
-  }
-  return q;
-}
-
 }  // namespace
 
 void register_process_commands(CLI::App& app) {
@@ -306,19 +235,23 @@ void register_process_commands(CLI::App& app) {
     if (*all) {
       for (const auto& l : list_layers(p.db())) layers.push_back(l.name);
     } else {
-      layers.push_back(require_layer(p.db(), *layer).name);
+      layers.push_back(*layer);
     }
-    // Every photo the run will read still holds what was imported, before anything
-    // is computed from any layer (project/media.hpp).
-    for (const auto& name : layers) {
-      const auto photos = list_images(p.db(), require_layer(p.db(), name).id);
-      const MediaCheckSummary checked = verify_media(p.dir(), photos);
-      log::info("layer {}: {} photos match their SHA-256 ({} read in full)", name, checked.photos, checked.hashed);
+    const ProcessRun run{*options, *dense, *products, parse_process_until(*until), cell_opt->count() > 0};
+    ProcessObserver print;
+    if (!*json) {
+      print.layer_started = [](const LayerRun& r) {
+        if (!r.photos) fmt::print("layer {}\n  no photos: the surface comes from its range scans and depth frames\n", r.layer);
+      };
+      print.aligned = [](const LayerRun& r) { print_quality(r.align->quality, r.align->skipped); };
+      print.densified = [](const LayerRun& r) { print_dense(r.dense->quality, r.dense->skipped); };
+      print.products_made = [](const LayerRun& r) { print_products(r.products->quality, r.products->skipped); };
     }
-    const ProcessRun run{*options, *dense, *products, *until, cell_opt->count() > 0, *json};
+    const std::vector<LayerRun> runs = process_layers(p, layers, run, print);
+    if (!*json) return;
     nlohmann::json out = nlohmann::json::array();
-    for (const auto& name : layers) out.push_back(process_layer(p, name, run));
-    if (*json) fmt::print("{}\n", (*all ? out : out.front()).dump(2));
+    for (const auto& r : runs) out.push_back(to_json(r));
+    fmt::print("{}\n", (*all ? out : out.front()).dump(2));
   });
 }
 

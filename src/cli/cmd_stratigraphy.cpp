@@ -3,8 +3,8 @@
 #include "cli/common.hpp"
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
-#include "core/fault.hpp"
 #include "core/log.hpp"
+#include "pipeline/record_edits.hpp"
 #include "project/project.hpp"
 #include "project/records.hpp"
 #include "stratigraphy/graphviz.hpp"
@@ -38,11 +38,8 @@ void register_unit_commands(CLI::App& app) {
     cmd->callback([=] {
       const ProjectLock lock = lock_project(*dir);
       Project p = Project::open(*dir);
-      Transaction tx(p.db());
-      insert_unit(p.db(), *rec);
-      fault::point("stratigraphy.unit_before_commit");
-      tx.commit();
-      fmt::print("unit {} added ({})\n", rec->code, rec->type);
+      const UnitRecord u = add_unit(p, *rec);
+      fmt::print("unit {} added ({})\n", u.code, u.type);
     });
   }
   {
@@ -85,17 +82,9 @@ void register_relation_commands(CLI::App& app) {
     cmd->callback([=] {
       const ProjectLock lock = lock_project(*dir);
       Project p = Project::open(*dir);
-      const CanonicalRelation r = canonical_relation(*a, *word, *b);
-      require_unit(p.db(), r.unit_a);
-      require_unit(p.db(), r.unit_b);
-      HarrisMatrix matrix = recorded_matrix(p.db());
-      matrix.add(r);  // throws with the cycle
-      Transaction tx(p.db());
-      const bool added = insert_relation(p.db(), {0, r.unit_a, to_string(r.kind), r.unit_b}) != 0;
-      fault::point("stratigraphy.relation_before_commit");
-      tx.commit();
-      fmt::print("{} {} {} {}\n", r.unit_a, to_string(r.kind), r.unit_b,
-                 added ? "recorded" : "was already recorded");
+      const RelationAdded r = add_relation(p, *a, *word, *b);
+      fmt::print("{} {} {} {}\n", r.relation.unit_a, r.relation.kind, r.relation.unit_b,
+                 r.added ? "recorded" : "was already recorded");
     });
   }
   {
@@ -163,17 +152,8 @@ void register_layer_commands(CLI::App& app) {
       const ProjectLock lock = lock_project(*dir);
       Project p = Project::open(*dir);
       LayerRecord l = *rec;
-      if (!captured->empty()) {
-        if (captured->size() < 10 || (*captured)[4] != '-' || (*captured)[7] != '-') {
-          throw InputError(fmt::format("--captured-at '{}' is not an ISO 8601 date (YYYY-MM-DD[THH:MM:SS])",
-                                       *captured));
-        }
-        l.captured_at = *captured;
-      }
-      Transaction tx(p.db());
-      insert_layer(p.db(), l);
-      fault::point("stratigraphy.layer_before_commit");
-      tx.commit();
+      if (!captured->empty()) l.captured_at = *captured;
+      l = add_layer(p, l);
       fmt::print("layer {} added (unit {})\n", l.name, l.unit);
     });
   }

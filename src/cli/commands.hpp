@@ -21,5 +21,6 @@ void register_products_commands(CLI::App& app);  // export dtm|ortho|qgis|grass
 void register_volume_commands(CLI::App& app);    // volume, check, export thickness|voxels|section
 void register_report_command(CLI::App& app);      // report
 void register_finds_command(CLI::App& app);       // finds (with the volume commands)
+void register_serve_command(CLI::App& app);       // serve (the field station)
 
 }  // namespace strata::cli

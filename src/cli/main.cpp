@@ -24,7 +24,8 @@ int main(int argc, char** argv) {
       "  strata layer add site L101 --unit 101\n"
       "  strata import photos site --layer L101 photos/*.jpg\n"
       "  strata import markers site survey.csv\n"
-      "  strata info site\n",
+      "  strata info site\n"
+      "  strata serve site --open           (the same from a browser: the field station)\n",
       "strata"};
   app.set_version_flag("--version", "strata 0.1.0");
   app.require_subcommand(1);
@@ -61,6 +62,7 @@ int main(int argc, char** argv) {
   strata::cli::register_volume_commands(app);
   strata::cli::register_finds_command(app);
   strata::cli::register_report_command(app);
+  strata::cli::register_serve_command(app);
 
   strata::install_cancel_handler();
   try {

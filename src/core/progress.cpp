@@ -1,5 +1,7 @@
 #include "core/progress.hpp"
 
+#include "core/job_hooks.hpp"
+
 #include "core/error.hpp"
 #include "core/log.hpp"
 
@@ -29,6 +31,10 @@ std::mutex g_draw_mutex;
 // message can clear it and draw it again under itself.
 const Progress* g_bar_owner = nullptr;
 std::string g_bar_text;
+// The host's listener (core/job_hooks.hpp), guarded by g_draw_mutex.
+ProgressListener g_listener;
+const Progress* g_last_listened = nullptr;  // the stage of the listener's last event, and when
+double g_last_listened_s = 0;
 
 extern "C" void on_signal(int) { g_cancel = true; }
 
@@ -173,6 +179,14 @@ void Progress::draw(bool final) {
   std::lock_guard lock(g_draw_mutex);
   if (finished_) return;
   if (final) finished_ = true;
+  if (g_listener) {
+    const double now = steady_seconds();
+    if (final || g_last_listened != this || now - g_last_listened_s >= 1.0 / kProgressEventsPerSecond) {
+      g_last_listened = this;
+      g_last_listened_s = now;
+      g_listener({label_, done_.load(), total_, (out_.seconds ? out_.seconds() : now) - start_s_, final});
+    }
+  }
   if (log::level() > log::Level::info || !out_.write) return;
   const double now = out_.seconds();
   const double elapsed = now - start_s_;
@@ -207,6 +221,12 @@ void install_cancel_handler() {
   std::signal(SIGTERM, on_signal);
 }
 void request_cancel() { g_cancel = true; }
+void clear_cancel() { g_cancel = false; }
+
+void set_progress_listener(ProgressListener listener) {
+  std::lock_guard lock(g_draw_mutex);
+  g_listener = std::move(listener);
+}
 bool cancel_requested() { return g_cancel; }
 void check_cancelled() {
   if (g_cancel) throw Cancelled();

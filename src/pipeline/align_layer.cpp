@@ -11,6 +11,7 @@
 #include "pipeline/alignment_store.hpp"
 #include "pipeline/camera_calibration.hpp"
 #include "project/records.hpp"
+#include "project/review_records.hpp"
 #include "sfm/quality.hpp"
 
 #include <fmt/format.h>
@@ -35,6 +36,9 @@ struct AlignmentInputs {
   SiteInfo site;
   std::vector<ImageRecord> records;
   std::vector<MarkerRecord> markers;
+  // (marker, image) of observations a person rejected (observation_reviews): neither a
+  // detection nor a guided position there is used.
+  std::set<std::pair<std::int64_t, std::int64_t>> rejected;
 };
 
 // One camera group per camera row (make, model, size, focal setting), and per photo
@@ -74,6 +78,8 @@ std::string alignment_key(Database& db, const AlignmentInputs& in, const AlignOp
   for (const auto& o : list_observations(db, in.layer.id)) {
     if (o.source != "detected") key.add(o);
   }
+  // Only when there are some, so that the key of a layer without reviews is unchanged.
+  for (const auto& [marker, image] : in.rejected) key.add("rejected").add(marker).add(image);
   add_known_calibrations(key, db, in.records);
   return key.hex();
 }
@@ -182,6 +188,7 @@ std::vector<ObservationRecord> detect_coded_targets(const AlignOptions& options,
         unknown_ids.insert(d.id);
         continue;
       }
+      if (in.rejected.count({it->second->id, in.records[i].id})) continue;  // a person said it is not the marker
       detected.push_back({0, it->second->id, in.records[i].id, d.centre, "detected"});
     }
     progress.step();
@@ -215,7 +222,10 @@ std::vector<ObservationRecord> chosen_observations(Database& db, const Alignment
     if (taken.emplace(o.marker_id, o.image_id).second) chosen.push_back(o);
   }
   for (const auto& o : stored) {
-    if (o.source == "guided" && taken.emplace(o.marker_id, o.image_id).second) chosen.push_back(o);
+    if (o.source == "guided" && !in.rejected.count({o.marker_id, o.image_id}) &&
+        taken.emplace(o.marker_id, o.image_id).second) {
+      chosen.push_back(o);
+    }
   }
   return chosen;
 }
@@ -391,8 +401,11 @@ void AlignOptions::validate() const {
 AlignResult align_layer(Project& project, const std::string& layer_name, const AlignOptions& options) {
   options.validate();
   auto& db = project.db();
-  AlignmentInputs in{require_layer(db, layer_name), project.site(), {}, list_markers(db)};
+  AlignmentInputs in{require_layer(db, layer_name), project.site(), {}, list_markers(db), {}};
   in.records = list_images(db, in.layer.id);
+  for (const auto& r : list_observation_reviews(db, in.layer.id)) {
+    if (r.verdict == "rejected") in.rejected.emplace(r.marker_id, r.image_id);
+  }
   if (in.records.size() < 2) {
     throw ProcessingError(fmt::format("layer {} has {} photo(s); alignment needs at least 2 (import "
                                       "30-60 photos per layer)", in.layer.name, in.records.size()));

@@ -3,10 +3,12 @@
 #include "core/error.hpp"
 #include "pipeline/alignment_store.hpp"
 #include "project/records.hpp"
+#include "project/review_records.hpp"
 
 #include <fmt/format.h>
 
 #include <map>
+#include <set>
 
 namespace strata {
 namespace {
@@ -114,7 +116,15 @@ GuideLayerResult guide_layer(Project& project, const std::string& layer_name, co
   for (const auto& m : list_markers(db)) marker_ids[m.name] = m.id;
   std::map<int, std::int64_t> image_of_photo;
   for (const auto& [image, photo] : photo_of_image) image_of_photo[photo] = image;
-  for (const auto& m : result.summary.markers) {
+  // A position a person rejected in the marker workspace is not placed again.
+  std::set<std::pair<std::int64_t, std::int64_t>> rejected;
+  for (const auto& r : list_observation_reviews(db, layer.id)) {
+    if (r.verdict == "rejected") rejected.emplace(r.marker_id, r.image_id);
+  }
+  for (auto& m : result.summary.markers) {
+    result.summary.added -= int(std::erase_if(m.added, [&](const GuidedObservation& g) {
+      return rejected.count({marker_ids.at(m.name), image_of_photo.at(g.photo)}) > 0;
+    }));
     for (const auto& g : m.added) {
       ObservationRecord o;
       o.marker_id = marker_ids.at(m.name);

@@ -21,6 +21,9 @@ Database::Database(const std::filesystem::path& path, bool create) : path_(path)
   // SQLite reads the file only now: a file that is not a database (or a damaged one)
   // fails here, and the destructor of a half-made object does not run.
   try {
+    // A writer that closes the last connection checkpoints the WAL under an exclusive
+    // lock: a reader opening meanwhile waits for it rather than failing.
+    sqlite3_busy_timeout(db_, 10000);
     exec("PRAGMA foreign_keys = ON");
     // Switching to WAL needs the database to itself. It is done once (the mode is
     // stored in the file); when another program (QGIS, GDAL) has meanwhile set another

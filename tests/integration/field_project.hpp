@@ -57,6 +57,8 @@ class Background {
   Background& operator=(const Background&) = delete;
 
   pid_t pid() const { return pid_; }
+  const std::filesystem::path& stdout_path() const { return out_; }
+  const std::filesystem::path& stderr_path() const { return err_; }
   bool running();
   CommandResult wait();
   void kill_now();  // SIGKILL, then reaps it
