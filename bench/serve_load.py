@@ -118,7 +118,7 @@ def main():
     make_project(cli_site, data)
     make_project(api_site, data)
     t = time.perf_counter()
-    strata("process", cli_site, "--layer", "L1")
+    strata("process", cli_site, "--layer", "L1", capture=True)
     cli_seconds = time.perf_counter() - t
 
     server = subprocess.Popen([STRATA, "serve", api_site, "--listen", "127.0.0.1:0"], stdout=subprocess.PIPE,

@@ -455,7 +455,8 @@ export async function render(main, params, signal) {
     try {
       const r = await api.post(`${base}/guide`, {});
       if (signal.aborted) return;
-      const notes = (r.markers || []).filter((m) => m.message).map((m) => `${m.name}: ${m.message}`);
+      const notes = (r.markers || []).filter((m) => m.message).map((m) => `${m.name}: ${m.message}`)
+        .concat((r.left_out || []).map((c) => `${c}: clicked in one photo only, click it in another`));
       showMessage(`${plural(r.guided ?? 0, 'predicted position')}${notes.length ? ` (${notes.join('; ')})` : ''}.`, 'ok');
       await refresh();
     } catch (err) {

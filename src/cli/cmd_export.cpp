@@ -1,6 +1,6 @@
 // strata export ...
 #include "cli/commands.hpp"
-#include "cli/site_scene.hpp"
+#include "pipeline/site_scene.hpp"
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/fault.hpp"

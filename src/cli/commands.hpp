@@ -17,6 +17,7 @@ void register_synth_command(CLI::App& app);      // synth
 void register_registration_commands(CLI::App& app);  // register scan
 void register_process_commands(CLI::App& app);   // process, (later) volume, check
 void register_export_commands(CLI::App& app);    // export ...
+void register_viewer_command(CLI::App& exp);     // export viewer (under export)
 void register_products_commands(CLI::App& app);  // export dtm|ortho|qgis|grass
 void register_volume_commands(CLI::App& app);    // volume, check, export thickness|voxels|section
 void register_report_command(CLI::App& app);      // report

@@ -51,7 +51,8 @@ LayerClicks collect_clicks(Database& db, const LayerRecord& layer, const std::ma
 
 }  // namespace
 
-GuideLayerResult guide_layer(Project& project, const std::string& layer_name, const MarkerGuideOptions& options) {
+GuideLayerResult guide_layer(Project& project, const std::string& layer_name, const MarkerGuideOptions& options,
+                             bool leave_out_single_clicks) {
   options.validate();
   auto& db = project.db();
   const LayerRecord layer = require_layer(db, layer_name);
@@ -87,13 +88,18 @@ GuideLayerResult guide_layer(Project& project, const std::string& layer_name, co
   LayerClicks clicks = collect_clicks(db, layer, photo_of_image, image_names);
   result.unregistered_clicks = clicks.unregistered;
   for (const auto& m : clicks.markers) {
-    if (m.clicks.size() < 2) {
-      throw InputError(fmt::format(
-          "marker {} is clicked in only 1 registered photo of layer {} ({}): click it in at least one more "
-          "photo (2-3 photos from different sides), then run 'strata markers guide' again",
-          m.name, layer.name, input.photos[std::size_t(m.clicks.front().photo)].name));
+    if (m.clicks.size() >= 2) continue;
+    const std::string photo = input.photos[std::size_t(m.clicks.front().photo)].name;
+    if (leave_out_single_clicks) {
+      result.single_clicks.push_back(fmt::format("{} in {}", m.name, photo));
+      continue;
     }
+    throw InputError(fmt::format(
+        "marker {} is clicked in only 1 registered photo of layer {} ({}): click it in at least one more "
+        "photo (2-3 photos from different sides), then run 'strata markers guide' again",
+        m.name, layer.name, photo));
   }
+  std::erase_if(clicks.markers, [](const GuideMarker& m) { return m.clicks.size() < 2; });
   if (clicks.markers.empty()) {
     throw InputError(fmt::format(
         "layer {}: no marker is clicked in its registered photos; import clicks (an OpenDroneMap gcp_list, "

@@ -438,6 +438,7 @@ const std::vector<Route>& routes() {
       {{"POST", "/api/finds", R::recorder, "record a find"}, post_find, {}},
     };
     for (auto& r : marker_routes()) t.push_back(std::move(r));
+    for (auto& r : viewer_routes()) t.push_back(std::move(r));
     return t;
   }();
   return table;

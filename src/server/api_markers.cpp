@@ -137,7 +137,8 @@ void post_review(Context& c, const Request& req, Response& res) {
 
 void post_guide(Context& c, const Request& req, Response& res) {
   ProjectWriter w = c.write(fmt::format("markers guide --layer {}", std::string(req.matches[1])));
-  const GuideLayerResult r = or_404([&] { return guide_layer(w.project, req.matches[1], MarkerGuideOptions{}); });
+  const GuideLayerResult r =
+      or_404([&] { return guide_layer(w.project, req.matches[1], MarkerGuideOptions{}, /*leave_out_single_clicks=*/true); });
   json markers = json::array();
   for (const auto& m : r.summary.markers) {
     markers.push_back({{"name", m.name},
@@ -146,7 +147,8 @@ void post_guide(Context& c, const Request& req, Response& res) {
                        {"rejected", m.rejected.size()},
                        {"message", m.message}});
   }
-  reply(res, 200, {{"layer", r.layer}, {"guided", r.summary.added}, {"markers", markers}});
+  reply(res, 200, {{"layer", r.layer}, {"guided", r.summary.added}, {"markers", markers},
+                   {"left_out", r.single_clicks}});
 }
 
 // Photos are content-addressed: a URL always gives the same bytes.

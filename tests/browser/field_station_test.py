@@ -30,6 +30,7 @@ import urllib.request
 from selenium import webdriver
 from selenium.common.exceptions import TimeoutException, WebDriverException
 from selenium.webdriver.chrome.service import Service
+from selenium.webdriver.common.action_chains import ActionChains
 from selenium.webdriver.common.by import By
 from selenium.webdriver.common.keys import Keys
 from selenium.webdriver.support.ui import Select, WebDriverWait
@@ -111,8 +112,10 @@ class FieldStationTest(unittest.TestCase):
         cls.shots = os.path.join(SCRATCH, 'shots')
         cls.server_log = os.path.join(SCRATCH, 'server.log')
 
+        # Non-coded markers (chequered quadrants): the marker workspace is where they are
+        # placed, and the guide's refinement to their centre of symmetry applies to them.
         run_strata('-q', 'synth', cls.data, '--size', 'small', '--stages', '1', '--photos', '12',
-                   '--width', '800', '--seed', '5')
+                   '--width', '800', '--seed', '5', '--marker-pattern', 'quadrant')
         run_strata('-q', 'init', cls.site, '--crs', 'EPSG:32636')
 
         cls.stderr_file = open(cls.server_log, 'w')
@@ -609,6 +612,118 @@ class FieldStationTest(unittest.TestCase):
             self.screenshot('phone')
         finally:
             d.set_window_size(size['width'], size['height'])
+
+    # ---- the marker workspace and the 3D page --------------------------------------
+    def truth_clicks(self):
+        """The generator's gcp_list.txt for L1: marker -> {photo: (x, y)} (true pixels)."""
+        out = {}
+        with open(os.path.join(self.data, 'gcp_list.txt')) as f:
+            next(f)
+            for line in f:
+                parts = line.split()
+                if len(parts) >= 7 and parts[5].startswith('L1_'):
+                    out.setdefault(parts[6], {})[parts[5]] = (float(parts[3]), float(parts[4]))
+        return out
+
+    def strip_status(self, photo):
+        return self.js("const t = document.querySelector(`#photo-strip [data-photo=\"${arguments[0]}\"]`);"
+                       "return t ? t.dataset.status : null;", photo)
+
+    def stored(self, marker, photo):
+        status, body = self.api('GET', f'/api/layers/L1/markers/{marker}')
+        self.assertEqual(status, 200, body)
+        return next(p for p in body['photos'] if p['name'] == photo)
+
+    def choose_photo(self, photo):
+        self.driver.find_element(By.CSS_SELECTOR, f'#photo-strip [data-photo="{photo}"]').click()
+        self.wait(lambda d: d.execute_script(
+            "return window.strataMarkers && window.strataMarkers.view().photo === arguments[0] && "
+            "document.getElementById('photo-view').dataset.state === 'ready';", photo), 30, f'photo {photo} shown')
+
+    @step(allowed_console=[('/api/layers/L1/guide', 'status of 4')])
+    def test_9_markers_clicked_predicted_confirmed_georeferenced(self):
+        d = self.driver
+        truth = self.truth_clicks()
+        marker = next(m for m, seen in sorted(truth.items()) if len(seen) >= 3)
+        photos = sorted(truth[marker])
+        cleared, clicked = photos[len(photos) // 2], photos[0]
+        self.open('#/markers/L1', f'#marker-list [data-marker="{marker}"]')
+        d.find_element(By.CSS_SELECTOR, f'#marker-list [data-marker="{marker}"]').click()
+        self.wait(lambda d: self.strip_status(cleared) == 'clicked', 20, f'{marker} in {cleared} shown as clicked')
+        check_before = d.find_element(By.ID, 'check-rmse').text
+
+        # A click withdrawn with one key, then predicted by the guide, then confirmed with one key.
+        self.choose_photo(cleared)
+        d.find_element(By.TAG_NAME, 'body').send_keys('u')
+        self.wait(lambda d: self.strip_status(cleared) == 'none', 20, f'{marker} in {cleared} cleared, still in the strip')
+        button = d.find_element(By.ID, 'guide')
+        self.js("arguments[0].scrollIntoView({block: 'center'});", button)
+        button.click()
+        self.wait_message(lambda m, k: 'predicted position' in m, 60, 'the guide says how many positions it predicted')
+        self.wait(lambda d: self.strip_status(cleared) == 'predicted', 20, f'{marker} in {cleared} predicted')
+        p = self.stored(marker, cleared)
+        tx, ty = truth[marker][cleared]
+        off = ((p['observation']['x'] - tx) ** 2 + (p['observation']['y'] - ty) ** 2) ** 0.5
+        print(f'markers: {marker} in {cleared} predicted {off:.3f} px from the truth', file=sys.stderr)
+        self.assertLess(off, 1.0)
+        self.choose_photo(cleared)
+        d.find_element(By.TAG_NAME, 'body').send_keys('y')
+        self.wait(lambda d: self.strip_status(cleared) == 'confirmed', 20, f'{marker} in {cleared} confirmed')
+
+        # A click on the photo, zoomed in: stored in full-image pixels where the pointer was.
+        self.choose_photo(clicked)
+        d.find_element(By.TAG_NAME, 'body').send_keys('f')  # centred on the marker, close up
+        time.sleep(0.5)
+        tx, ty = truth[marker][clicked]
+        self.js("const v = document.getElementById('photo-canvas'); v.scrollIntoView({block: 'center'});")
+        centre = self.js("""const c = window.strataMarkers.imageToClient(arguments[0], arguments[1]);
+            const r = document.getElementById('photo-canvas').getBoundingClientRect();
+            return [c.x - (r.left + r.width / 2), c.y - (r.top + r.height / 2), window.strataMarkers.view().scale];""",
+                         tx, ty)
+        dx, dy, scale = centre
+        self.assertGreater(scale, 1.0, 'zoomed in past one screen pixel per photo pixel')
+        ActionChains(d).move_to_element_with_offset(d.find_element(By.ID, 'photo-canvas'), round(dx), round(dy)) \
+            .click().perform()
+        self.wait(lambda d: d.find_element(By.ID, 'click-readout').get_attribute('data-x'), 20, 'the click is stored')
+        readout = d.find_element(By.ID, 'click-readout')
+        shown = (float(readout.get_attribute('data-x')), float(readout.get_attribute('data-y')))
+        p = self.stored(marker, clicked)
+        self.assertEqual(p['status'], 'clicked')
+        self.assertAlmostEqual(p['observation']['x'], shown[0], places=6)
+        self.assertAlmostEqual(p['observation']['y'], shown[1], places=6)
+        off = ((shown[0] - tx) ** 2 + (shown[1] - ty) ** 2) ** 0.5
+        print(f'markers: clicked at {shown[0]:.3f}, {shown[1]:.3f} ({off:.3f} px from the true pixel; '
+              f'{scale:.2f} screen px per photo px)', file=sys.stderr)
+        self.assertLess(off, 1.0 / scale + 0.5)  # the pointer lands on a whole screen pixel
+
+        # Georeference again: the check RMSE shown changes, the previous one beside it.
+        button = d.find_element(By.ID, 'georeference')
+        self.js("arguments[0].scrollIntoView({block: 'center'});", button)  # not under the sticky message bar
+        button.click()
+        self.wait(lambda d: d.find_element(By.ID, 'georef-progress').get_attribute('data-state') == 'done', 300,
+                  'the georeference job is done')
+        self.wait(lambda d: d.find_elements(By.CSS_SELECTOR, '#check-rmse .rmse-was'), 30,
+                  'the check RMSE shows the value before')
+        print(f'markers: check RMSE before {check_before!r}, after {d.find_element(By.ID, "check-rmse").text!r}',
+              file=sys.stderr)
+        self.screenshot('markers', full=False)
+
+    @step()
+    def test_8_the_site_in_3d(self):
+        # Before the marker workspace georeferences again (which makes the dense surface stale).
+        d = self.driver
+        self.open('#/3d', '#view3d-frame')
+        d.switch_to.frame(d.find_element(By.ID, 'view3d-frame'))
+        try:
+            self.wait(lambda d: d.find_element(By.ID, 'status').text.startswith('loaded'), 120,
+                      'the viewer in the 3D page says it loaded the model')
+            status = d.find_element(By.ID, 'status').text
+            layers = [e.text for e in d.find_elements(By.CSS_SELECTOR, '#layers label')]
+        finally:
+            d.switch_to.default_content()
+        print(f'3d: {status}; layers {layers}', file=sys.stderr)
+        self.assertTrue(any('L1' in l for l in layers), layers)
+        self.screenshot('view3d', full=False)
 
 
 def main():

@@ -253,6 +253,34 @@ TEST_F(Serve, RecordsWrittenThroughTheApiAreTheCommandLinesRecords) {
   EXPECT_NE(test::database_rows(site / "project.gpkg", {"finds"}).find("F7|102|pottery"), std::string::npos);
 }
 
+// The 3D page's model: the viewer page `export viewer` writes, served with a policy that
+// lets its own inline scripts run and nothing else load; kept until the record changes.
+TEST_F(Serve, TheSiteModelIsServedAsTheViewerPage) {
+  const fs::path dir = folder("viewer_page"), site = copy_template(dir / "site");
+  Served s(dir, site);
+  auto r = s.client().Get("/api/viewer");
+  ASSERT_TRUE(r);
+  ASSERT_EQ(r->status, 200) << r->body.substr(0, 500);
+  const std::string csp = r->get_header_value("Content-Security-Policy");
+  EXPECT_NE(csp.find("default-src 'none'"), std::string::npos) << csp;
+  EXPECT_NE(csp.find("script-src 'unsafe-inline'"), std::string::npos) << csp;
+  EXPECT_NE(r->body.find("<script id=\"model\""), std::string::npos);
+  EXPECT_NE(r->body.find("layer L1"), std::string::npos);  // the layer's node, as export viewer names it
+  const std::string first = r->body;
+  r = s.client().Get("/api/viewer");
+  EXPECT_EQ(r->body, first);  // the same record: the same page
+  r = s.client().Get("/api/viewer?layer=L404");
+  EXPECT_EQ(r->status, 404);
+  EXPECT_EQ(error_field(r), "layer");
+  // A project with no dense surface: refused with what to do.
+  const fs::path bare = dir / "bare";
+  ASSERT_EQ(run_strata({"-q", "init", bare.string(), "--crs", "EPSG:32636"}).exit_code, 0);
+  Served b(dir, bare);
+  r = b.client().Get("/api/viewer");
+  EXPECT_EQ(r->status, 400) << r->body.substr(0, 300);
+  EXPECT_FALSE(error_message(r).empty());
+}
+
 TEST_F(Serve, AWriterMeetingAnotherWritersLockIsToldWhoHoldsIt) {
   const fs::path dir = folder("lock"), site = copy_template(dir / "site");
   Served s(dir, site);

@@ -1,6 +1,6 @@
 #pragma once
-// The site model as a glTF scene: what `export model` writes and `export viewer`
-// embeds, built once here so the two cannot drift apart.
+// The site model as a glTF scene: what `export model` writes, `export viewer` embeds and
+// the field station's 3D page shows, built once here so they cannot drift apart.
 #include "exporters/gltf/gltf_writer.hpp"
 #include "geometry/mesh.hpp"
 #include "importers/mesh/ply_mesh.hpp"
@@ -8,14 +8,12 @@
 #include "project/project.hpp"
 #include "project/records.hpp"
 
-#include <CLI/CLI.hpp>
-
 #include <cstddef>
 #include <deque>
 #include <filesystem>
 #include <string>
 
-namespace strata::cli {
+namespace strata {
 
 // How layer meshes are textured from their photos (products.texture) in a model or viewer.
 struct ModelTextureArgs {
@@ -89,6 +87,4 @@ void check_level_of_detail(int lod);
 // kMinLevelOfDetailFaces faces. Logs the face count of the level.
 DenseMesh layer_mesh_at_level(DenseMesh mesh, int lod, const std::string& layer, const std::string& command);
 
-void register_viewer_command(CLI::App& exp);  // export viewer
-
-}  // namespace strata::cli
+}  // namespace strata

@@ -10,7 +10,7 @@
 // URL parameters: hide=NAME,NAME (nodes as the checkboxes name them, e.g. "layer L2")
 // start switched off; shade=1 lights the layers (default: their photo colours as
 // recorded, unlit).
-namespace strata::cli {
+namespace strata {
 
 extern const char* const kViewerJs;
 const char* const kViewerJs = R"JS(
@@ -440,4 +440,4 @@ R"JS(
 })();
 )JS";
 
-}  // namespace strata::cli
+}  // namespace strata

@@ -1,5 +1,5 @@
 // The site model's glTF scene, shared by `export model` and `export viewer`.
-#include "cli/site_scene.hpp"
+#include "pipeline/site_scene.hpp"
 #include "core/error.hpp"
 #include "core/hash.hpp"
 #include "core/log.hpp"
@@ -20,7 +20,7 @@
 #include <cmath>
 #include <limits>
 
-namespace strata::cli {
+namespace strata {
 
 void SiteScene::add_mesh(std::string name, DenseMesh mesh, std::optional<std::array<double, 4>> colour,
                          std::string extras_json, std::optional<MeshTexture> texture) {
@@ -314,4 +314,4 @@ SiteScene build_site_scene(Project& p, const std::string& dir, const SiteSceneOp
   return site;
 }
 
-}  // namespace strata::cli
+}  // namespace strata
