@@ -31,46 +31,6 @@ using nlohmann::json;
 
 namespace {
 
-// ---- request values ------------------------------------------------------------
-
-// A text field of a JSON body: a string when present; "" when absent and not required.
-std::string text(const json& body, const char* field, bool required = false, const std::string& fallback = "") {
-  const auto it = body.find(field);
-  if (it == body.end() || it->is_null()) {
-    if (required) throw HttpError(400, fmt::format("{} is missing", field), field);
-    return fallback;
-  }
-  if (!it->is_string()) throw HttpError(400, fmt::format("{} must be text, not {}", field, it->dump()), field, it->dump());
-  return it->get<std::string>();
-}
-
-// A number field: finite; given as a number or as text holding one (a form's value).
-double number(const json& body, const char* field) {
-  const auto it = body.find(field);
-  if (it == body.end() || it->is_null()) throw HttpError(400, fmt::format("{} is missing", field), field);
-  double v = NAN;
-  if (it->is_number()) {
-    v = it->get<double>();
-  } else if (it->is_string()) {
-    const std::string s = it->get<std::string>();
-    std::size_t used = 0;
-    try {
-      v = std::stod(s, &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    if (used == 0 || used != s.size()) throw HttpError(400, fmt::format("{} '{}' is not a number", field, s), field, s);
-  }
-  if (!std::isfinite(v)) throw HttpError(400, fmt::format("{} must be a finite number", field), field, it->dump());
-  return v;
-}
-
-LayerRecord layer_or_404(Project& p, const std::string& name) {
-  auto l = find_layer(p.db(), name);
-  if (!l) throw HttpError(404, fmt::format("layer '{}' does not exist", name), "layer", name);
-  return *l;
-}
-
 // ---- what the pages read -------------------------------------------------------
 
 json unit_json(const UnitRecord& u, const std::vector<LayerRecord>& layers) {
@@ -146,9 +106,9 @@ void get_units(Context& c, const Request&, Response& res) {
 void post_unit(Context& c, const Request& req, Response& res) {
   const json body = json_body(req);
   UnitRecord u;
-  u.code = text(body, "code", true);
-  u.type = text(body, "type", false, "deposit");
-  u.description = text(body, "description");
+  u.code = body_text(body, "code", true);
+  u.type = body_text(body, "type", false, "deposit");
+  u.description = body_text(body, "description");
   ProjectWriter w = c.write("add unit " + u.code);
   u = add_unit(w.project, u);
   reply(res, 201, unit_json(u, {}));
@@ -163,7 +123,7 @@ void get_relations(Context& c, const Request&, Response& res) {
 
 void post_relation(Context& c, const Request& req, Response& res) {
   const json body = json_body(req);
-  const std::string a = text(body, "a", true), word = text(body, "relation", true), b = text(body, "b", true);
+  const std::string a = body_text(body, "a", true), word = body_text(body, "relation", true), b = body_text(body, "b", true);
   ProjectWriter w = c.write(fmt::format("add relation {} {} {}", a, word, b));
   const RelationAdded r = add_relation(w.project, a, word, b);
   reply(res, r.added ? 201 : 200,
@@ -196,9 +156,9 @@ void get_layers(Context& c, const Request&, Response& res) {
 void post_layer(Context& c, const Request& req, Response& res) {
   const json body = json_body(req);
   LayerRecord l;
-  l.name = text(body, "name", true);
-  l.unit = text(body, "unit", true);
-  const std::string captured = text(body, "captured_at");
+  l.name = body_text(body, "name", true);
+  l.unit = body_text(body, "unit", true);
+  const std::string captured = body_text(body, "captured_at");
   if (!captured.empty()) l.captured_at = captured;
   ProjectWriter w = c.write("add layer " + l.name);
   l = add_layer(w.project, l);
@@ -305,7 +265,7 @@ void get_report(Context& c, const Request& req, Response& res) {
 
 void post_process(Context& c, const Request& req, Response& res) {
   const json body = req.body.empty() ? json::object() : json_body(req);
-  const std::string until = text(body, "until", false, "products");
+  const std::string until = body_text(body, "until", false, "products");
   try {
     parse_process_until(until);
   } catch (const InputError& e) {
@@ -394,11 +354,11 @@ void get_finds(Context& c, const Request&, Response& res) {
 void post_find(Context& c, const Request& req, Response& res) {
   const json body = json_body(req);
   FindRecord f;
-  f.id = checked_code("id", text(body, "id", true));
-  f.unit = text(body, "unit", true);
-  f.type = text(body, "type");
-  f.description = text(body, "description");
-  f.position = {number(body, "e"), number(body, "n"), number(body, "z")};
+  f.id = checked_code("id", body_text(body, "id", true));
+  f.unit = body_text(body, "unit", true);
+  f.type = body_text(body, "type");
+  f.description = body_text(body, "description");
+  f.position = {body_number(body, "e"), body_number(body, "n"), body_number(body, "z")};
   f.source = "field station";
   ProjectWriter w = c.write("add find " + f.id);
   if (find_find(w.project.db(), f.id)) throw HttpError(409, fmt::format("find '{}' already exists", f.id), "id", f.id);

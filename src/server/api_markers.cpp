@@ -46,37 +46,20 @@ json photo_json(const MarkerPhoto& e) {
   return j;
 }
 
-// A layer or marker the workspace does not know is a 404; other refusals stay 400.
+// A marker the survey does not have is a 404 (the layer is checked first, layer_or_404).
 template <class F>
-auto or_404(F&& f) {
+auto marker_or_404(F&& f) {
   try {
     return f();
   } catch (const FieldError& e) {
     if (e.field() == "marker") throw HttpError(404, e.what(), e.field(), e.value());
     throw;
-  } catch (const InputError& e) {
-    if (std::string(e.what()).find("does not exist") != std::string::npos) throw HttpError(404, e.what(), "layer");
-    throw;
   }
-}
-
-double number_field(const json& body, const char* field) {
-  const auto it = body.find(field);
-  if (it == body.end() || !it->is_number()) {
-    throw HttpError(400, fmt::format("{} must be a number of pixels", field), field, it == body.end() ? "" : it->dump());
-  }
-  return it->get<double>();
-}
-
-std::string text_field(const json& body, const char* field) {
-  const auto it = body.find(field);
-  if (it == body.end() || !it->is_string()) throw HttpError(400, fmt::format("{} is missing", field), field);
-  return it->get<std::string>();
 }
 
 void get_layer_markers(Context& c, const Request& req, Response& res) {
   Project p = c.read();
-  const MarkerOverview o = or_404([&] { return marker_overview(p, req.matches[1]); });
+  const MarkerOverview o = marker_overview(p, layer_or_404(p, req.matches[1]).name);
   json markers = json::array();
   for (const auto& w : o.markers) {
     json m = {{"name", w.marker.name},
@@ -110,7 +93,8 @@ void get_layer_markers(Context& c, const Request& req, Response& res) {
 
 void get_marker_photos(Context& c, const Request& req, Response& res) {
   Project p = c.read();
-  const MarkerPhotos m = or_404([&] { return marker_photos(p, req.matches[1], req.matches[2]); });
+  const std::string layer = layer_or_404(p, req.matches[1]).name;
+  const MarkerPhotos m = marker_or_404([&] { return marker_photos(p, layer, req.matches[2]); });
   json photos = json::array();
   for (const auto& e : m.photos) photos.push_back(photo_json(e));
   reply(res, 200, {{"marker", m.marker.name}, {"role", m.marker.kind}, {"photos", photos}});
@@ -118,27 +102,29 @@ void get_marker_photos(Context& c, const Request& req, Response& res) {
 
 void post_click(Context& c, const Request& req, Response& res) {
   const json body = json_body(req);
-  const std::string photo = text_field(body, "photo");
-  const Eigen::Vector2d pixel(number_field(body, "x"), number_field(body, "y"));
+  const std::string photo = body_text(body, "photo", true);
+  const Eigen::Vector2d pixel(body_number(body, "x"), body_number(body, "y"));
   ProjectWriter w = c.write(fmt::format("click marker {} in {}", std::string(req.matches[2]), photo));
-  const MarkerPhoto e = or_404([&] { return click_marker(w.project, req.matches[1], req.matches[2], photo, pixel); });
+  const std::string layer = layer_or_404(w.project, req.matches[1]).name;
+  const MarkerPhoto e = marker_or_404([&] { return click_marker(w.project, layer, req.matches[2], photo, pixel); });
   reply(res, 201, photo_json(e));
 }
 
 void post_review(Context& c, const Request& req, Response& res) {
   const json body = json_body(req);
-  const std::string photo = text_field(body, "photo");
-  const ReviewVerdict verdict = parse_review_verdict(text_field(body, "verdict"));
+  const std::string photo = body_text(body, "photo", true);
+  const ReviewVerdict verdict = parse_review_verdict(body_text(body, "verdict", true));
   ProjectWriter w = c.write(fmt::format("review marker {} in {}", std::string(req.matches[2]), photo));
+  const std::string layer = layer_or_404(w.project, req.matches[1]).name;
   const MarkerPhoto e =
-      or_404([&] { return review_observation(w.project, req.matches[1], req.matches[2], photo, verdict); });
+      marker_or_404([&] { return review_observation(w.project, layer, req.matches[2], photo, verdict); });
   reply(res, 200, photo_json(e));
 }
 
 void post_guide(Context& c, const Request& req, Response& res) {
   ProjectWriter w = c.write(fmt::format("markers guide --layer {}", std::string(req.matches[1])));
-  const GuideLayerResult r =
-      or_404([&] { return guide_layer(w.project, req.matches[1], MarkerGuideOptions{}, /*leave_out_single_clicks=*/true); });
+  const std::string layer = layer_or_404(w.project, req.matches[1]).name;
+  const GuideLayerResult r = guide_layer(w.project, layer, MarkerGuideOptions{}, /*leave_out_single_clicks=*/true);
   json markers = json::array();
   for (const auto& m : r.summary.markers) {
     markers.push_back({{"name", m.name},
@@ -156,14 +142,13 @@ constexpr const char* kImmutable = "private, max-age=31536000, immutable";
 
 void get_photo(Context& c, const Request& req, Response& res) {
   Project p = c.read();
-  const auto layer = find_layer(p.db(), req.matches[1]);
-  if (!layer) throw HttpError(404, fmt::format("layer '{}' does not exist", std::string(req.matches[1])), "layer");
+  const LayerRecord layer = layer_or_404(p, req.matches[1]);
   std::optional<ImageRecord> image;
-  for (const auto& im : list_images(p.db(), layer->id)) {
+  for (const auto& im : list_images(p.db(), layer.id)) {
     if (im.name == req.matches[2]) image = im;
   }
   if (!image) {
-    throw HttpError(404, fmt::format("photo '{}' is not in layer {}", std::string(req.matches[2]), layer->name), "photo");
+    throw HttpError(404, fmt::format("photo '{}' is not in layer {}", std::string(req.matches[2]), layer.name), "photo");
   }
   const fs::path file = c.dir / image->media_path;  // from the database, never from the request
   const std::string ext = file.extension().string();

@@ -3,6 +3,7 @@
 // API answers with.
 #include "project/project.hpp"
 #include "project/project_lock.hpp"
+#include "project/records.hpp"
 #include "server/jobs.hpp"
 #include "server/routes.hpp"
 #include "server/server.hpp"
@@ -75,6 +76,14 @@ std::vector<Route> viewer_routes();
 void reply(httplib::Response& res, int status, const nlohmann::json& body);
 // The JSON object of a request body; 400 naming the problem when it is not one.
 nlohmann::json json_body(const httplib::Request& req);
+// A text field of a body: a string when present; `fallback` when absent and not required;
+// 400 naming the field otherwise.
+std::string body_text(const nlohmann::json& body, const char* field, bool required = false,
+                      const std::string& fallback = "");
+// A number field: finite; a number or text holding one (a form's value); 400 naming it.
+double body_number(const nlohmann::json& body, const char* field);
+// The layer of a path, 404 naming it when there is none.
+LayerRecord layer_or_404(Project& project, const std::string& name);
 
 // The project file of a stored job that was running when the server stopped: it is
 // started again when the server starts (the stages done are not recomputed).

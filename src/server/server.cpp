@@ -6,10 +6,12 @@
 #include "core/error.hpp"
 #include "core/field_error.hpp"
 #include "core/log.hpp"
+#include "project/records.hpp"
 #include "server/http.hpp"
 
 #include <fmt/format.h>
 
+#include <cmath>
 #include <csignal>
 #include <cstdint>
 #include <fstream>
@@ -259,6 +261,43 @@ json json_body(const Request& req) {
   }
   if (!body.is_object()) throw HttpError(400, "the request body must be a JSON object", "body");
   return body;
+}
+
+// A text field of a JSON body: a string when present; `fallback` when absent and not required.
+std::string body_text(const json& body, const char* field, bool required, const std::string& fallback) {
+  const auto it = body.find(field);
+  if (it == body.end() || it->is_null()) {
+    if (required) throw HttpError(400, fmt::format("{} is missing", field), field);
+    return fallback;
+  }
+  if (!it->is_string()) throw HttpError(400, fmt::format("{} must be text, not {}", field, it->dump()), field, it->dump());
+  return it->get<std::string>();
+}
+
+double body_number(const json& body, const char* field) {
+  const auto it = body.find(field);
+  if (it == body.end() || it->is_null()) throw HttpError(400, fmt::format("{} is missing", field), field);
+  double v = NAN;
+  if (it->is_number()) {
+    v = it->get<double>();
+  } else if (it->is_string()) {
+    const std::string s = it->get<std::string>();
+    std::size_t used = 0;
+    try {
+      v = std::stod(s, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used == 0 || used != s.size()) throw HttpError(400, fmt::format("{} '{}' is not a number", field, s), field, s);
+  }
+  if (!std::isfinite(v)) throw HttpError(400, fmt::format("{} must be a finite number", field), field, it->dump());
+  return v;
+}
+
+LayerRecord layer_or_404(Project& p, const std::string& name) {
+  auto l = find_layer(p.db(), name);
+  if (!l) throw HttpError(404, fmt::format("layer '{}' does not exist", name), "layer", name);
+  return *l;
 }
 
 ProjectWriter Context::write(const std::string& what) {
