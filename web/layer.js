@@ -37,6 +37,11 @@ export async function render(main, params, signal) {
   const jobElapsed = el('span', {id: 'job-elapsed', class: 'muted'});
   const jobLog = el('ol', {id: 'job-log', class: 'log', 'aria-live': 'off'});
   const verdict = el('div', {id: 'verdict', class: 'verdict'});
+  // The field report itself (its coverage map, plans and figures), shown as it is: a
+  // frame with no scripts and no access to this page.
+  const reportFrame = el('iframe', {id: 'report-frame', title: 'The field report', sandbox: '', referrerpolicy: 'no-referrer'});
+  const reportBox = el('details', {id: 'report-box', open: true, hidden: true},
+    el('summary', {}, 'The field report: coverage map, plans, figures'), reportFrame);
   const quality = el('div', {id: 'quality'});
   const jobBox = el('div', {class: 'job idle', id: 'job'},
     el('p', {}, 'Job: ', jobState), jobMessage,
@@ -58,7 +63,8 @@ export async function render(main, params, signal) {
       uploads),
     section('Processing', 'process-section', processForm, jobBox),
     section('Verdict', 'verdict-section', verdict, quality,
-      el('p', {}, el('a', {id: 'report-link', href: `${base}/report`, target: '_blank', rel: 'noopener'}, 'Open the field report'))));
+      el('p', {}, el('a', {id: 'report-link', href: `${base}/report`, target: '_blank', rel: 'noopener'}, 'Open the field report')),
+      reportBox));
 
   // --- the layer ------------------------------------------------------------------
   const reload = async () => {
@@ -82,6 +88,8 @@ export async function render(main, params, signal) {
       p.width && p.height ? el('span', {class: 'muted'}, ` ${p.width}×${p.height}`) : null)));
     showVerdict(verdict, layer, flag('aligned'));
     showQuality(quality, q);
+    reportBox.hidden = !flag('aligned');
+    if (!reportBox.hidden) reportFrame.src = `${base}/report?v=${Date.now()}`;  // the report is rewritten after each run
   };
 
   // --- upload, one file at a time -------------------------------------------------
