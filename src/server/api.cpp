@@ -44,27 +44,6 @@ std::string text(const json& body, const char* field, bool required = false, con
   return it->get<std::string>();
 }
 
-// A number field: finite; given as a number or as text holding one (a form's value).
-double number(const json& body, const char* field) {
-  const auto it = body.find(field);
-  if (it == body.end() || it->is_null()) throw HttpError(400, fmt::format("{} is missing", field), field);
-  double v = NAN;
-  if (it->is_number()) {
-    v = it->get<double>();
-  } else if (it->is_string()) {
-    const std::string s = it->get<std::string>();
-    std::size_t used = 0;
-    try {
-      v = std::stod(s, &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    if (used == 0 || used != s.size()) throw HttpError(400, fmt::format("{} '{}' is not a number", field, s), field, s);
-  }
-  if (!std::isfinite(v)) throw HttpError(400, fmt::format("{} must be a finite number", field), field, it->dump());
-  return v;
-}
-
 LayerRecord layer_or_404(Project& p, const std::string& name) {
   auto l = find_layer(p.db(), name);
   if (!l) throw HttpError(404, fmt::format("layer '{}' does not exist", name), "layer", name);
@@ -412,6 +391,26 @@ void post_find(Context& c, const Request& req, Response& res) {
 
 }  // namespace
 
+double number(const json& body, const char* field) {
+  const auto it = body.find(field);
+  if (it == body.end() || it->is_null()) throw HttpError(400, fmt::format("{} is missing", field), field);
+  double v = NAN;
+  if (it->is_number()) {
+    v = it->get<double>();
+  } else if (it->is_string()) {
+    const std::string s = it->get<std::string>();
+    std::size_t used = 0;
+    try {
+      v = std::stod(s, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used == 0 || used != s.size()) throw HttpError(400, fmt::format("{} '{}' is not a number", field, s), field, s);
+  }
+  if (!std::isfinite(v)) throw HttpError(400, fmt::format("{} must be a finite number", field), field, it->dump());
+  return v;
+}
+
 const std::vector<Route>& routes() {
   using R = Role;
   static const std::vector<Route> table = [] {
@@ -438,6 +437,7 @@ const std::vector<Route>& routes() {
       {{"POST", "/api/finds", R::recorder, "record a find"}, post_find, {}},
     };
     for (auto& r : marker_routes()) t.push_back(std::move(r));
+    for (auto& r : map_routes()) t.push_back(std::move(r));
     return t;
   }();
   return table;

@@ -66,13 +66,18 @@ struct Route {
   Handler handler;               // GET, and POST with a JSON body
   UploadHandler upload;          // POST with a streamed body (photos)
 };
-// Every route: the record's (api.cpp) and the marker workspace's (api_markers.cpp).
+// Every route: the record's (api.cpp), the marker workspace's (api_markers.cpp) and the
+// map's (api_map.cpp).
 const std::vector<Route>& routes();
 std::vector<Route> marker_routes();
+std::vector<Route> map_routes();  // api_map.cpp
 
 void reply(httplib::Response& res, int status, const nlohmann::json& body);
 // The JSON object of a request body; 400 naming the problem when it is not one.
 nlohmann::json json_body(const httplib::Request& req);
+// A finite number field of a JSON body, given as a number or as text holding one (a
+// form's value); 400 naming the field otherwise.
+double number(const nlohmann::json& body, const char* field);
 
 // The project file of a stored job that was running when the server stopped: it is
 // started again when the server starts (the stages done are not recomputed).
