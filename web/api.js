@@ -58,6 +58,20 @@ async function request(method, path, body, token) {
   }
 }
 
+// A POST whose answer is not JSON (a drawing): the body as a Blob. Refusals are JSON
+// and become ApiErrors as for every request.
+async function requestBlob(path, body, token) {
+  let response;
+  try {
+    response = await fetch(path, {method: 'POST', credentials: 'same-origin', body: JSON.stringify(body),
+                                  headers: {'Content-Type': 'application/json', 'X-CSRF-Token': token}});
+  } catch {
+    throw new ApiError('The server cannot be reached: is `strata serve` running, and the connection up?');
+  }
+  if (!response.ok) throw await errorFrom(response.status, response.statusText, await response.text());
+  return response.blob();
+}
+
 // A write; a 403 may mean the token went stale (the server restarted): fetch a
 // fresh session once and try again.
 async function write(send) {
@@ -103,6 +117,7 @@ function uploadOnce(path, file, onProgress, token) {
 export const api = {
   get: (path) => request('GET', path),
   post: (path, body = {}) => write((token) => request('POST', path, body, token)),
+  postForBlob: (path, body = {}) => write((token) => requestBlob(path, body, token)),
   upload: (path, file, onProgress) => write((token) => uploadOnce(path, file, onProgress, token)),
   session: () => getSession(),
 };

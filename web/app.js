@@ -1,4 +1,4 @@
-// The router: #/site, #/finds, #/3d, #/layer/NAME, #/markers/NAME (NAME URL-encoded). Each page is a
+// The router: #/site, #/finds, #/map, #/3d, #/layer/NAME, #/markers/NAME (NAME URL-encoded). Each page is a
 // module with render(main, params, signal); the signal aborts when the page is left
 // (an open event stream closes, late answers are dropped).
 import {clearMessage, showMessage} from './api.js';
@@ -6,6 +6,7 @@ import {clearMessage, showMessage} from './api.js';
 const routes = [
   {pattern: /^#\/site$/, module: './site.js', nav: 'site'},
   {pattern: /^#\/finds$/, module: './finds.js', nav: 'finds'},
+  {pattern: /^#\/map$/, module: './map.js', nav: 'map'},
   {pattern: /^#\/3d$/, module: './view3d.js', nav: '3d'},
   {pattern: /^#\/layer\/(.+)$/, module: './layer.js', nav: 'site', params: (m) => ({name: decode(m[1])})},
   {pattern: /^#\/markers\/(.+)$/, module: './markers.js', nav: 'site', params: (m) => ({name: decode(m[1])})},

@@ -524,8 +524,7 @@ class SectionGpkg {
 
 }  // namespace
 
-void write_section_svg(const fs::path& path, const SectionProfile& p, const Eigen::Vector3d& origin,
-                       const SectionDrawingOptions& o) {
+std::string section_svg(const SectionProfile& p, const Eigen::Vector3d& origin, const SectionDrawingOptions& o) {
   constexpr const char* kStage = "writer.section.svg";
   if (!(o.scale > 0)) throw InputError(fmt::format("{}: scale 1:{} is not positive", kStage, o.scale));
   const SectionPage page = layout_page(p, origin, o, kStage);
@@ -540,7 +539,12 @@ void write_section_svg(const fs::path& path, const SectionProfile& p, const Eige
   draw_datum(d);
   draw_legend(d, draw_scale_bar(d));
   d.add("</svg>");
-  write_bytes_atomically(path, kStage, d.svg);
+  return std::move(d.svg);
+}
+
+void write_section_svg(const fs::path& path, const SectionProfile& p, const Eigen::Vector3d& origin,
+                       const SectionDrawingOptions& o) {
+  write_bytes_atomically(path, "writer.section.svg", section_svg(p, origin, o));
 }
 
 void write_section_gpkg(const fs::path& path, const SectionProfile& p, const Eigen::Vector3d& origin,

@@ -29,6 +29,9 @@ struct SectionDrawingOptions {
 // filled in front of the section face, open behind it.
 void write_section_svg(const std::filesystem::path& path, const SectionProfile& profile,
                        const Eigen::Vector3d& site_origin, const SectionDrawingOptions& options);
+// The same drawing as text (what write_section_svg writes; the field station sends it).
+std::string section_svg(const SectionProfile& profile, const Eigen::Vector3d& site_origin,
+                        const SectionDrawingOptions& options);
 
 // GeoPackage with 3D lines in real CRS coordinates: table section_surfaces (one
 // LINESTRING Z per layer and continuous stretch), table section_units (the closed

@@ -101,4 +101,112 @@ RasterThumbnail read_raster_thumbnail(const fs::path& path, int max_px, bool ave
   return t;
 }
 
+namespace {
+
+struct OpenRaster {
+  std::unique_ptr<GDALDataset, DatasetCloser> ds;
+  std::array<double, 6> gt{};
+  int width = 0, height = 0;
+};
+
+OpenRaster open_north_up(const fs::path& path) {
+  register_gdal();
+  OpenRaster r;
+  r.ds.reset(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
+  if (!r.ds) throw IoError(fmt::format("reader.raster: {}: cannot read the raster", path.string()));
+  r.width = r.ds->GetRasterXSize();
+  r.height = r.ds->GetRasterYSize();
+  if (r.ds->GetGeoTransform(r.gt.data()) != CE_None || r.gt[2] != 0 || r.gt[4] != 0 || r.gt[1] <= 0 ||
+      r.gt[5] >= 0 || r.width <= 0 || r.height <= 0) {
+    throw IoError(fmt::format("reader.raster: {}: not a north-up georeferenced raster", path.string()));
+  }
+  return r;
+}
+
+}  // namespace
+
+RasterExtent read_raster_extent(const fs::path& path) {
+  const OpenRaster r = open_north_up(path);
+  RasterExtent e;
+  e.width = r.width;
+  e.height = r.height;
+  e.bands = r.ds->GetRasterCount();
+  e.pixel_m = r.gt[1];
+  e.west = r.gt[0];
+  e.north = r.gt[3];
+  e.east = r.gt[0] + r.width * r.gt[1];
+  e.south = r.gt[3] + r.height * r.gt[5];
+  return e;
+}
+
+RasterThumbnail read_raster_window(const fs::path& path, double west, double south, double east, double north,
+                                   int width, int height) {
+  if (!(east > west) || !(north > south) || width <= 0 || height <= 0) {
+    throw IoError(fmt::format("reader.raster: {}: an empty window was asked for", path.string()));
+  }
+  const OpenRaster r = open_north_up(path);
+  RasterThumbnail t;
+  t.width = width;
+  t.height = height;
+  t.bands = r.ds->GetRasterCount();
+  t.west = west;
+  t.south = south;
+  t.east = east;
+  t.north = north;
+  const std::size_t n = std::size_t(width) * std::size_t(height);
+  t.band.assign(std::size_t(t.bands), std::vector<float>(n, 0.0f));
+  t.valid.assign(n, 0);
+  // The window in the file's pixels (fractional), and the tile pixels it maps to:
+  // only whole tile pixels that lie inside the file are read.
+  const double px = (east - west) / width, py = (north - south) / height;  // metres per tile pixel
+  const double file_px = r.gt[1], file_py = -r.gt[5];
+  const double fx0 = (west - r.gt[0]) / file_px, fy0 = (r.gt[3] - north) / file_py;
+  const double per_x = px / file_px, per_y = py / file_py;  // file pixels per tile pixel
+  const int c0 = std::clamp(int(std::ceil(-fx0 / per_x - 1e-9)), 0, width);
+  const int c1 = std::clamp(int(std::floor((r.width - fx0) / per_x + 1e-9)), 0, width);
+  const int r0 = std::clamp(int(std::ceil(-fy0 / per_y - 1e-9)), 0, height);
+  const int r1 = std::clamp(int(std::floor((r.height - fy0) / per_y + 1e-9)), 0, height);
+  if (c1 <= c0 || r1 <= r0 || t.bands == 0) return t;
+  const int cw = c1 - c0, rh = r1 - r0;
+  const double sx0 = std::clamp(fx0 + c0 * per_x, 0.0, double(r.width));
+  const double sy0 = std::clamp(fy0 + r0 * per_y, 0.0, double(r.height));
+  const double sw = std::min(cw * per_x, r.width - sx0), sh = std::min(rh * per_y, r.height - sy0);
+  GDALRasterIOExtraArg extra;
+  INIT_RASTERIO_EXTRA_ARG(extra);
+  extra.eResampleAlg = per_x > 1 ? GRIORA_Average : GRIORA_Bilinear;
+  extra.bFloatingPointWindowValidity = TRUE;
+  extra.dfXOff = sx0;
+  extra.dfYOff = sy0;
+  extra.dfXSize = sw;
+  extra.dfYSize = sh;
+  const int ix0 = std::clamp(int(std::floor(sx0)), 0, r.width - 1);
+  const int iy0 = std::clamp(int(std::floor(sy0)), 0, r.height - 1);
+  const int ixs = std::clamp(int(std::ceil(sx0 + sw)) - ix0, 1, r.width - ix0);
+  const int iys = std::clamp(int(std::ceil(sy0 + sh)) - iy0, 1, r.height - iy0);
+  std::vector<float> part(std::size_t(cw) * std::size_t(rh));
+  for (int b = 0; b < t.bands; ++b) {
+    if (r.ds->GetRasterBand(b + 1)->RasterIO(GF_Read, ix0, iy0, ixs, iys, part.data(), cw, rh, GDT_Float32, 0, 0,
+                                             &extra) != CE_None) {
+      throw IoError(fmt::format("reader.raster: {}: cannot read band {}", path.string(), b + 1));
+    }
+    auto& out = t.band[std::size_t(b)];
+    for (int row = 0; row < rh; ++row) {
+      std::copy_n(part.begin() + std::ptrdiff_t(row) * cw, cw,
+                  out.begin() + std::ptrdiff_t(r0 + row) * width + c0);
+    }
+  }
+  int has_nodata = 0;
+  const double nodata = r.ds->GetRasterBand(1)->GetNoDataValue(&has_nodata);
+  for (int row = r0; row < r1; ++row) {
+    for (int col = c0; col < c1; ++col) {
+      const std::size_t i = std::size_t(row) * std::size_t(width) + std::size_t(col);
+      const float v = t.band[0][i];
+      bool ok = std::isfinite(v) && !(has_nodata && std::abs(double(v) - nodata) < 1e-3);
+      if (t.bands == 4) ok = ok && t.band[3][i] > 0;
+      t.valid[i] = ok ? 1 : 0;
+    }
+  }
+  return t;
+}
+
 }  // namespace strata

@@ -32,4 +32,22 @@ struct RasterThumbnail {
 // the file.
 RasterThumbnail read_raster_thumbnail(const std::filesystem::path& path, int max_px, bool average);
 
+// The extent of a north-up raster without reading its pixels: its outer edges in CRS
+// coordinates (metres), its pixel size and band count. Throws IoError naming the file.
+struct RasterExtent {
+  double west = 0, south = 0, east = 0, north = 0;
+  double pixel_m = 0;  // east-west pixel size
+  int width = 0, height = 0, bands = 0;
+};
+RasterExtent read_raster_extent(const std::filesystem::path& path);
+
+// The part of a north-up raster inside the CRS rectangle [west, east] x [south, north]
+// resampled onto width x height pixels (a map tile): GDAL RasterIO with a floating-point
+// source window, averaging when a pixel covers several of the file's, bilinear when it
+// covers less than one. Pixels outside the file's data are not `valid` (band values
+// 0); a 4-band raster's 4th band is its alpha (valid where > 0). Throws IoError naming
+// the file.
+RasterThumbnail read_raster_window(const std::filesystem::path& path, double west, double south, double east,
+                                   double north, int width, int height);
+
 }  // namespace strata

@@ -6,6 +6,7 @@
 #include "core/log.hpp"
 #include "exporters/section/section_writers.hpp"
 #include "exporters/voxels/voxel_export.hpp"
+#include "pipeline/site_section.hpp"
 #include "project/project.hpp"
 #include "volume/section.hpp"
 #include "volume/site_volumes.hpp"
@@ -296,29 +297,26 @@ void register_exports(CLI::App& app) {
       const std::string ext = fs::path(*out).extension().string();
       if (ext != ".svg" && ext != ".gpkg")
         throw InputError(fmt::format("export section: --out '{}' must end in .svg or .gpkg", *out));
-      finds->validate();
       const auto v = parse_numbers(*line, 4, "--line");
+      SiteSectionRequest r;
+      r.a = {v[0], v[1]};
+      r.b = {v[2], v[3]};
+      r.step_m = *step;
+      r.finds = *finds;
+      r.scale = *scale;
+      r.title = *title;
       const SiteVolumeOptions o = site_options(*a);
       Project p = Project::open(a->dir);
-      const SiteModel m = load_site_model(p, o);
-      const Eigen::Vector2d A(v[0] - m.site.origin.x(), v[1] - m.site.origin.y());
-      const Eigen::Vector2d B(v[2] - m.site.origin.x(), v[3] - m.site.origin.y());
-      SectionProfile profile = cut_section(A, B, m.layers, m.solids, *step);
-      const std::vector<FindRecord> recorded = list_finds(p.db());
-      const std::size_t projected = add_section_finds(profile, recorded, m.site.origin, *finds);
+      const SiteSection s = cut_site_section(p, o, r);
+      const SectionProfile& profile = s.profile;
       if (ext == ".svg") {
-        SectionDrawingOptions d;
-        d.scale = *scale;
-        d.title = *title;
-        d.crs = m.site.crs;
-        for (const auto& u : m.units) d.unit_types[u.code] = u.type;
-        write_section_svg(*out, profile, m.site.origin, d);
+        write_section_svg(*out, profile, s.site.origin, s.drawing);
       } else {
-        write_section_gpkg(*out, profile, m.site.origin, m.site.crs);
+        write_section_gpkg(*out, profile, s.site.origin, s.site.crs);
       }
       log::info("wrote {} ({:.2f} m, {} samples{})", *out, profile.length(), profile.s.size(),
-                finds->within_m > 0 ? fmt::format(", {} of {} finds within {:.2f} m of the plane", projected,
-                                                  recorded.size(), finds->within_m)
+                finds->within_m > 0 ? fmt::format(", {} of {} finds within {:.2f} m of the plane", s.finds_projected,
+                                                  s.finds_recorded, finds->within_m)
                                     : std::string());
     });
   }

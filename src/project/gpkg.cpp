@@ -1,6 +1,9 @@
 #include "project/gpkg.hpp"
 
+#include "core/error.hpp"
 #include "crs/crs.hpp"
+
+#include <fmt/format.h>
 
 #include <cstring>
 #include <string>
@@ -32,6 +35,95 @@ bool table_exists(Database& db, const std::string& name) {
 
 
 }  // namespace
+
+namespace {
+
+// Reads ISO / 2D WKB (OGC 06-103r4), one geometry at a time.
+class WkbReader {
+ public:
+  WkbReader(const std::vector<std::uint8_t>& b, std::size_t at) : b_(b), at_(at) {}
+
+  // Appends the parts of the geometry at the cursor.
+  void geometry(std::vector<std::vector<std::vector<Eigen::Vector2d>>>& parts) {
+    little_ = byte() == 1;
+    const std::uint32_t code = u32();
+    const std::uint32_t base = code % 1000;  // 1000s: Z, 2000s: M, 3000s: ZM
+    dims_ = code >= 3000 ? 4 : code >= 1000 ? 3 : 2;
+    switch (base) {
+      case 1: parts.push_back({points(1)}); break;
+      case 2: parts.push_back({points(u32())}); break;
+      case 3: {
+        std::vector<std::vector<Eigen::Vector2d>> rings(u32());
+        for (auto& r : rings) r = points(u32());
+        parts.push_back(std::move(rings));
+        break;
+      }
+      case 4:
+      case 5:
+      case 6: {
+        const std::uint32_t n = u32();
+        for (std::uint32_t i = 0; i < n; ++i) geometry(parts);
+        break;
+      }
+      default: throw IoError(fmt::format("gpkg: geometry type {} is not read (point, line or polygon)", code));
+    }
+  }
+
+ private:
+  void need(std::size_t n) const {
+    if (at_ + n > b_.size()) throw IoError("gpkg: a geometry blob is cut short");
+  }
+  std::uint8_t byte() {
+    need(1);
+    return b_[at_++];
+  }
+  std::uint32_t u32() {
+    need(4);
+    std::uint32_t v = 0;
+    for (int i = 0; i < 4; ++i) v |= std::uint32_t(b_[at_ + (little_ ? i : 3 - i)]) << (8 * i);
+    at_ += 4;
+    return v;
+  }
+  double f64() {
+    need(8);
+    std::uint64_t bits = 0;
+    for (int i = 0; i < 8; ++i) bits |= std::uint64_t(b_[at_ + (little_ ? i : 7 - i)]) << (8 * i);
+    at_ += 8;
+    double d;
+    std::memcpy(&d, &bits, 8);
+    return d;
+  }
+  std::vector<Eigen::Vector2d> points(std::uint32_t n) {
+    need(std::size_t(n) * 8 * std::size_t(dims_));  // bounds a corrupt count before reserving
+    std::vector<Eigen::Vector2d> pts;
+    pts.reserve(n);
+    for (std::uint32_t i = 0; i < n; ++i) {
+      const double x = f64(), y = f64();
+      for (int d = 2; d < dims_; ++d) f64();
+      pts.emplace_back(x, y);
+    }
+    return pts;
+  }
+
+  const std::vector<std::uint8_t>& b_;
+  std::size_t at_;
+  bool little_ = true;
+  int dims_ = 2;
+};
+
+}  // namespace
+
+std::vector<std::vector<std::vector<Eigen::Vector2d>>> read_gpkg_geometry_xy(const std::vector<std::uint8_t>& blob) {
+  // Header (OGC 12-128 clause 2.1.3): "GP", version, flags, srs_id, then an envelope
+  // of 0, 4, 6, 6 or 8 doubles by the flags' bits 1-3.
+  if (blob.size() < 8 || blob[0] != 'G' || blob[1] != 'P') throw IoError("gpkg: not a GeoPackage geometry blob");
+  static constexpr std::size_t kEnvelopeDoubles[] = {0, 4, 6, 6, 8};
+  const unsigned envelope = (blob[3] >> 1) & 0x7;
+  if (envelope > 4) throw IoError(fmt::format("gpkg: geometry envelope code {} is not one of 0..4", envelope));
+  std::vector<std::vector<std::vector<Eigen::Vector2d>>> parts;
+  WkbReader(blob, 8 + 8 * kEnvelopeDoubles[envelope]).geometry(parts);
+  return parts;
+}
 
 GpkgBlobWriter::GpkgBlobWriter(int srs_id) {
   out_ = {'G', 'P', 0, 0x01};  // version 0; flags: little endian, no envelope

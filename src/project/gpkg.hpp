@@ -44,6 +44,12 @@ std::vector<std::uint8_t> gpkg_point_z(int srs_id, const Eigen::Vector3d& p);
 std::vector<std::uint8_t> gpkg_linestring_z(int srs_id, const std::vector<Eigen::Vector3d>& pts);
 std::vector<std::uint8_t> gpkg_polygon(int srs_id, const std::vector<Eigen::Vector2d>& ring);
 
+// The x, y of a GeoPackage binary geometry (any envelope, either byte order, ISO or
+// 2D WKB, Z and M skipped) of the kinds strata writes: (Multi)Point, (Multi)LineString
+// and (Multi)Polygon. One entry per part (a polygon, a line, a point), each a list of
+// rings/lines. Throws IoError on a blob that is none of these or is cut short.
+std::vector<std::vector<std::vector<Eigen::Vector2d>>> read_gpkg_geometry_xy(const std::vector<std::uint8_t>& blob);
+
 // Recomputes a feature table's extent in gpkg_contents from its e/n-style columns.
 void update_contents_extent(Database& db, const std::string& table, const std::string& x_col,
                             const std::string& y_col);

@@ -399,6 +399,7 @@ const std::vector<Route>& routes() {
     };
     for (auto& r : marker_routes()) t.push_back(std::move(r));
     for (auto& r : viewer_routes()) t.push_back(std::move(r));
+    for (auto& r : map_routes()) t.push_back(std::move(r));
     return t;
   }();
   return table;

@@ -68,10 +68,11 @@ struct Route {
   UploadHandler upload;          // POST with a streamed body (photos)
 };
 // Every route: the record's (api.cpp), the marker workspace's (api_markers.cpp) and the
-// 3D page's (api_viewer.cpp).
+// 3D page's (api_viewer.cpp) and the map's (api_map.cpp).
 const std::vector<Route>& routes();
 std::vector<Route> marker_routes();
 std::vector<Route> viewer_routes();
+std::vector<Route> map_routes();
 
 void reply(httplib::Response& res, int status, const nlohmann::json& body);
 // The JSON object of a request body; 400 naming the problem when it is not one.

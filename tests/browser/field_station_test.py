@@ -16,6 +16,7 @@ import functools
 import glob
 import json
 import os
+import re
 import selectors
 import shutil
 import signal
@@ -724,6 +725,80 @@ class FieldStationTest(unittest.TestCase):
         print(f'3d: {status}; layers {layers}', file=sys.stderr)
         self.assertTrue(any('L1' in l for l in layers), layers)
         self.screenshot('view3d', full=False)
+
+    @step(allowed_console=[('/api/sections', 'status of 4')])
+    def test_8_map_tiles_coordinates_and_section(self):
+        d = self.driver
+        status, site_map = self.api('GET', '/api/map')
+        self.assertEqual(status, 200)
+        self.assertTrue(site_map['layers'], 'a processed layer is on the map')
+        ortho = site_map['layers'][-1]['ortho']
+        self.open('#/map', '#map.leaflet-container')
+        # A tile of the orthophoto, loaded, 256 px, with pixels of the layer in it.
+        tile_js = """
+            const tiles = [...document.querySelectorAll('#map img.leaflet-tile.leaflet-tile-loaded')]
+                .filter((i) => i.complete && i.naturalWidth === 256 && i.src.includes('/tiles/ortho/'));
+            let best = 0;
+            for (const img of tiles) {
+              const c = document.createElement('canvas');
+              c.width = c.height = 256;
+              const g = c.getContext('2d');
+              g.drawImage(img, 0, 0);
+              const a = g.getImageData(0, 0, 256, 256).data;
+              let opaque = 0;
+              for (let i = 3; i < a.length; i += 4) if (a[i] > 0) opaque++;
+              best = Math.max(best, opaque);
+            }
+            return [tiles.length, best];"""
+        loaded, opaque = self.wait(lambda d: (lambda r: r if r[0] > 0 and r[1] > 0 else None)(self.js(tile_js)), 30,
+                                   'an orthophoto tile loaded with pixels of the layer')
+        print(f'map: {loaded} ortho tiles loaded, the fullest with {opaque} opaque pixels', file=sys.stderr)
+        markers = self.js("return document.querySelectorAll('#map path.leaflet-interactive').length;")
+        self.assertGreaterEqual(markers, len(site_map['markers']), 'a circle per marker (and the footprint)')
+        # The pointer's coordinates in the site CRS, inside the orthophoto at its centre.
+        m = d.find_element(By.ID, 'map')
+        ActionChains(d).move_to_element_with_offset(m, 0, 0).move_by_offset(3, 2).perform()
+        text = self.wait(lambda d: (lambda t: t if t.startswith('E ') and 'N ' in t and '—' not in t else None)(
+            d.find_element(By.ID, 'map-coords').text), 10, '#map-coords shows E, N')
+        found = re.fullmatch(r'E (\d+\.\d{3}), N (\d+\.\d{3})', text)
+        self.assertIsNotNone(found, text)
+        e, n = float(found.group(1)), float(found.group(2))
+        margin = 0.5 * (ortho['e_max'] - ortho['e_min'])
+        self.assertTrue(ortho['e_min'] - margin < e < ortho['e_max'] + margin and
+                        ortho['n_min'] - margin < n < ortho['n_max'] + margin, f'{text} is on the site')
+        self.screenshot('map')
+        # The section tool: two taps on the map.
+        d.find_element(By.ID, 'section-tool').click()
+        self.assertEqual(d.find_element(By.ID, 'section-tool').get_attribute('aria-pressed'), 'true')
+        width = m.size['width']
+        ActionChains(d).move_to_element_with_offset(m, -width // 6, 0).click().perform()
+        ActionChains(d).move_to_element_with_offset(m, width // 6, 0).click().perform()
+        if len(site_map['layers']) >= 2:
+            self.wait(lambda d: d.execute_script(
+                "const i = document.querySelector('#section-view img'); return i && i.complete && i.naturalWidth > 0;"),
+                120, 'the section drawing shown in #section-view')
+            self.assertEqual(d.find_element(By.ID, 'section-download').get_attribute('download'), 'section.svg')
+        else:
+            # One layer processed: the server's refusal, as the volume code says it.
+            msg = self.wait_message(lambda m, k: k == 'error' and 'at least two' in m, 60,
+                                    "the refusal of a section with one layer's surface")
+            print(f'map: section refused: {msg!r}', file=sys.stderr)
+            self.assertEqual(d.find_elements(By.CSS_SELECTOR, '#section-view img'), [], 'no drawing is shown')
+        self.screenshot('map_section')
+        size = d.get_window_size()
+        try:
+            d.set_window_size(390, 844)
+            self.open('#/map', '#map.leaflet-container')
+            self.wait(lambda d: self.js(tile_js)[0] > 0, 30, 'a tile loaded on the phone')
+            inner, scroll = self.js('return [window.innerWidth, document.documentElement.scrollWidth];')
+            box = self.js("const r = document.getElementById('map').getBoundingClientRect(); return [r.width, r.height];")
+            print(f'map on the phone: innerWidth {inner}, map {box}', file=sys.stderr)
+            self.assertLessEqual(scroll, inner + 1, 'the map page does not scroll sideways')
+            self.assertGreater(box[0], 0.9 * inner - 20, 'the map fills the width')
+            self.assertGreater(box[1], 0.5 * self.js('return window.innerHeight;'), 'the map is most of the screen high')
+            self.screenshot('map_phone', full=False)
+        finally:
+            d.set_window_size(size['width'], size['height'])
 
 
 def main():

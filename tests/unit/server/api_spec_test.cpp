@@ -68,8 +68,13 @@ TEST(ApiSpec, EveryRouteIsDocumentedWithItsRoleAndEveryDocumentedPathIsARoute) {
 }
 
 TEST(ApiSpec, EveryWriteNeedsMoreThanAViewer) {
+  // POSTs that compute from the record and change nothing (a section drawn along a
+  // line): a viewer's, though they carry the CSRF token as every POST does.
+  const std::set<std::string> reads_only = {"/api/sections"};
   for (const auto& r : api_routes()) {
-    if (r.method != "GET") EXPECT_GT(r.role, Role::viewer) << r.method << " " << r.path;
+    if (r.method != "GET" && !reads_only.count(r.path)) {
+      EXPECT_GT(r.role, Role::viewer) << r.method << " " << r.path;
+    }
   }
 }
 
