@@ -560,6 +560,17 @@ class FieldStationTest(unittest.TestCase):
             report = r.read().decode('utf-8', errors='replace')
         self.assertIn('<html', report.lower())
         self.assertIn('sandbox', csp)
+        # The report itself, under the verdict, in a frame without scripts: its coverage map shown.
+        frame = d.find_element(By.ID, 'report-frame')
+        self.js("arguments[0].scrollIntoView();", frame)
+        d.switch_to.frame(frame)
+        try:
+            self.wait(lambda d: 'field report' in d.find_element(By.TAG_NAME, 'body').text, 60,
+                      'the field report shown in the layer page')
+            drawings = self.js("return [...document.querySelectorAll('svg')].filter((s) => s.getBoundingClientRect().width > 0).length;")
+        finally:
+            d.switch_to.default_content()
+        self.assertGreater(drawings, 0, 'the report in the frame shows its drawings (coverage map, plan)')
         self.js("for (const x of document.querySelectorAll('details')) x.open = true;")
         self.screenshot('layer')
 
