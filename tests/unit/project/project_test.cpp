@@ -72,8 +72,8 @@ TEST(Project, Migration7KeepsObservationIdsAndRenamesManualToClicked) {
     auto& db = p.db();
     // Back to the observations table of schema 1 and a level below 7.
     db.exec("DROP TABLE observations");
-    // Schema 8's, 9's, 10's and 13's tables, which a version-6 file does not have yet.
-    for (const std::string table : {"unit_extents", "finds", "scans", "depth_frames", "depth_sequences"}) {
+    // Schema 8's, 9's, 10's, 13's and 14's tables, which a version-6 file does not have yet.
+    for (const std::string table : {"unit_extents", "finds", "scans", "depth_frames", "depth_sequences", "observation_reviews"}) {
       db.exec("DELETE FROM gpkg_geometry_columns WHERE table_name = '" + table + "'");
       db.exec("DELETE FROM gpkg_contents WHERE table_name = '" + table + "'");
       db.exec("DROP TABLE " + table);
