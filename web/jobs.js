@@ -15,6 +15,15 @@ const parse = (e) => {
   }
 };
 
+// What to tell the user of a job that ended: [text, kind] for showMessage. `what` names
+// the work ("Processing of L1"); `failedHint` says where to look when it failed.
+export function endMessage(what, j, failedHint) {
+  if (j.state === 'done') return [`${what} finished${j.message ? `: ${j.message}` : '.'}`, 'ok'];
+  if (j.state === 'failed') return [`${what} failed: ${j.message || failedHint}`, 'error'];
+  if (j.state === 'cancelled') return [`${what} was cancelled; the project is as it was before.`, 'info'];
+  return [`${what}: ${j.state}`, 'info'];
+}
+
 // Follows job `job` (as the API gives it). handlers: onProgress(p) for each progress
 // event ({stage, done, total, elapsed_s}), onLog(l) for each log line ({level,
 // message}), onEnd(job) once, with the job as it ended. Returns stop(), which ends

@@ -1,7 +1,7 @@
 // #/layer/NAME: one layer: its photos and their upload, its processing as a job
 // followed live, and its verdict (is it recorded well enough to dig away?).
 import {api, enc, showError, showMessage} from './api.js';
-import {ACTIVE, followJob} from './jobs.js';
+import {ACTIVE, endMessage, followJob} from './jobs.js';
 import {el, replace, count, figure, coord, percent, duration, when, tick, words, field, select, section} from './dom.js';
 
 const LOG_LINES = 50;
@@ -199,12 +199,8 @@ export async function render(main, params, signal) {
     if (j.state === 'done') {
       jobProgress.value = jobProgress.max;
       jobPercent.textContent = '100 %';
-      showMessage(`Processing of ${name} finished${j.message ? `: ${j.message}` : '.'}`, 'ok');
-    } else if (j.state === 'failed') {
-      showMessage(`Processing of ${name} failed: ${j.message || 'see the log'}`, 'error');
-    } else if (j.state === 'cancelled') {
-      showMessage(`Processing of ${name} was cancelled; the project is as it was before.`, 'info');
     }
+    showMessage(...endMessage(`Processing of ${name}`, j, 'see the log'));
     try {
       await reload();
     } catch (err) {

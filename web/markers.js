@@ -6,7 +6,7 @@
 // other photos; Georeference runs the alignment again and shows the RMSE against the
 // one before.
 import {api, enc, showError, showMessage} from './api.js';
-import {ACTIVE, followJob} from './jobs.js';
+import {ACTIVE, endMessage, followJob} from './jobs.js';
 import {el, replace, tick, percent, duration} from './dom.js';
 import {photoCanvas} from './photo-canvas.js';
 
@@ -495,12 +495,8 @@ export async function render(main, params, signal) {
     if (j.state === 'done') {
       jobBar.value = jobBar.max;
       jobFigures.textContent = '100 %';
-      showMessage(`Georeference of ${name} finished${j.message ? `: ${j.message}` : '.'}`, 'ok');
-    } else if (j.state === 'failed') {
-      showMessage(`Georeference of ${name} failed: ${j.message || 'see the log on the layer page'}`, 'error');
-    } else if (j.state === 'cancelled') {
-      showMessage(`Georeference of ${name} was cancelled; the project is as it was before.`, 'info');
     }
+    showMessage(...endMessage(`Georeference of ${name}`, j, 'see the log on the layer page'));
     await refresh();
   };
 
