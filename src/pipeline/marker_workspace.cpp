@@ -76,7 +76,8 @@ const MarkerResidual* residual_of(const std::optional<StoredAlignment>& stored, 
   return nullptr;
 }
 
-MarkerPhoto photo_entry(Project& p, const MarkerRecord& marker, const ImageRecord& image,
+// `marker_site`: the marker's surveyed position in the site frame (metres).
+MarkerPhoto photo_entry(const Eigen::Vector3d& marker_site, const MarkerRecord& marker, const ImageRecord& image,
                         const std::optional<StoredAlignment>& stored, const LayerObservations& obs) {
   MarkerPhoto e;
   e.name = image.name;
@@ -89,7 +90,7 @@ MarkerPhoto photo_entry(Project& p, const MarkerRecord& marker, const ImageRecor
       e.registered = true;
       if (!rec.georeferenced) break;
       const Camera camera{rec.groups[std::size_t(rec.images[i].group)].intrinsics, rec.images[i].pose};
-      e.predicted = camera.project(marker.position - p.site().origin);
+      e.predicted = camera.project(marker_site);
       // Inside the photo: the centres of the edge pixels are 0 and size - 1.
       e.sees = e.predicted && e.predicted->x() >= -0.5 && e.predicted->y() >= -0.5 &&
                e.predicted->x() <= image.width - 0.5 && e.predicted->y() <= image.height - 0.5;
@@ -109,7 +110,8 @@ MarkerPhoto photo_entry(Project& p, const MarkerRecord& marker, const ImageRecor
 }
 
 MarkerPhoto entry_after_edit(Project& p, const LayerRecord& layer, const MarkerRecord& marker, const ImageRecord& image) {
-  return photo_entry(p, marker, image, load_alignment(p.db(), layer), LayerObservations(p.db(), layer.id));
+  return photo_entry(marker.position - p.site().origin, marker, image, load_alignment(p.db(), layer),
+                     LayerObservations(p.db(), layer.id));
 }
 
 }  // namespace
@@ -168,7 +170,10 @@ MarkerPhotos marker_photos(Project& p, const std::string& layer_name, const std:
   out.marker = marker_or_refuse(db, marker_name);
   const auto stored = load_alignment(db, layer);
   const LayerObservations obs(db, layer.id);
-  for (const auto& im : list_images(db, layer.id)) out.photos.push_back(photo_entry(p, out.marker, im, stored, obs));
+  const Eigen::Vector3d marker_site = out.marker.position - p.site().origin;  // read once, not per photo
+  for (const auto& im : list_images(db, layer.id)) {
+    out.photos.push_back(photo_entry(marker_site, out.marker, im, stored, obs));
+  }
   const auto rank = [](const MarkerPhoto& e) { return e.status != ObservationStatus::none ? 0 : e.sees ? 1 : 2; };
   std::stable_sort(out.photos.begin(), out.photos.end(),
                    [&](const MarkerPhoto& a, const MarkerPhoto& b) { return rank(a) < rank(b); });
