@@ -13,6 +13,7 @@ packages=(
   libcgal-dev libopenvdb-dev libboost-iostreams-dev libopencv-dev libopencv-contrib-dev
   libceres-dev libeigen3-dev libtbb-dev libgtest-dev googletest libexiv2-dev
   nlohmann-json3-dev libcli11-dev libfmt-dev libspdlog-dev
+  libicu-dev  # Unicode normalisation (NFC) of codes and names at the door
   libjs-three  # three.js r111, inlined by 'strata export viewer', served by 'strata serve'
   libjs-leaflet libcpp-httplib-dev  # the field station (strata serve): its map and its HTTP server
   python3  # bench scripts; the crash-injection sample of the test suite

@@ -1,5 +1,6 @@
 #include "importers/calibration/calibration_importer.hpp"
 
+#include "core/door.hpp"
 #include "core/error.hpp"
 #include "importers/calibration/calibration_formats.hpp"
 #include "project/calibration_records.hpp"
@@ -43,9 +44,7 @@ CalibrationFormat parse_calibration_format(const std::string& text) {
 }
 
 CalibrationFile read_calibration_file(const fs::path& file, CalibrationFormat format) {
-  if (!fs::is_regular_file(file)) {
-    throw InputError(fmt::format("importer.calibration: {}: no such file", file.string()));
-  }
+  door::input_file(file, "importer.calibration: calibration file");
   if (format == CalibrationFormat::automatic) format = detect_format(file);
   CalibrationFile out = format == CalibrationFormat::metashape ? calibration_formats::read_metashape(file)
                                                                : calibration_formats::read_opencv(file);

@@ -1,5 +1,6 @@
 #include "importers/depth/depth_importer.hpp"
 
+#include "core/door.hpp"
 #include "core/error.hpp"
 #include "core/hash.hpp"
 #include "core/progress.hpp"
@@ -99,7 +100,7 @@ DepthImportSummary import_depth(Project& project, const DepthImportOptions& opti
       progress.step();
       check_cancelled();
       std::error_code ec;
-      if (!fs::is_regular_file(f, ec)) throw InputError(fmt::format("{}: {}: no such file", kStage, f.string()));
+      door::input_file(f, fmt::format("{}: depth frame", kStage));
       const std::string name = f.filename().string();
       if (auto it = names.find(name); it != names.end()) {
         throw InputError(fmt::format("{}: {}: a second frame named '{}' (the first: {}); nothing was imported",

@@ -1,5 +1,7 @@
 #include "importers/finds/find_importer.hpp"
 
+#include "core/door.hpp"
+#include "project/site_bounds.hpp"
 #include "core/error.hpp"
 #include "core/fault.hpp"
 #include "crs/crs.hpp"
@@ -89,6 +91,7 @@ std::vector<ParsedFind> parse_csv(const fs::path& file) {
       return k >= 0 && k < int(f.size()) ? f[std::size_t(k)] : std::string();
     };
     p.record.id = field(Layout::id);
+    if (!p.record.id.empty()) p.record.id = door::name_at(p.at, "find id", p.record.id);
     p.record.position = {parse_number(field(Layout::e), "E", p.at), parse_number(field(Layout::n), "N", p.at),
                          parse_number(field(Layout::z), "Z", p.at)};
     p.record.unit = field(Layout::unit);
@@ -100,6 +103,9 @@ std::vector<ParsedFind> parse_csv(const fs::path& file) {
     if (desc >= 0 && desc == *std::max_element(layout.at.begin(), layout.at.end())) {
       for (std::size_t k = std::size_t(desc) + 1; k < f.size(); ++k) p.record.description += joiner + f[k];
     }
+    if (!p.record.unit.empty()) p.record.unit = door::name_at(p.at, "unit code", p.record.unit);
+    p.record.type = door::text_at(p.at, "type", p.record.type);
+    p.record.description = door::text_at(p.at, "description", p.record.description);
     auto [it, inserted] = seen.try_emplace(p.record.id, finds.size());
     if (!inserted) {
       const ParsedFind& first = finds[it->second];
@@ -147,6 +153,7 @@ FindImportSummary store_finds(Project& project, const FindImportOptions& options
     } catch (const CrsError& e) {
       throw CrsError(fmt::format("{}: {}", f.at, e.what()));
     }
+    check_site_point(site, f.record.position, fmt::format("{}: find '{}'", f.at, f.record.id));
     if (auto existing = find_find(db, f.record.id)) {
       if (same_find(*existing, f.record)) {
         summary.finds_unchanged++;
@@ -173,7 +180,7 @@ FindImportSummary store_finds(Project& project, const FindImportOptions& options
 }  // namespace
 
 FindImportSummary import_finds(Project& project, const FindImportOptions& options, const fs::path& file) {
-  if (!fs::is_regular_file(file)) throw InputError(fmt::format("{}: no such file", file.string()));
+  door::input_file(file, "finds CSV");
   std::vector<ParsedFind> finds = parse_csv(file);
   for (auto& f : finds) f.record.source = file.filename().string();
   return store_finds(project, options, std::move(finds), fmt::format("{}: {}", kCsvStage, file.string()));
@@ -185,6 +192,10 @@ FindImportSummary add_find(Project& project, const FindImportOptions& options, F
       throw InputError(fmt::format("find add: --at {} '{}' is not a finite number", "ENZ"[axis], find.position[axis]));
   ParsedFind p;
   p.at = "find add";
+  find.id = door::name_at(p.at, "--id", find.id);
+  find.unit = door::name_at(p.at, "--unit", find.unit);
+  find.type = door::text_at(p.at, "--type", find.type);
+  find.description = door::text_at(p.at, "--description", find.description);
   p.record = std::move(find);
   p.record.source = "find add";
   return store_finds(project, options, {p}, "find add: --crs");

@@ -1,5 +1,7 @@
 #include "importers/markers/marker_importer.hpp"
 
+#include "core/door.hpp"
+#include "project/site_bounds.hpp"
 #include "core/error.hpp"
 #include "core/fault.hpp"
 #include "crs/crs.hpp"
@@ -96,6 +98,7 @@ std::map<std::string, ParsedMarker> parse_csv(const fs::path& file, double defau
     m.line = line.number;
     m.record.name = f[c_name];
     if (m.record.name.empty()) throw InputError(fmt::format("{}: marker name is empty", at));
+    m.record.name = door::name_at(at, "marker name", m.record.name);
     m.record.position = {parse_number(f[c_e], "E", at), parse_number(f[c_n], "N", at),
                          parse_number(f[c_z], "Z", at)};
     double sigma = default_sigma;
@@ -157,7 +160,7 @@ std::map<std::string, ParsedMarker> parse_odm(const fs::path& file, double defau
       throw InputError(fmt::format("{}: pixel ({}, {}) lies outside the image", at, pixel.x(), pixel.y()));
     }
     if (f.size() >= 7) {
-      m.record.name = f[6];
+      m.record.name = door::name_at(where(stage, file, line.number), "marker name", f[6]);
     } else {
       // ODM allows unnamed points: the same coordinates are the same marker.
       auto key = std::make_tuple(m.record.position.x(), m.record.position.y(), m.record.position.z());
@@ -209,7 +212,7 @@ MarkerFormat parse_marker_format(const std::string& text) {
 
 MarkerImportSummary import_markers(Project& project, const MarkerImportOptions& options,
                                    const fs::path& file) {
-  if (!fs::is_regular_file(file)) throw InputError(fmt::format("{}: no such file", file.string()));
+  door::input_file(file, "marker file");
   if (!(options.default_sigma > 0)) throw InputError(fmt::format("--sigma {} must be positive (metres)", options.default_sigma));
   auto& db = project.db();
   const SiteInfo site = project.site();
@@ -270,8 +273,9 @@ MarkerImportSummary import_markers(Project& project, const MarkerImportOptions& 
   observations = std::move(kept);
   fault::point("import.markers.parsed");
 
-  Transaction tx(db);
-  std::map<std::string, std::int64_t> marker_ids;
+  // Every marker a place of the site: near its origin, or, for the survey that will
+  // fix the origin, near the first marker of the file.
+  SiteInfo bounds = site;
   for (auto& [name, m] : markers) {
     const std::string at = where(stage.c_str(), file, m.line);
     try {
@@ -279,6 +283,17 @@ MarkerImportSummary import_markers(Project& project, const MarkerImportOptions& 
     } catch (const CrsError& e) {
       throw CrsError(fmt::format("{}: {}", at, e.what()));
     }
+    check_site_point(bounds, m.record.position, fmt::format("{}: marker '{}'", at, name));
+    if (!bounds.origin_set) {
+      bounds.origin = m.record.position;
+      bounds.origin_set = true;
+    }
+  }
+
+  Transaction tx(db);
+  std::map<std::string, std::int64_t> marker_ids;
+  for (auto& [name, m] : markers) {
+    const std::string at = where(stage.c_str(), file, m.line);
     m.record.source = file.filename().string();
     if (auto existing = find_marker(db, name)) {
       const bool same = (existing->position - m.record.position).cwiseAbs().maxCoeff() <= kSameCoordinateTolerance;

@@ -1,5 +1,6 @@
 #include "importers/photos/photo_importer.hpp"
 
+#include "core/door.hpp"
 #include "core/error.hpp"
 #include "core/fault.hpp"
 #include "core/hash.hpp"
@@ -55,7 +56,12 @@ bool jpeg_has_end_marker(const fs::path& path) {
 
 std::string check_image_file(const fs::path& path) {
   std::error_code ec;
-  if (!fs::is_regular_file(path, ec)) return "no such file";
+  try {
+    door::input_file(path, "");
+  } catch (const Error& e) {  // the reason alone: the caller names the file
+    const std::string why = e.what(), quoted = "'" + path.string() + "' ";
+    return why.rfind(quoted, 0) == 0 ? why.substr(quoted.size()) : why;
+  }
   std::ifstream in(path, std::ios::binary);
   if (!in) return "cannot be opened for reading";
   std::string head(16, '\0');

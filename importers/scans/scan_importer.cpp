@@ -1,5 +1,6 @@
 #include "importers/scans/scan_importer.hpp"
 
+#include "core/door.hpp"
 #include "core/error.hpp"
 #include "core/hash.hpp"
 #include "core/progress.hpp"
@@ -201,7 +202,7 @@ ScanImportSummary import_scans(Project& project, const ScanImportOptions& option
     for (const auto& f : files) {
       progress.step();
       std::error_code ec;
-      if (!fs::is_regular_file(f, ec)) throw InputError(fmt::format("{}: {}: no such file", kStage, f.string()));
+      door::input_file(f, fmt::format("{}: scan", kStage));
       Candidate c{f, sha256_file(f), {}, {}, {}};
       if (auto it = seen_in_batch.find(c.sha); it != seen_in_batch.end()) {
         summary.already_present.push_back(fmt::format("{} (same content as {} in this batch)", f.string(), it->second));

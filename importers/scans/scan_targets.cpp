@@ -1,5 +1,6 @@
 #include "importers/scans/scan_targets.hpp"
 
+#include "core/door.hpp"
 #include "core/error.hpp"
 #include "importers/markers/delimited.hpp"
 
@@ -20,7 +21,7 @@ constexpr const char* kColumns = "name,x,y,z (metres, scanner frame)";
 
 std::vector<ScanTarget> read_scan_targets(const fs::path& file) {
   std::error_code ec;
-  if (!fs::is_regular_file(file, ec)) throw InputError(fmt::format("{}: {}: no such file", kStage, file.string()));
+  door::input_file(file, fmt::format("{}: targets file", kStage));
   const DelimitedFile df = read_delimited(file);
   std::vector<int> at = {0, 1, 2, 3};
   std::size_t first = 0;

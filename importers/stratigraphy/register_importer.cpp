@@ -1,5 +1,6 @@
 #include "importers/stratigraphy/register_importer.hpp"
 
+#include "core/door.hpp"
 #include "core/error.hpp"
 #include "importers/markers/delimited.hpp"
 #include "project/records.hpp"
@@ -33,7 +34,7 @@ struct Register {
 
 Register read_register(const fs::path& file, const char* stage, const std::vector<std::vector<std::string>>& aliases,
                        std::size_t required, const char* columns) {
-  if (!fs::is_regular_file(file)) throw InputError(fmt::format("{}: {}: no such file", stage, file.string()));
+  door::input_file(file, fmt::format("{}: register", stage));
   const DelimitedFile df = read_delimited(file);
   if (df.lines.empty()) throw InputError(fmt::format("{}: {}: the file is empty (expected a header {})", stage,
                                                      file.string(), columns));
@@ -81,6 +82,8 @@ std::vector<ParsedUnit> parse_units(const fs::path& file, std::vector<std::strin
   for (auto& row : reg.rows) {
     ParsedUnit u{{0, row.values[0], lower_case(row.values[1]), row.values[2]}, row.at, row.line};
     if (u.record.code.empty()) throw InputError(fmt::format("{}: the unit code is empty", u.at));
+    u.record.code = door::name_at(u.at, "unit code", u.record.code);
+    u.record.description = door::text_at(u.at, "description", u.record.description);
     const auto& types = unit_types();
     if (std::find(types.begin(), types.end(), u.record.type) == types.end())
       throw InputError(fmt::format("{}: unit '{}': type '{}' is not one of {}", u.at, u.record.code, row.values[1],
@@ -128,7 +131,7 @@ UnitImportSummary import_units(Project& project, const UnitImportOptions& option
 
 RelationImportSummary import_relations(Project& project, const fs::path& file) {
   RelationImportSummary summary;
-  const Register reg = read_register(file, kRelationStage,
+  Register reg = read_register(file, kRelationStage,
                                      {{"a", "unit_a", "code_a", "from"},
                                       {"relation", "kind", "type", "relationship"},
                                       {"b", "unit_b", "code_b", "to"}},
@@ -138,8 +141,9 @@ RelationImportSummary import_relations(Project& project, const fs::path& file) {
   HarrisMatrix matrix = recorded_matrix(db);
   const std::vector<std::string>& codes = matrix.units();
   Transaction tx(db);
-  for (const auto& row : reg.rows) {
+  for (auto& row : reg.rows) {
     for (std::size_t c : {0, 2}) {
+      if (!row.values[c].empty()) row.values[c] = door::name_at(row.at, "unit code", row.values[c]);
       const std::string& code = row.values[c];
       if (code.empty()) throw InputError(fmt::format("{}: the unit code in column {} is empty", row.at, "a b"[c]));
       if (std::find(codes.begin(), codes.end(), code) == codes.end())

@@ -6,10 +6,13 @@
 #include "core/log.hpp"
 #include "core/progress.hpp"
 #include "core/resources.hpp"
+#include "core/signals.hpp"
 
 #include <fmt/format.h>
 
 #include <cstdio>
+#include <filesystem>
+#include <new>
 
 int main(int argc, char** argv) {
   CLI::App app{
@@ -63,6 +66,7 @@ int main(int argc, char** argv) {
   strata::cli::register_finds_command(app);
   strata::cli::register_report_command(app);
   strata::cli::register_serve_command(app);
+  strata::cli::guard_paths(app);
 
   strata::install_cancel_handler();
   try {
@@ -74,6 +78,16 @@ int main(int argc, char** argv) {
     return 130;
   } catch (const strata::Error& e) {
     fmt::print(stderr, "strata: error: {}\n", e.what());
+    return 1;
+  } catch (const std::filesystem::filesystem_error& e) {
+    // A path that the checks at the door could not foresee (a folder removed or
+    // made unreadable meanwhile): a fault of the surroundings, said in one line.
+    fmt::print(stderr, "strata: error: {}: {}\n", e.path1().string(), e.code().message());
+    return 1;
+  } catch (const std::bad_alloc&) {
+    fmt::print(stderr,
+               "strata: error: out of memory: the command asked for more memory than this machine gives it; the "
+               "project is unchanged (a smaller --cell, --step or --voxel-size asks for more)\n");
     return 1;
   } catch (const std::exception& e) {
     fmt::print(stderr, "strata: internal error: {}\n", e.what());

@@ -1,5 +1,7 @@
 #include "core/atomic_file.hpp"
 
+#include "core/temporaries.hpp"
+
 #include "core/error.hpp"
 #include "core/fault.hpp"
 
@@ -7,6 +9,7 @@
 
 #include <fstream>
 #include <mutex>
+#include <optional>
 #include <set>
 #include <string>
 
@@ -31,6 +34,7 @@ class TemporaryName {
                                          path.extension().string()));
       if (busy().insert(path_).second) break;
     }
+    held_.emplace(path_);
   }
   TemporaryName(const TemporaryName&) = delete;
   TemporaryName& operator=(const TemporaryName&) = delete;
@@ -50,6 +54,7 @@ class TemporaryName {
     return b;
   }
   fs::path path_;
+  std::optional<Temporary> held_;  // removed by a stop that cannot wait (core/signals.hpp)
 };
 
 }  // namespace

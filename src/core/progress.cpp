@@ -36,8 +36,6 @@ ProgressListener g_listener;
 const Progress* g_last_listened = nullptr;  // the stage of the listener's last event, and when
 double g_last_listened_s = 0;
 
-extern "C" void on_signal(int) { g_cancel = true; }
-
 constexpr double kRedraw_s = 0.1;      // terminal: at most 10 redraws a second
 constexpr double kFirstEstimate_s = 0.5;  // no estimate before this: the rate is noise
 constexpr int kBarCells = 30;           // '#' cells of a full-width bar
@@ -216,10 +214,6 @@ void Progress::draw(bool final) {
 
 // ---- cancellation ----------------------------------------------------------
 
-void install_cancel_handler() {
-  std::signal(SIGINT, on_signal);
-  std::signal(SIGTERM, on_signal);
-}
 void request_cancel() { g_cancel = true; }
 void clear_cancel() { g_cancel = false; }
 

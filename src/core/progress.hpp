@@ -12,7 +12,7 @@
 // a final "done in" line.
 // Nothing is drawn below log level info (-q); stdout (--json) is never touched.
 //
-// Cancellation: a SIGINT handler sets a flag that check_cancelled() turns into
+// Cancellation: a SIGINT handler (core/signals.hpp) sets a flag that check_cancelled() turns into
 // strata::Cancelled, so transactions roll back cleanly.
 #include <atomic>
 #include <cstddef>
@@ -80,8 +80,7 @@ class Progress {
 // being drawn, if any, and redraws the bar under it. Used by log::write.
 void write_above_progress(std::string_view text);
 
-// Installs a SIGINT/SIGTERM handler that requests cancellation.
-void install_cancel_handler();
+// SIGINT/SIGTERM request cancellation through request_cancel() (core/signals.hpp).
 void request_cancel();
 bool cancel_requested();
 // Throws strata::Cancelled when a stop was requested.

@@ -1,6 +1,7 @@
 #include "core/staged_files.hpp"
 
 #include "core/error.hpp"
+#include "core/temporaries.hpp"
 
 #include <fmt/format.h>
 
@@ -13,12 +14,14 @@ namespace fs = std::filesystem;
 StagedFiles::~StagedFiles() {
   std::error_code ec;
   for (const auto& [staged, final_path] : files_) fs::remove(staged, ec);
+  held_.clear();
 }
 
 fs::path StagedFiles::add(const fs::path& final_path) {
   fs::path staged = final_path;
   staged.replace_filename(final_path.stem().string() + ".next" + final_path.extension().string());
   files_.emplace_back(staged, final_path);
+  held_.push_back(std::make_unique<Temporary>(staged));
   return staged;
 }
 
@@ -46,6 +49,7 @@ void StagedFiles::swap_in() {
                                 staged.filename().string(), ec.message()));
   }
   files_.clear();
+  held_.clear();
 }
 
 }  // namespace strata

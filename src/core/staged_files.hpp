@@ -3,9 +3,12 @@
 // one of a command's files is complete, then swapped in by rename: a command that
 // fails part-way (a full disk) leaves the files it would have replaced untouched.
 // Destroyed before swap_in (the command failed), it removes the staged files.
+#include "core/temporaries.hpp"
+
 #include <filesystem>
 #include <functional>
 #include <iosfwd>
+#include <memory>
 #include <string>
 #include <utility>
 #include <vector>
@@ -32,6 +35,7 @@ class StagedFiles {
  private:
   std::string stage_;
   std::vector<std::pair<std::filesystem::path, std::filesystem::path>> files_;
+  std::vector<std::unique_ptr<Temporary>> held_;  // the staged names, for a stop that cannot wait
 };
 
 }  // namespace strata

@@ -125,6 +125,17 @@ CrsInfo describe_crs(const std::string& text) {
   return info;
 }
 
+std::optional<AreaOfUse> area_of_use(const std::string& text) {
+  auto ctx = make_context();
+  PjPtr crs = create_crs(ctx.get(), text);
+  AreaOfUse a;
+  const char* name = nullptr;
+  if (!proj_get_area_of_use(ctx.get(), crs.get(), &a.west, &a.south, &a.east, &a.north, &name)) return std::nullopt;
+  if (a.west <= -1000 || a.south <= -1000) return std::nullopt;  // PROJ's "unknown"
+  if (name) a.name = name;
+  return a;
+}
+
 void require_site_crs(const CrsInfo& crs) {
   if (crs.geographic) {
     throw CrsError(fmt::format(

@@ -5,6 +5,7 @@
 #include <Eigen/Core>
 
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -27,6 +28,15 @@ struct CrsInfo {
 // strings ("+proj=utm +zone=11 +datum=WGS84"), WKT, and OpenDroneMap's
 // "WGS84 UTM 11N". Throws CrsError naming the text when PROJ does not know it.
 CrsInfo describe_crs(const std::string& text);
+
+// Where a CRS may be used, in degrees of longitude and latitude (WGS 84), as its
+// definition states (EPSG's area of use); west > east when it crosses 180 degrees.
+struct AreaOfUse {
+  double west = -180, south = -90, east = 180, north = 90;
+  std::string name;  // e.g. "Between 30°E and 36°E, northern hemisphere ..."
+};
+// nullopt when the CRS states none (a PROJ string, a custom WKT).
+std::optional<AreaOfUse> area_of_use(const std::string& crs);
 
 // Throws CrsError unless the CRS is projected with metre units (a site CRS).
 void require_site_crs(const CrsInfo& crs);

@@ -1,6 +1,7 @@
 #include "pipeline/dense_layer.hpp"
 
 #include "core/error.hpp"
+#include "core/temporaries.hpp"
 #include "core/fault.hpp"
 #include "core/hash.hpp"
 #include "core/log.hpp"
@@ -68,6 +69,7 @@ DenseSummary run_dense_into(const fs::path& tmp_dir, const DenseOptions& options
                             const fs::path& cache) {
   fs::remove_all(tmp_dir);
   fs::create_directories(tmp_dir);
+  const Temporary held(tmp_dir);
   try {
     return run_dense(options, rec, photos, scans.registered, site.origin, cache, tmp_dir);
   } catch (...) {

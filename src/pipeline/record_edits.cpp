@@ -1,5 +1,6 @@
 #include "pipeline/record_edits.hpp"
 
+#include "core/door.hpp"
 #include "core/fault.hpp"
 #include "core/field_error.hpp"
 #include "stratigraphy/harris_matrix.hpp"
@@ -8,53 +9,14 @@
 #include <fmt/format.h>
 
 #include <algorithm>
-#include <regex>
 
 namespace strata {
-namespace {
 
-std::string trimmed(const std::string& s) {
-  const auto first = s.find_first_not_of(" \t\r\n");
-  if (first == std::string::npos) return {};
-  return s.substr(first, s.find_last_not_of(" \t\r\n") - first + 1);
-}
-
-// YYYY-MM-DD, optionally THH:MM[:SS[.fff]] and a zone (Z or +HH:MM), with a real
-// calendar date and clock time.
-bool iso_date_time(const std::string& s) {
-  static const std::regex form(
-      R"((\d{4})-(\d{2})-(\d{2})(?:[T ](\d{2}):(\d{2})(?::(\d{2})(?:\.\d+)?)?(?:Z|[+-]\d{2}:?\d{2})?)?)");
-  std::smatch m;
-  if (!std::regex_match(s, m, form)) return false;
-  const int y = std::stoi(m[1]), mo = std::stoi(m[2]), d = std::stoi(m[3]);
-  if (mo < 1 || mo > 12 || d < 1) return false;
-  static const int days[] = {31, 28, 31, 30, 31, 30, 31, 31, 30, 31, 30, 31};
-  const bool leap = (y % 4 == 0 && y % 100 != 0) || y % 400 == 0;
-  if (d > days[mo - 1] + (mo == 2 && leap ? 1 : 0)) return false;
-  if (m[4].matched && (std::stoi(m[4]) > 23 || std::stoi(m[5]) > 59)) return false;
-  if (m[6].matched && std::stoi(m[6]) > 60) return false;
-  return true;
-}
-
-}  // namespace
-
-std::string checked_code(const std::string& field, const std::string& value) {
-  const std::string code = trimmed(value);
-  if (code.empty()) throw FieldError(field, value, fmt::format("{} is empty", field));
-  if (code.size() > kMaxCodeLength) {
-    throw FieldError(field, value, fmt::format("{} '{}...' is longer than {} characters", field,
-                                               code.substr(0, 16), kMaxCodeLength));
-  }
-  const bool control = std::any_of(code.begin(), code.end(), [](char c) {
-    const auto u = static_cast<unsigned char>(c);
-    return u < 0x20 || u == 0x7f;
-  });
-  if (control) throw FieldError(field, value, fmt::format("{} holds a control character", field));
-  return code;
-}
+std::string checked_code(const std::string& field, const std::string& value) { return door::name(field, value); }
 
 UnitRecord add_unit(Project& p, UnitRecord unit) {
   unit.code = checked_code("code", unit.code);
+  unit.description = door::text("description", unit.description);
   const auto& types = unit_types();
   if (std::find(types.begin(), types.end(), unit.type) == types.end()) {
     throw FieldError("type", unit.type,
@@ -108,11 +70,7 @@ LayerRecord add_layer(Project& p, LayerRecord layer) {
     throw FieldError("unit", layer.unit,
                      fmt::format("unit '{}' does not exist (add it with 'strata unit add')", layer.unit));
   }
-  if (layer.captured_at && !iso_date_time(*layer.captured_at)) {
-    throw FieldError("captured_at", *layer.captured_at,
-                     fmt::format("captured at '{}' is not an ISO 8601 date (YYYY-MM-DD[THH:MM:SS])",
-                                 *layer.captured_at));
-  }
+  if (layer.captured_at) layer.captured_at = door::date_time("captured_at", *layer.captured_at);
   if (find_layer(p.db(), layer.name)) {
     throw FieldError("name", layer.name, fmt::format("layer '{}' already exists", layer.name));
   }

@@ -10,10 +10,8 @@
 
 namespace strata {
 
-// Codes and names: trimmed of surrounding blanks; refused when empty, longer than
-// kMaxCodeLength bytes, or holding control characters (they end up in file names, the
-// Harris matrix's DOT text and the pages).
-inline constexpr std::size_t kMaxCodeLength = 64;
+// Codes and names as the door checks them (door::name, core/door.hpp): trimmed, NFC,
+// printable, at most 64 characters; FieldError naming `field` otherwise.
 std::string checked_code(const std::string& field, const std::string& value);
 
 // A unit (as `strata unit add`). Returns the record as stored.

@@ -3,6 +3,7 @@
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/fault.hpp"
+#include "core/temporaries.hpp"
 #include "core/hash.hpp"
 #include "project/records.hpp"
 
@@ -128,6 +129,7 @@ std::string MediaBatch::store(const fs::path& source, const std::string& sha256)
   if (fs::exists(target)) return rel;
   fs::create_directories(target.parent_path());
   const fs::path tmp = target.string() + ".part";
+  const Temporary held(tmp);
   std::error_code ec;
   fs::copy_file(source, tmp, fs::copy_options::overwrite_existing, ec);
   if (ec) {
