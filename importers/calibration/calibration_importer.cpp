@@ -44,7 +44,7 @@ CalibrationFormat parse_calibration_format(const std::string& text) {
 }
 
 CalibrationFile read_calibration_file(const fs::path& file, CalibrationFormat format) {
-  door::input_file(file, "importer.calibration: calibration file");
+  door::input_file(file, "importer.calibration: calibration file", door::kMaxTextFileBytes);
   if (format == CalibrationFormat::automatic) format = detect_format(file);
   CalibrationFile out = format == CalibrationFormat::metashape ? calibration_formats::read_metashape(file)
                                                                : calibration_formats::read_opencv(file);

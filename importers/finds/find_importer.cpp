@@ -180,7 +180,7 @@ FindImportSummary store_finds(Project& project, const FindImportOptions& options
 }  // namespace
 
 FindImportSummary import_finds(Project& project, const FindImportOptions& options, const fs::path& file) {
-  door::input_file(file, "finds CSV");
+  door::input_file(file, "finds CSV", door::kMaxTextFileBytes);
   std::vector<ParsedFind> finds = parse_csv(file);
   for (auto& f : finds) f.record.source = file.filename().string();
   return store_finds(project, options, std::move(finds), fmt::format("{}: {}", kCsvStage, file.string()));

@@ -212,7 +212,7 @@ MarkerFormat parse_marker_format(const std::string& text) {
 
 MarkerImportSummary import_markers(Project& project, const MarkerImportOptions& options,
                                    const fs::path& file) {
-  door::input_file(file, "marker file");
+  door::input_file(file, "marker file", door::kMaxTextFileBytes);
   if (!(options.default_sigma > 0)) throw InputError(fmt::format("--sigma {} must be positive (metres)", options.default_sigma));
   auto& db = project.db();
   const SiteInfo site = project.site();

@@ -1,9 +1,15 @@
 #include "importers/raster/geotiff.hpp"
 
+#include "core/door.hpp"
 #include "core/error.hpp"
+#include "core/log.hpp"
+#include "crs/crs.hpp"
+#include "project/site_bounds.hpp"
 
 #include <fmt/format.h>
 #include <gdal_priv.h>
+#include <gdalwarper.h>
+#include <ogr_spatialref.h>
 
 #include <algorithm>
 #include <array>
@@ -27,10 +33,10 @@ void register_gdal() {
 
 }  // namespace
 
-HeightRaster<double> read_height_geotiff(const fs::path& path, const Eigen::Vector3d& site_origin) {
-  register_gdal();
-  std::unique_ptr<GDALDataset, DatasetCloser> ds(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
-  if (!ds) throw IoError(fmt::format("reader.dtm: {}: cannot open as a raster", path.string()));
+namespace {
+
+// Band 1 of an open north-up raster of heights, into the site frame.
+HeightRaster<double> read_heights(GDALDataset* ds, const fs::path& path, const Eigen::Vector3d& site_origin) {
   if (ds->GetRasterCount() < 1) throw InputError(fmt::format("reader.dtm: {}: no raster band", path.string()));
   double gt[6];
   if (ds->GetGeoTransform(gt) != CE_None)
@@ -46,6 +52,11 @@ HeightRaster<double> read_height_geotiff(const fs::path& path, const Eigen::Vect
   r.grid.y_max = gt[3] - site_origin.y();
   r.grid.width = ds->GetRasterXSize();
   r.grid.height = ds->GetRasterYSize();
+  if (!(cell > 0) || !std::isfinite(cell) || !std::isfinite(gt[0]) || !std::isfinite(gt[3]))
+    throw InputError(fmt::format("reader.dtm: {}: the geotransform is not a grid of positive pixels", path.string()));
+  door::fits_in_memory(double(r.grid.width) * double(r.grid.height) * 2 * sizeof(double),
+                       fmt::format("reader.dtm: {}: {} x {} pixels", path.string(), r.grid.width, r.grid.height),
+                       "a raster of the trench at its ground resolution is far smaller");
   GDALRasterBand* band = ds->GetRasterBand(1);
   int has_nodata = 0;
   const double nodata = band->GetNoDataValue(&has_nodata);
@@ -57,6 +68,48 @@ HeightRaster<double> read_height_geotiff(const fs::path& path, const Eigen::Vect
     v = (has_nodata && v == nodata) || !std::isfinite(v) ? std::numeric_limits<double>::quiet_NaN()
                                                           : v - site_origin.z();
   return r;
+}
+
+}  // namespace
+
+HeightRaster<double> read_height_geotiff(const fs::path& path, const Eigen::Vector3d& site_origin) {
+  register_gdal();
+  door::input_file(path, "reader.dtm: raster");
+  std::unique_ptr<GDALDataset, DatasetCloser> ds(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
+  if (!ds) throw IoError(fmt::format("reader.dtm: {}: cannot open as a raster", path.string()));
+  return read_heights(ds.get(), path, site_origin);
+}
+
+HeightRaster<double> read_site_height_geotiff(const fs::path& path, const SiteInfo& site, std::string_view what) {
+  register_gdal();
+  door::input_file(path, what);
+  std::unique_ptr<GDALDataset, DatasetCloser> ds(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
+  if (!ds) throw IoError(fmt::format("reader.dtm: {} {}: cannot open as a raster", what, path.string()));
+  const OGRSpatialReference* srs = ds->GetSpatialRef();
+  if (!srs) {
+    double gt[6];
+    if (ds->GetGeoTransform(gt) == CE_None) {
+      const Eigen::Vector2d centre(gt[0] + gt[1] * ds->GetRasterXSize() / 2, gt[3] + gt[5] * ds->GetRasterYSize() / 2);
+      check_site_position(site, centre, fmt::format("reader.dtm: {} {} (no CRS: read in the site CRS), its centre",
+                                                    what, path.string()));
+    }
+    return read_heights(ds.get(), path, site.origin);
+  }
+  OGRSpatialReference site_srs;
+  site_srs.SetFromUserInput(describe_crs(site.crs).wkt.c_str());
+  if (srs->IsSame(&site_srs)) return read_heights(ds.get(), path, site.origin);
+  char* site_wkt = nullptr;
+  site_srs.exportToWkt(&site_wkt);
+  const std::string dst(site_wkt ? site_wkt : "");
+  CPLFree(site_wkt);
+  std::unique_ptr<GDALDataset, DatasetCloser> warped(GDALDataset::FromHandle(
+      GDALAutoCreateWarpedVRT(GDALDataset::ToHandle(ds.get()), nullptr, dst.c_str(), GRA_Bilinear, 0.0, nullptr)));
+  if (!warped)
+    throw CrsError(fmt::format("reader.dtm: {} {}: its CRS ({}) cannot be transformed into the site CRS {}", what,
+                               path.string(), srs->GetName() ? srs->GetName() : "unnamed", site.crs));
+  log::warn("reader.dtm: {} {} is in {}, not the site CRS {}: warped into it (bilinear)", what, path.string(),
+            srs->GetName() ? srs->GetName() : "another CRS", site.crs);
+  return read_heights(warped.get(), path, site.origin);
 }
 
 RasterThumbnail read_raster_thumbnail(const fs::path& path, int max_px, bool average) {

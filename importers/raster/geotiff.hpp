@@ -3,11 +3,13 @@
 // synthetic truth surface) and reduced copies of any north-up raster for display
 // (reader.raster). GDAL stays in geotiff.cpp.
 #include "geometry/raster.hpp"
+#include "project/project.hpp"
 
 #include <Eigen/Core>
 
 #include <cstdint>
 #include <filesystem>
+#include <string_view>
 #include <vector>
 
 namespace strata {
@@ -16,7 +18,15 @@ namespace strata {
 // site frame: x = E - origin E, y = N - origin N, z = Z - origin Z (in double: no
 // rounding beyond the file's). Nodata -> NaN. Pixels must be square. Throws
 // IoError / InputError naming the file.
+// Refuses, before reading, a raster whose pixels would not fit in memory
+// (door::fits_in_memory: a header may claim 10^6 x 10^6 pixels).
 HeightRaster<double> read_height_geotiff(const std::filesystem::path& path, const Eigen::Vector3d& site_origin);
+// A surface a user hands strata (`--surface LAYER=FILE`), checked at the door: a
+// regular file; in another CRS than the site's, warped into it (bilinear, with a
+// warning naming both); without a CRS, taken in the site CRS when its centre is a
+// place of the site (project/site_bounds.hpp), else refused. `what` names it.
+HeightRaster<double> read_site_height_geotiff(const std::filesystem::path& path, const SiteInfo& site,
+                                              std::string_view what);
 
 // A raster product read at reduced size (GDAL RasterIO with resampling), every band
 // as float, for drawing it.

@@ -21,7 +21,7 @@ constexpr const char* kColumns = "name,x,y,z (metres, scanner frame)";
 
 std::vector<ScanTarget> read_scan_targets(const fs::path& file) {
   std::error_code ec;
-  door::input_file(file, fmt::format("{}: targets file", kStage));
+  door::input_file(file, fmt::format("{}: targets file", kStage), door::kMaxTextFileBytes);
   const DelimitedFile df = read_delimited(file);
   std::vector<int> at = {0, 1, 2, 3};
   std::size_t first = 0;

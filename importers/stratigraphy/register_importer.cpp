@@ -34,7 +34,7 @@ struct Register {
 
 Register read_register(const fs::path& file, const char* stage, const std::vector<std::vector<std::string>>& aliases,
                        std::size_t required, const char* columns) {
-  door::input_file(file, fmt::format("{}: register", stage));
+  door::input_file(file, fmt::format("{}: register", stage), door::kMaxTextFileBytes);
   const DelimitedFile df = read_delimited(file);
   if (df.lines.empty()) throw InputError(fmt::format("{}: {}: the file is empty (expected a header {})", stage,
                                                      file.string(), columns));

@@ -10,6 +10,7 @@
 #include "exporters/mesh/mesh_writers.hpp"
 #include "geometry/mesh.hpp"
 #include "importers/mesh/ply_mesh.hpp"
+#include "importers/vector/outline.hpp"
 #include "pipeline/alignment_store.hpp"
 #include "pipeline/products_layer.hpp"
 #include "products/model_check.hpp"
@@ -94,8 +95,8 @@ std::vector<int> spread_views(const std::vector<OrthoView>& views, int n) {
 
 std::vector<Eigen::Vector2d> check_region(Project& p, const CheckArgs& c) {
   const fs::path kept = p.dir() / kTrenchOutlineFile;
-  if (!c.outline.empty()) return read_footprint(c.outline, p.site().origin);
-  if (fs::exists(kept)) return read_footprint(kept, p.site().origin);
+  if (!c.outline.empty()) return read_outline(c.outline, p.site(), "--check-outline");
+  if (fs::exists(kept)) return read_outline(kept, p.site(), "the kept trench outline");
   return {};
 }
 

@@ -15,6 +15,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <ctime>
 #include <fstream>
 #include <regex>
@@ -160,6 +161,11 @@ std::uint64_t cgroup_limit() {
 
 std::uint64_t memory_budget_bytes() {
   static const std::uint64_t budget = [] {
+    if (const char* text = std::getenv("STRATA_MEMORY_BUDGET_MB")) {
+      char* end = nullptr;
+      const double mb = std::strtod(text, &end);
+      if (end != text && mb >= 1 && mb <= 1e9) return std::uint64_t(mb * 1e6);
+    }
     const long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGESIZE);
     std::uint64_t total = pages > 0 && page > 0 ? std::uint64_t(pages) * std::uint64_t(page) : (8ull << 30);
     if (const std::uint64_t limit = cgroup_limit(); limit > 0) total = std::min(total, limit);

@@ -24,6 +24,9 @@ namespace strata::door {
 // A regular file (after links): not missing, not a folder, a named pipe (reading it
 // would wait for a writer forever), a socket or a device. Returns `path`.
 std::filesystem::path input_file(const std::filesystem::path& path, std::string_view what);
+// The bound on a table or text file a user hands strata (a survey, a finds list, a
+// unit register, a calibration): far beyond any real one, well within memory.
+inline constexpr std::uintmax_t kMaxTextFileBytes = 256ull << 20;
 // As input_file, and at most `max_bytes` long (a bound on what a reader will take in).
 std::filesystem::path input_file(const std::filesystem::path& path, std::string_view what, std::uintmax_t max_bytes);
 // A folder (after links).
@@ -43,7 +46,8 @@ std::filesystem::path output_folder(const std::filesystem::path& path, std::stri
 double number_in(double value, double lo, double hi, std::string_view what, std::string_view unit);
 
 // The memory a single computation may ask for: half of what this process may use
-// (the machine's RAM, or the cgroup limit a batch scheduler sets when lower).
+// (the machine's RAM, or the cgroup limit a batch scheduler sets when lower), or
+// STRATA_MEMORY_BUDGET_MB when set (a shared node's share; the fuzz targets' bound).
 std::uint64_t memory_budget_bytes();
 // Refuses, before allocating, a computation estimated at `bytes`: InputError
 // "<what> would need N GB, more than the M GB this machine allows (<remedy>)".

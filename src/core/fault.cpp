@@ -4,9 +4,11 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <csignal>
 #include <cstdlib>
 #include <string>
+#include <thread>
 
 namespace strata::fault {
 namespace {
@@ -14,13 +16,21 @@ namespace {
 struct Arming {
   std::string name;  // empty: no point armed
   long hit = 1;      // kill at this hit (1 = the first)
+  bool stall = false;  // STRATA_STALL_AT: hang there instead (a step that never reaches a safe point)
 };
 
 // STRATA_CRASH_AT=<name>[:<n>], read once. A malformed count arms nothing rather
 // than killing somewhere unintended.
+// STRATA_STALL_AT=<name>[:<n>] the same, but the process hangs there without ever
+// checking for cancellation, as a step stuck in a system call or a library would:
+// the test of the stop that cannot wait (core/signals.hpp, docs/reliability.md).
 Arming read_arming() {
   Arming r;
   const char* env = std::getenv("STRATA_CRASH_AT");
+  if (!env || !*env) {
+    env = std::getenv("STRATA_STALL_AT");
+    r.stall = true;
+  }
   if (!env || !*env) return r;
   std::string spec = env;
   const auto colon = spec.rfind(':');
@@ -57,7 +67,10 @@ void point(std::string_view name) {
   if (!registered(name)) {
     throw InternalError(fmt::format("crash point '{}' is not in kCrashPoints (core/fault.hpp)", name));
   }
-  if (name == a.name && g_hits.fetch_add(1) + 1 == a.hit) std::raise(SIGKILL);
+  if (name == a.name && g_hits.fetch_add(1) + 1 == a.hit) {
+    if (!a.stall) std::raise(SIGKILL);
+    for (;;) std::this_thread::sleep_for(std::chrono::seconds(1));
+  }
 }
 
 std::string_view armed() { return arming().name; }

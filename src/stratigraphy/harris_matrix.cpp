@@ -280,6 +280,21 @@ std::vector<int> HarrisMatrix::topological_order() const {
   return order;
 }
 
+namespace {
+
+// A DOT quoted string's content: the quote and the backslash escaped (a code may hold
+// either; the door keeps control characters and line breaks out).
+std::string dot_quoted(const std::string& text) {
+  std::string out;
+  for (const char c : text) {
+    if (c == '"' || c == '\\') out += '\\';
+    out += c;
+  }
+  return out;
+}
+
+}  // namespace
+
 std::string HarrisMatrix::to_dot() const {
   std::string s =
       "digraph harris_matrix {\n"
@@ -287,7 +302,7 @@ std::string HarrisMatrix::to_dot() const {
       "  node [shape=box, fontname=\"Helvetica\", fontsize=11];\n"
       "  edge [arrowhead=none];\n";
   for (std::size_t n = 0; n < nodes_.size(); ++n) {
-    s += fmt::format("  n{} [label=\"{}\"];\n", n, nodes_[n].label());
+    s += fmt::format("  n{} [label=\"{}\"];\n", n, dot_quoted(nodes_[n].label()));
   }
   for (const auto& [a, b] : reduced_edges()) s += fmt::format("  n{} -> n{};\n", a, b);
   for (const auto& [a, b] : contemporary_pairs()) {

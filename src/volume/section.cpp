@@ -2,6 +2,7 @@
 // Its writers (SVG drawing, GeoPackage) are in exporters/section.
 #include "volume/section.hpp"
 
+#include "core/door.hpp"
 #include "core/error.hpp"
 
 #include <fmt/format.h>
@@ -20,15 +21,25 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 SectionProfile cut_section(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const std::vector<LayerSurface>& layers,
                            const std::vector<UnitSolid>& solids, double step_m) {
   if (layers.empty()) throw InputError("section: there are no layer surfaces to cut");
+  if (!std::isfinite(step_m) || step_m < 0)
+    throw InputError(fmt::format("section: the sampling step {} m is not a positive length", step_m));
   const double step = step_m > 0 ? step_m : layers.front().z.grid.cell;
   const double length = (b - a).norm();
+  if (!std::isfinite(length)) throw InputError("section: the line's ends are not finite coordinates");
   if (!(length >= 2 * step))
     throw InputError(fmt::format("section: the line is {:.3f} m long; it must be at least {:.3f} m", length, 2 * step));
+  // Each sample holds a height per surface and a span per solid: estimated before
+  // the first is allocated (a step of 1e-9 m or a line of 1e10 m asks for terabytes).
+  const double samples = std::floor(length / step) + 2;
+  door::fits_in_memory(samples * double(sizeof(double)) * double(4 + 2 * layers.size() + 4 * solids.size()),
+                       fmt::format("section: {:.3f} m sampled every {:g} m ({:.3g} samples)", length, step, samples),
+                       "choose a larger --step");
   SectionProfile p;
   p.a = a;
   p.b = b;
-  const int n = int(std::floor(length / step)) + 1;
-  for (int i = 0; i < n; ++i) p.s.push_back(std::min(i * step, length));
+  const std::size_t n = std::size_t(std::floor(length / step)) + 1;
+  p.s.reserve(n + 1);
+  for (std::size_t i = 0; i < n; ++i) p.s.push_back(std::min(double(i) * step, length));
   if (p.s.back() < length - 1e-9) p.s.push_back(length);
   for (const auto& l : layers) {
     SectionProfile::Surface s{l.layer, l.unit, {}};
@@ -53,8 +64,10 @@ SectionProfile cut_section(const Eigen::Vector2d& a, const Eigen::Vector2d& b, c
 }
 
 void SectionFindOptions::validate() const {
-  if (!(within_m >= 0) || !std::isfinite(within_m))
-    throw InputError(fmt::format("section: --finds-within {} must be 0 (no finds) or a distance in metres", within_m));
+  // A section's finds lie near its face: beyond 100 m they would be another trench's.
+  if (!(within_m >= 0) || !std::isfinite(within_m) || within_m > 100)
+    throw InputError(
+        fmt::format("section: --finds-within {} must be 0 (no finds) or a distance of at most 100 m", within_m));
 }
 
 std::size_t add_section_finds(SectionProfile& p, const std::vector<FindRecord>& finds,

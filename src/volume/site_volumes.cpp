@@ -2,6 +2,7 @@
 #include "volume/site_volumes.hpp"
 
 #include "core/atomic_file.hpp"
+#include "core/door.hpp"
 #include "core/error.hpp"
 #include "core/log.hpp"
 #include "core/staged_files.hpp"
@@ -9,6 +10,7 @@
 #include "dense/dense.hpp"
 #include "exporters/raster/geotiff.hpp"
 #include "importers/raster/geotiff.hpp"
+#include "importers/vector/outline.hpp"
 #include "pipeline/stage_json.hpp"
 #include "products/dtm.hpp"
 #include "products/site_plan.hpp"
@@ -16,7 +18,6 @@
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
-#include <ogrsf_frmts.h>
 
 #include <algorithm>
 #include <cmath>
@@ -91,41 +92,6 @@ void SiteVolumeOptions::validate() const {
     throw InputError(fmt::format("volume: trench outline {} does not exist", outline_file.string()));
 }
 
-std::vector<Eigen::Vector2d> read_footprint(const fs::path& path, const Eigen::Vector3d& origin) {
-  GDALAllRegister();
-  GDALDataset* ds = GDALDataset::Open(path.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY);
-  if (!ds) throw IoError(fmt::format("reader.footprint: {}: cannot open as a vector file", path.string()));
-  std::vector<Eigen::Vector2d> ring;
-  for (int li = 0; li < ds->GetLayerCount() && ring.empty(); ++li) {
-    OGRLayer* layer = ds->GetLayer(li);
-    layer->ResetReading();
-    while (OGRFeature* f = layer->GetNextFeature()) {
-      const OGRGeometry* g = f->GetGeometryRef();
-      const OGRPolygon* poly = nullptr;
-      if (g && wkbFlatten(g->getGeometryType()) == wkbPolygon) poly = g->toPolygon();
-      if (g && wkbFlatten(g->getGeometryType()) == wkbMultiPolygon && !g->toMultiPolygon()->IsEmpty())
-        poly = g->toMultiPolygon()->getGeometryRef(0);
-      if (poly && poly->getExteriorRing()) {
-        const OGRLinearRing* r = poly->getExteriorRing();
-        for (int i = 0; i < r->getNumPoints(); ++i) {
-          if (!std::isfinite(r->getX(i)) || !std::isfinite(r->getY(i))) {
-            OGRFeature::DestroyFeature(f);
-            GDALClose(GDALDataset::ToHandle(ds));
-            throw InputError(fmt::format("reader.footprint: {}: vertex {} of the polygon is not a finite coordinate",
-                                         path.string(), i + 1));
-          }
-          ring.emplace_back(r->getX(i) - origin.x(), r->getY(i) - origin.y());
-        }
-      }
-      OGRFeature::DestroyFeature(f);
-      if (!ring.empty()) break;
-    }
-  }
-  GDALClose(GDALDataset::ToHandle(ds));
-  if (ring.size() < 3) throw InputError(fmt::format("reader.footprint: {}: no polygon found", path.string()));
-  return ring;
-}
-
 namespace {
 
 // Where each layer's surface comes from (a GeoTIFF the user gave, else the
@@ -158,8 +124,12 @@ std::vector<SurfaceSource> surface_sources(Project& project, const SiteVolumeOpt
                 project.dir().string(), layer.name);
       continue;
     }
-    if (s.raster) {
+    if (s.raster && options.surface_files.count(layer.name)) {
+      s.field = read_site_height_geotiff(s.path, project.site(), fmt::format("--surface of layer {}", layer.name));
+    } else if (s.raster) {
       s.field = read_height_geotiff(s.path, origin);
+    }
+    if (s.raster) {
       const RasterGrid& g = s.field->grid;
       s.xmin = g.x_min;
       s.ymin = g.y_min();
@@ -177,6 +147,25 @@ std::vector<SurfaceSource> surface_sources(Project& project, const SiteVolumeOpt
   if (sources.size() < 2)
     throw InputError(fmt::format("volume: {} layer(s) have a surface; at least two are needed for a volume",
                                  sources.size()));
+  // A surface that overlaps no other is in the wrong place (another CRS, a wrong
+  // origin): it would only stretch the common grid.
+  for (const auto& s : sources) {
+    const bool overlaps = std::any_of(sources.begin(), sources.end(), [&](const SurfaceSource& o) {
+      return &o != &s && s.xmin <= o.xmax && o.xmin <= s.xmax && s.ymin <= o.ymax && o.ymin <= s.ymax;
+    });
+    if (!overlaps) {
+      const auto extent = [&](const SurfaceSource& x) {
+        return fmt::format("layer {} ({}): E {:.1f}..{:.1f}, N {:.1f}..{:.1f}", x.layer.name, x.path.filename().string(),
+                           x.xmin + origin.x(), x.xmax + origin.x(), x.ymin + origin.y(), x.ymax + origin.y());
+      };
+      std::string others;
+      for (const auto& o : sources)
+        if (&o != &s) others += (others.empty() ? "" : "; ") + extent(o);
+      throw InputError(fmt::format("volume: the surface of {} overlaps no other layer's surface ({}); is one of them "
+                                   "in another CRS or place?",
+                                   extent(s), others));
+    }
+  }
   return sources;
 }
 
@@ -242,33 +231,27 @@ std::vector<LayerSurface> sample_surfaces(Database& db, const std::vector<Surfac
   return layers;
 }
 
-// Keeps a trench outline given on the command line as a GeoJSON polygon in the
-// project (CRS coordinates), for the reports and exports that recompute volumes.
-void keep_trench_outline(const fs::path& kept, const std::vector<Eigen::Vector2d>& ring, const SiteInfo& site) {
-  std::string coords;
-  const bool closed = ring.front() == ring.back();
-  for (std::size_t k = 0; k < ring.size() + (closed ? 0 : 1); ++k) {
-    const Eigen::Vector2d& p = ring[k % ring.size()];
-    coords += fmt::format("{}[{:.4f}, {:.4f}]", k ? ", " : "", p.x() + site.origin.x(), p.y() + site.origin.y());
-  }
-  write_bytes_atomically(kept, "volume", fmt::format("{{\"type\": \"FeatureCollection\", \"features\": [{{\"type\": \"Feature\", "
-                       "\"properties\": {{\"name\": \"trench outline ({})\"}}, \"geometry\": {{\"type\": "
-                       "\"Polygon\", \"coordinates\": [[{}]]}}}}]}}\n",
-                       site.crs, coords));
-  log::info("volume: trench outline kept as {}", kept.string());
-}
-
 // The volume options with the unit footprints and the trench outline read: given
 // now, the outline is kept with the project; else the kept one, if any.
-VolumeOptions options_with_polygons(const Project& project, const SiteVolumeOptions& options, const SiteInfo& site) {
+// Both must overlap the surfaces (`extent`), and a footprint name a unit of the project.
+VolumeOptions options_with_polygons(Project& project, const SiteVolumeOptions& options, const SiteInfo& site,
+                                    const SiteExtent& extent) {
   VolumeOptions vo = options.volume;
-  for (const auto& [unit, path] : options.footprint_files) vo.footprints[unit] = read_footprint(path, site.origin);
+  for (const auto& [unit, path] : options.footprint_files) {
+    if (!find_unit(project.db(), unit))
+      throw InputError(fmt::format("volume: --footprint names unit '{}', which is not in the project", unit));
+    vo.footprints[unit] = read_outline(path, site, fmt::format("--footprint of unit {}", unit), extent);
+  }
   const fs::path kept = project.dir() / kTrenchOutlineFile;
   if (!options.outline_file.empty()) {
-    vo.fill.outline = read_footprint(options.outline_file, site.origin);
-    if (fs::absolute(options.outline_file) != fs::absolute(kept)) keep_trench_outline(kept, vo.fill.outline, site);
+    vo.fill.outline = read_outline(options.outline_file, site, "--outline", extent);
+    if (fs::absolute(options.outline_file) != fs::absolute(kept)) {
+      write_bytes_atomically(kept, "volume",
+                             outline_geojson(vo.fill.outline, site, fmt::format("trench outline ({})", site.crs)));
+      log::info("volume: trench outline kept as {}", kept.string());
+    }
   } else if (fs::exists(kept)) {
-    vo.fill.outline = read_footprint(kept, site.origin);
+    vo.fill.outline = read_outline(kept, site, "the kept trench outline", extent);
   }
   return vo;
 }
@@ -285,7 +268,8 @@ SiteModel load_site_model(Project& project, const SiteVolumeOptions& options) {
   const std::vector<SurfaceSource> sources = surface_sources(project, options, model.site.origin);
   const RasterGrid grid = common_grid(sources, options.cell_m);
   model.layers = sample_surfaces(db, sources, grid, options, model.site.origin);
-  const VolumeOptions vo = options_with_polygons(project, options, model.site);
+  const SiteExtent extent{{grid.x_min, grid.y_min()}, {grid.x_max(), grid.y_max}};
+  const VolumeOptions vo = options_with_polygons(project, options, model.site, extent);
   model.fill = fill_surface_gaps(model.layers, vo);
   model.solids = build_unit_solids(model.layers, vo);
   std::map<std::string, fs::path> level_sets;  // the fused layers' voxel models

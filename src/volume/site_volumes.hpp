@@ -77,7 +77,5 @@ HarrisMatrix site_matrix(const SiteModel& model);
 // unit_volumes.details_json): volume, interval and its parts, extent, thickness.
 nlohmann::ordered_json unit_measures_json(const UnitSolid& solid);
 
-// First polygon of a vector file, exterior ring, site frame (CRS minus origin).
-std::vector<Eigen::Vector2d> read_footprint(const std::filesystem::path& path, const Eigen::Vector3d& site_origin);
 
 }  // namespace strata

@@ -1,10 +1,11 @@
-// reader.footprint: the trench outline (or a unit's footprint) that `strata volume
+// reader.outline: the trench outline (or a unit's footprint) that `strata volume
 // --outline FILE` reads through GDAL: any vector format GDAL opens; the seeds are
 // GeoJSON, what QGIS users draw and save. An accepted outline is at least a triangle
-// of finite points.
+// of finite points, every one within the site's bounds, and does not cross itself.
 #include "fuzz/fuzz_support.hpp"
 #include "fuzz/targets.hpp"
-#include "volume/site_volumes.hpp"
+#include "importers/vector/outline.hpp"
+#include "project/site_bounds.hpp"
 
 #include <cpl_error.h>
 
@@ -20,11 +21,15 @@ int footprint(const std::uint8_t* data, std::size_t size) {
   (void)quiet;
   const auto file = write_input(kInputName, data, size);
   std::vector<Eigen::Vector2d> ring;
-  const Eigen::Vector3d origin(500000.0, 4000000.0, 100.0);  // metres, site CRS
-  if (!accepts([&] { ring = read_footprint(file, origin); }, kInputName)) return 0;
-  if (ring.size() < 3) throw FuzzFailure("reader.footprint: accepted an outline of fewer than 3 points");
+  SiteInfo site;  // the seeds' site: UTM 36N, origin at 734000 E, 4174000 N
+  site.crs = "EPSG:32636";
+  site.origin = {734000.0, 4174000.0, 100.0};
+  site.origin_set = true;
+  if (!accepts([&] { ring = read_outline(file, site, ""); }, kInputName)) return 0;
+  if (ring.size() < 3) throw FuzzFailure("reader.outline: accepted an outline of fewer than 3 points");
   for (const auto& p : ring) {
-    if (!p.allFinite()) throw FuzzFailure("reader.footprint: accepted an outline with a point that is not finite");
+    if (!p.allFinite()) throw FuzzFailure("reader.outline: accepted an outline with a point that is not finite");
+    if (p.norm() > kSiteRadius_m + 1) throw FuzzFailure("reader.outline: accepted a vertex far from the site");
   }
   return 0;
 }

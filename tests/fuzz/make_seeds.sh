@@ -179,3 +179,25 @@ sqlite3 "$tmp/other.gpkg" "PRAGMA page_size=512; VACUUM;" >/dev/null
 cp "$tmp/other.gpkg" "$corpus/project/seed_gdal_geopackage.gpkg"
 printf 'this is not a database\n' >"$corpus/project/seed_text.gpkg"
 for d in "$corpus"/*/; do echo "$(basename "$d"): $(ls "$d" | wc -l) files, $(du -sk "$d" | cut -f1) KB"; done
+
+# ---- surfaces (geotiff) and the volume and section options --------------------
+mkdir -p "$corpus"/{geotiff,section_options,volume_options}
+python3 - "$tmp" <<'PY'
+import sys, pathlib
+t = pathlib.Path(sys.argv[1])
+rows = "\n".join(" ".join("99.95" if 3 <= r < 7 and 3 <= c < 7 else "100.0" for c in range(10)) for r in range(10))
+(t / "s.asc").write_text("ncols 10\nnrows 10\nxllcorner 734000\nyllcorner 4174000\ncellsize 0.1\nNODATA_value -9999\n" + rows + "\n")
+PY
+gdal_translate -q -a_srs EPSG:32636 -co COMPRESS=DEFLATE "$tmp/s.asc" "$corpus/geotiff/seed_site_crs.tif"
+gdal_translate -q -a_srs EPSG:32635 "$tmp/s.asc" "$corpus/geotiff/seed_next_zone.tif"
+gdal_translate -q "$tmp/s.asc" "$corpus/geotiff/seed_no_crs.tif"
+gdal_translate -q -a_srs EPSG:32636 -a_nodata 100 -ot Float64 "$tmp/s.asc" "$corpus/geotiff/seed_nodata_float64.tif"
+printf '%s' '<VRTDataset rasterXSize="1000000" rasterYSize="1000000"><SRS>EPSG:32636</SRS><GeoTransform>734000, 0.01, 0, 4174020, 0, -0.01</GeoTransform><VRTRasterBand dataType="Float32" band="1"></VRTRasterBand></VRTDataset>' > "$corpus/geotiff/seed_huge_header.vrt"
+printf '0.1 0.5 0.9 0.5\n' > "$corpus/section_options/seed_across.txt"
+printf '0.1,0.5,0.9,0.5 0.001 50 0.5\n' > "$corpus/section_options/seed_fine_step.txt"
+printf '734000.2 4174000.5 734000.8 4174000.2 0 20 0.25\n' > "$corpus/section_options/seed_absolute.txt"
+printf '0.1 0.5 1e10 0.5 1e-9\n' > "$corpus/section_options/seed_hostile.txt"
+printf '0 0.005 0.01 0.003 0.25 0.95\n' > "$corpus/volume_options/seed_defaults.txt"
+printf '0.02 0.01 0.02 0.001 0.1 0.99\n' > "$corpus/volume_options/seed_coarse.txt"
+printf '0.001 0 0.001 1 10 0.5\n' > "$corpus/volume_options/seed_limits.txt"
+printf 'nan 1e308 -1 0x1p-1074 inf 2\n' > "$corpus/volume_options/seed_hostile.txt"

@@ -19,6 +19,9 @@ int ply(const std::uint8_t* data, std::size_t size);           // reader.ply
 int footprint(const std::uint8_t* data, std::size_t size);     // reader.footprint: trench outline GeoJSON
 int target_names(const std::uint8_t* data, std::size_t size);  // --target-names id=name list
 int project(const std::uint8_t* data, std::size_t size);       // opening someone else's project.gpkg
+int geotiff(const std::uint8_t* data, std::size_t size);       // reader.dtm: a --surface raster
+int section_options(const std::uint8_t* data, std::size_t size);  // strata export section's numbers
+int volume_options(const std::uint8_t* data, std::size_t size);   // strata volume's numbers
 
 struct Target {
   const char* name;  // also the corpus folder and the fuzz executable (fuzz_<name>)
@@ -28,6 +31,7 @@ inline constexpr Target kTargets[] = {
     {"markers_csv", markers_csv}, {"markers_odm", markers_odm}, {"photo", photo},
     {"calibration", calibration}, {"ply", ply},                 {"footprint", footprint},
     {"target_names", target_names}, {"project", project},
+    {"geotiff", geotiff},         {"section_options", section_options}, {"volume_options", volume_options},
 };
 
 }  // namespace strata::fuzz
