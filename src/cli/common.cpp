@@ -33,7 +33,7 @@ ProjectLock lock_project(const std::string& dir) {
 
 namespace {
 
-enum class PathKind { project, new_project, input_file, input_folder, output_file, output_folder, named_file };
+enum class PathKind { project, new_project, input_file, input_folder, output_file, output_folder, output_either, named_file };
 
 // The kind of path an option takes, from its name (see common.hpp); nullopt: not a path.
 std::optional<PathKind> path_kind(const CLI::App& command, const CLI::Option& option) {
@@ -42,7 +42,10 @@ std::optional<PathKind> path_kind(const CLI::App& command, const CLI::Option& op
   if (name == "DIR") return command.get_name() == "init" || command.get_name() == "synth" ? PathKind::new_project : PathKind::project;
   if (name == "FILE" || name == "FRAME") return PathKind::input_file;
   if (name == "OUT") return PathKind::output_folder;
-  if (name == "--out") return help.find("folder") != std::string::npos ? PathKind::output_folder : PathKind::output_file;
+  if (name == "--out") {
+    if (help.rfind("output folder", 0) == 0) return PathKind::output_folder;
+    return help.find("or folder") != std::string::npos ? PathKind::output_either : PathKind::output_file;
+  }
   if (name == "--outline" || name == "--check-outline" || name == "--intrinsics" || name == "--targets")
     return PathKind::input_file;
   if (name == "--colour") return PathKind::input_folder;
@@ -58,6 +61,12 @@ void check_path(PathKind kind, const std::string& option, const std::string& val
     case PathKind::input_folder: door::input_folder(value, option); break;
     case PathKind::output_file: door::output_file(value, option); break;
     case PathKind::output_folder: door::output_folder(value, option); break;
+    case PathKind::output_either: {
+      std::error_code ec;
+      if (std::filesystem::is_directory(value, ec)) door::output_folder(value, option);
+      else door::output_file(value, option);
+      break;
+    }
     case PathKind::named_file: {
       const auto eq = value.find('=');
       if (eq == std::string::npos || eq == 0 || eq + 1 == value.size())

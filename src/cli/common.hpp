@@ -25,7 +25,8 @@ ProjectLock lock_project(const std::string& dir);
 // The path checks at the door (core/door.hpp) attached to every option of every
 // command by its name, so that a new command gets them by naming its options as the
 // others do: DIR (the project folder; to be made by init and synth), FILE and FRAME
-// (input files), --out (a file, or a folder when its help says so), OUT (a folder),
+// (input files), --out (a file; a folder when its help begins "output folder"; either
+// when it says "or folder"), OUT (a folder),
 // --outline, --check-outline, --intrinsics, --targets (input files), --colour
 // (a folder), --surface and --footprint (NAME=FILE). A refused path ends the command
 // in one line before it takes the project lock or reads anything.

@@ -92,7 +92,11 @@ TEST(Cli, ErrorsAreOneLineAndLeaveNothingBehind) {
 
   r = run_strata({"info", (dir / "nowhere").string()});
   EXPECT_EQ(r.exit_code, 1);
-  EXPECT_NE(r.err.find("not a strata project"), std::string::npos);
+  EXPECT_NE(r.err.find("project folder '" + (dir / "nowhere").string() + "' does not exist"), std::string::npos) << r.err;
+  fs::create_directories(dir / "empty");
+  r = run_strata({"info", (dir / "empty").string()});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("not a strata project"), std::string::npos) << r.err;
 }
 
 }  // namespace

@@ -403,7 +403,7 @@ TEST_F(Finds, SectionsShowTheFindsNearThePlane) {
   EXPECT_FALSE(table);
   const CommandResult bad = section(scratch_ / "bad.svg", {"--finds-within=-0.5"});
   EXPECT_NE(bad.exit_code, 0);
-  EXPECT_NE(bad.err.find("--finds-within -0.5 must be 0 (no finds) or a distance in metres"), std::string::npos)
+  EXPECT_NE(bad.err.find("--finds-within -0.5 must be 0 (no finds) or a distance of at most 100 m"), std::string::npos)
       << bad.err;
   EXPECT_FALSE(fs::exists(scratch_ / "bad.svg"));
 }

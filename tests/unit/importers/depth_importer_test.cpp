@@ -173,7 +173,7 @@ TEST_F(DepthImportTest, BadDepthFramesAreRefusedNamingFileAndByte) {
   cv::imwrite(empty.string(), cv::Mat(kHeight, kWidth, CV_16UC1, cv::Scalar(0)));
   expect_refused({empty}, options(), {"empty.png", "holds no depth"});
   // Missing file, the same frame twice.
-  expect_refused({scratch() / "in" / "nowhere.png"}, options(), {"nowhere.png", "no such file"});
+  expect_refused({scratch() / "in" / "nowhere.png"}, options(), {"nowhere.png", "does not exist"});
   expect_refused({good, good}, options(), {"a second frame named '0001.png'"});
 }
 

@@ -71,7 +71,7 @@ TEST_F(ImporterTest, BadBatchImportsNothingAndNamesEachBadFile) {
     const std::string msg = e.what();
     EXPECT_NE(msg.find("truncated.jpg: truncated JPEG"), std::string::npos) << msg;
     EXPECT_NE(msg.find("notes.jpg: not a JPEG"), std::string::npos) << msg;
-    EXPECT_NE(msg.find("missing.jpg: no such file"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("missing.jpg: does not exist"), std::string::npos) << msg;
     EXPECT_EQ(msg.find("good.jpg"), std::string::npos) << msg;
   }
   EXPECT_EQ(dump(), before);
