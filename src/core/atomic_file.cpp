@@ -1,9 +1,8 @@
 #include "core/atomic_file.hpp"
 
-#include "core/temporaries.hpp"
-
 #include "core/error.hpp"
 #include "core/fault.hpp"
+#include "core/temporaries.hpp"
 
 #include <fmt/format.h>
 

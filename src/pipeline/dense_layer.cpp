@@ -1,12 +1,12 @@
 #include "pipeline/dense_layer.hpp"
 
 #include "core/error.hpp"
-#include "core/temporaries.hpp"
 #include "core/fault.hpp"
 #include "core/hash.hpp"
 #include "core/log.hpp"
 #include "core/progress.hpp"
 #include "core/statistics.hpp"
+#include "core/temporaries.hpp"
 #include "pipeline/alignment_store.hpp"
 #include "pipeline/layer_scans.hpp"
 #include "pipeline/stage_json.hpp"
@@ -69,7 +69,6 @@ DenseSummary run_dense_into(const fs::path& tmp_dir, const DenseOptions& options
                             const fs::path& cache) {
   fs::remove_all(tmp_dir);
   fs::create_directories(tmp_dir);
-  const Temporary held(tmp_dir);
   try {
     return run_dense(options, rec, photos, scans.registered, site.origin, cache, tmp_dir);
   } catch (...) {
@@ -177,6 +176,7 @@ DenseLayerResult dense_layer(Project& project, const std::string& layer_name, co
   DenseOptions o = options;
   o.quality.area = completeness_area(options, rec, scans);
   const fs::path tmp_dir = project.dir() / layer_product_dir(layer.name) / "dense.tmp";
+  const Temporary held(tmp_dir);  // until it is swapped in (renamed), for a stop that cannot wait
   DenseQuality q{layer.name, alignment.has_value(), scans.unregistered,
                  run_dense_into(tmp_dir, o, rec, photos, scans, project.site(),
                                 project.cache_dir() / "layers" / layer.name)};

@@ -3,8 +3,8 @@
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/fault.hpp"
-#include "core/temporaries.hpp"
 #include "core/hash.hpp"
+#include "core/temporaries.hpp"
 #include "project/records.hpp"
 
 #include <algorithm>
