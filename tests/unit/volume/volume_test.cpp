@@ -420,7 +420,7 @@ TEST(VolumeOptions, RefusesInvalidValues) {
   VoxelOptions v;
   v.voxel_size_m = 0;
   EXPECT_THROW(v.validate(), InputError);
-  EXPECT_THROW(read_height_geotiff("/nonexistent/dtm.tif", Eigen::Vector3d::Zero()), IoError);
+  EXPECT_THROW(read_height_geotiff("/nonexistent/dtm.tif", Eigen::Vector3d::Zero()), InputError);
 }
 
 // ---- the synthetic excavation -------------------------------------------------------
