@@ -44,6 +44,10 @@ inline constexpr CrashPoint kCrashPoints[] = {
     {"import.markers.marker_written", "a marker row written, not committed"},
     {"import.markers.observation_written", "an observation row written, not committed"},
     {"import.markers.before_commit", "every row written, not committed"},
+    // ---- strata import finds, strata find add
+    {"import.finds.parsed", "the finds read, their units checked, nothing written"},
+    {"import.finds.find_written", "a find row written, not committed"},
+    {"import.finds.before_commit", "every find written and the finds extent updated, not committed"},
     // ---- strata process: alignment
     {"process.features.file_temp_written", "a feature or match cache file written to its temporary name"},
     {"process.features.image_done", "one photo's features in the cache"},
