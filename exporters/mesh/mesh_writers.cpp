@@ -6,6 +6,7 @@
 
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
+#include "core/fault.hpp"
 #include "core/staged_files.hpp"
 
 #include <fmt/format.h>
@@ -264,7 +265,8 @@ ObjModelFiles write_obj_model(const std::filesystem::path& path, const DenseMesh
       });
     }
   }
-  staged.swap_in();
+  fault::point("export.obj.staged");
+  staged.swap_in("export.obj.file_renamed");
   return files;
 }
 

@@ -1,6 +1,7 @@
 #include "core/staged_files.hpp"
 
 #include "core/error.hpp"
+#include "core/fault.hpp"
 
 #include <fmt/format.h>
 
@@ -37,13 +38,14 @@ void StagedFiles::write(const fs::path& final_path, const std::function<void(std
   if (!f) throw IoError(fmt::format("{}: {}: write failed (disk full?)", stage_, final_path.string()));
 }
 
-void StagedFiles::swap_in() {
+void StagedFiles::swap_in(std::string_view renamed_point) {
   for (const auto& [staged, final_path] : files_) {
     std::error_code ec;
     fs::rename(staged, final_path, ec);
     if (ec)
       throw IoError(fmt::format("{}: {}: cannot rename {} over it: {}", stage_, final_path.string(),
                                 staged.filename().string(), ec.message()));
+    if (!renamed_point.empty()) fault::point(renamed_point);
   }
   files_.clear();
 }

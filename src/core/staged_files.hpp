@@ -7,6 +7,7 @@
 #include <functional>
 #include <iosfwd>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -27,7 +28,9 @@ class StagedFiles {
   void write(const std::filesystem::path& final_path, const std::function<void(std::ostream&)>& fill);
   // Every staged file takes its final name (rename: atomic, the old file replaced),
   // in the order added; throws IoError naming the file that could not be renamed.
-  void swap_in();
+  // `renamed_point` (core/fault.hpp) is passed after each rename. A file that names
+  // others (an .obj its .mtl) goes last, so that it never names one not yet in place.
+  void swap_in(std::string_view renamed_point = {});
 
  private:
   std::string stage_;
