@@ -139,7 +139,7 @@ inline constexpr CrashPoint kCrashPoints[] = {
     {"export.report.temp_written", "the HTML report written to its temporary name"},
     {"export.gltf.staged", "the .glb (export model) complete at its staged name (.next.glb), not renamed"},
     {"export.obj.staged", "the .obj, .mtl and texture atlases complete at their staged names, none renamed"},
-    {"export.obj.file_renamed", "one of the OBJ's files renamed into place, the others not"},
+    {"export.obj.file_renamed", "one of the OBJ's files renamed into place (atlases, .mtl, then .obj), the others not"},
     {"export.viewer.staged", "the viewer page complete at its staged name (.next.html), not renamed"},
 };
 
