@@ -27,7 +27,8 @@ class StagedFiles {
   // the folder cannot be made, the file opened or the writing completed.
   void write(const std::filesystem::path& final_path, const std::function<void(std::ostream&)>& fill);
   // Every staged file takes its final name (rename: atomic, the old file replaced),
-  // in the order added; throws IoError naming the file that could not be renamed.
+  // in the order added; throws IoError naming the file that could not be renamed (a
+  // folder of a final name is refused before any rename).
   // `renamed_point` (core/fault.hpp) is passed after each rename. A file that names
   // others (an .obj its .mtl) goes last, so that it never names one not yet in place.
   void swap_in(std::string_view renamed_point = {});
