@@ -72,6 +72,23 @@ def crash_points():
     return re.findall(r'\{"([a-z_.]+)",\s*"([^"]*)"\}', body)
 
 
+def points_in_sources():
+    """{name: first file} of every point the code passes by a literal name (fault::point("..."),
+    StagedFiles::swap_in("...")): a name missing from kCrashPoints makes its command stop
+    with an internal error whenever STRATA_CRASH_AT is set."""
+    used = {}
+    for top in ("src", "importers", "exporters"):
+        for dirpath, _, files in os.walk(os.path.join(ROOT, top)):
+            for f in files:
+                if not f.endswith(".cpp"):
+                    continue
+                path = os.path.join(dirpath, f)
+                text = open(path, encoding="utf-8", errors="replace").read()
+                for name in re.findall(r'(?:fault::point|swap_in)\(\s*"([a-z_.]+)"', text):
+                    used.setdefault(name, os.path.relpath(path, ROOT))
+    return used
+
+
 # ---- the project states a command starts from --------------------------------------
 
 class Project:
@@ -609,6 +626,12 @@ def main():
         return references[name]
 
     results = []
+    listed = {n for n, _ in points}
+    for name, where_used in sorted(points_in_sources().items()):
+        if name not in listed and (not args.only or any(s in name for s in args.only)):
+            results.append({"point": name, "run": "-", "passed": False,
+                            "failures": [f"passed in {where_used} but not in kCrashPoints (core/fault.hpp)"]})
+            log(f"FAIL {name}: passed in {where_used} but not in kCrashPoints")
     for name, where in chosen:
         runs = runs_for(name, where)
         if not runs:
@@ -618,7 +641,7 @@ def main():
             sc = scen[sc_name]
             spec = name + (hit or "")
             ref = reference(sc_name)
-            failures = []
+            failures, notes = [], []
             t = time.time()
             p.restore(sc.state)
             r = p.run(sc.command(), crash=spec, check=False)
@@ -635,6 +658,8 @@ def main():
                 if r2.returncode != 0 and not refused_done:
                     failures.append(f"rerun failed (exit {r2.returncode}): {r2.stderr.strip()[-300:]}")
                 else:
+                    if refused_done:
+                        notes.append("rerun refused by design (the killed run had committed): " + sc.done_refusal)
                     failures += ["after the rerun: " + x for x in db_problems(p.site) + media_problems(p.site)
                                  + product_problems(p.site)]
                     diff = differences(fingerprint(p), ref)
@@ -644,10 +669,11 @@ def main():
                     if leftovers:
                         failures.append("temporary files left in the output: " + ", ".join(leftovers))
             results.append({"point": name, "run": f"{sc_name}{hit or ''}", "where": where, "passed": not failures,
-                            "failures": failures, "seconds": round(time.time() - t, 1)})
+                            "failures": failures, "seconds": round(time.time() - t, 1)}
+                           | ({"notes": notes} if notes else {}))
             status = "pass" if not failures else "FAIL"
             log(f"{status} {spec:<46} {sc_name:<9} {time.time() - t:5.1f} s" +
-                ("" if not failures else "\n        " + "\n        ".join(failures)))
+                "".join("\n        " + x for x in failures + notes))
 
     passed = sum(r["passed"] for r in results)
     failed = len(results) - passed
