@@ -12,7 +12,13 @@ project in the state that command starts from, and checks:
   outputs    an export's --out is either absent or whole (the undisturbed run's bytes)
   rerun      the same command, undisturbed, completes (exit 0) and leaves the project
              (and output) as an undisturbed run from the same start leaves it:
-             the same rows, the same product checksums, the same exported bytes
+             the same rows, the same product checksums, the same exported bytes;
+             with several files (an .obj, its .mtl and atlases), the one naming the
+             others is never there without them
+
+The range data (laser scans, a depth sequence) and the finds come from the same
+`strata synth` run as the photos, thinned to keep the matrix within minutes; the
+calibration file for 'import calibration' is written here.
 
 Prints a table and "N passed, M failed"; writes bench/results/crash-<UTC>.json.
 
@@ -24,11 +30,13 @@ import argparse
 import datetime
 import hashlib
 import json
+import math
 import os
 import re
 import shutil
 import signal
 import sqlite3
+import struct
 import subprocess
 import sys
 import tempfile
@@ -36,6 +44,10 @@ import time
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 CRS = "EPSG:32636"
+PHOTO_WIDTH = 800     # pixels: the synthetic photos
+SCAN_STEP_MRAD = 16   # the synthetic scans' angular step: a few thousand points a scan, enough for ICP
+DEPTH_FRAMES = 8      # the synthetic depth sequence: enough to track, few to register in seconds
+SCANS = [("S1.xyz", 0), ("S1_turned_120.xyz", 120), ("S1_turned_240.xyz", 240)]  # name, degrees about z
 
 # Points the test suite runs (--sample): one or two per command family, a few minutes in all.
 SAMPLE = [
@@ -47,6 +59,8 @@ SAMPLE = [
     "process.products.ortho_written",
     "volume.model_loaded",
     "export.qgis.temp_written",
+    "import.scans.row_inserted",
+    "import.finds.find_written",
 ]
 
 
@@ -56,6 +70,23 @@ def crash_points():
     body = text[text.index("kCrashPoints[] = {"):]
     body = body[: body.index("};")]
     return re.findall(r'\{"([a-z_.]+)",\s*"([^"]*)"\}', body)
+
+
+def points_in_sources():
+    """{name: first file} of every point the code passes by a literal name (fault::point("..."),
+    StagedFiles::swap_in("...")): a name missing from kCrashPoints makes its command stop
+    with an internal error whenever STRATA_CRASH_AT is set."""
+    used = {}
+    for top in ("src", "importers", "exporters"):
+        for dirpath, _, files in os.walk(os.path.join(ROOT, top)):
+            for f in files:
+                if not f.endswith(".cpp"):
+                    continue
+                path = os.path.join(dirpath, f)
+                text = open(path, encoding="utf-8", errors="replace").read()
+                for name in re.findall(r'(?:fault::point|swap_in)\(\s*"([a-z_.]+)"', text):
+                    used.setdefault(name, os.path.relpath(path, ROOT))
+    return used
 
 
 # ---- the project states a command starts from --------------------------------------
@@ -124,14 +155,17 @@ class Project:
 
     def prepare(self, log):
         t = time.time()
-        self.run(["synth", self.data, "--size", "small", "--stages", "1", "--photos", "14", "--width", "800",
-                  "--seed", "5"])
+        self.run(["synth", self.data, "--size", "small", "--stages", "1", "--photos", "14", "--width",
+                  str(PHOTO_WIDTH), "--seed", "5", "--scans", "--scan-step-mrad", str(SCAN_STEP_MRAD), "--depth",
+                  "--depth-frames", str(DEPTH_FRAMES)])
+        self.write_calibration()
         log(f"synthetic data in {time.time() - t:.0f} s")
         shutil.rmtree(self.site, ignore_errors=True)
         self.run(["init", self.site, "--crs", CRS])
         self.save("initialised")
         for code in self.units():
             self.run(["unit", "add", self.site, code])
+        self.save("units")
         for a, kind, b in self.relations():
             self.run(["relation", "add", self.site, a, kind, b])
         for layer, unit in self.layers():
@@ -152,6 +186,58 @@ class Project:
         self.run(["volume", self.site] + self.outline())
         log(f"volume: {time.time() - t:.0f} s")
         self.save("volumes")
+        layer = self.range_layer()
+        self.make_scans(layer)
+        self.run(["import", "scan", self.site, "--layer", layer] + self.scans())
+        self.save("scans")
+        self.run(self.depth_import(layer))
+        self.save("depth")
+
+    def range_layer(self):
+        """The layer the range data record: the last (the pit and the wall give ICP relief to hold on to)."""
+        return self.layers()[-1][0]
+
+    def make_scans(self, layer):
+        """Three scans ICP registers on the layer's photo surface: the synthetic station S1
+        as it is and turned 120 and 240 degrees about the vertical (a levelled scanner
+        anywhere). The generator's other stations overlap this small project's photo
+        surface too little. Written as x y z text, millimetres kept."""
+        src = os.path.join(self.data, "scans", layer, "S1.ply")
+        data = open(src, "rb").read()
+        head_end = data.index(b"end_header\n") + len(b"end_header\n")
+        header = data[:head_end].decode("ascii").splitlines()
+        count = int(next(line.split()[2] for line in header if line.startswith("element vertex")))
+        props = [line.split()[2] for line in header if line.startswith("property float")]
+        assert "binary_little_endian" in header[1] and props[:3] == ["x", "y", "z"], header
+        stride = 4 * len(props)
+        points = [struct.unpack_from("<3f", data, head_end + i * stride) for i in range(count)]
+        os.makedirs(os.path.join(self.data, "range"), exist_ok=True)
+        for name, turn in SCANS:
+            c, s = math.cos(math.radians(turn)), math.sin(math.radians(turn))
+            with open(os.path.join(self.data, "range", name), "w") as out:
+                for x, y, z in points:
+                    out.write(f"{c * x - s * y:.4f} {s * x + c * y:.4f} {z:.4f}\n")
+
+    def scans(self):
+        return [os.path.join(self.data, "range", name) for name, _ in SCANS]
+
+    def depth_import(self, layer):
+        d = os.path.join(self.data, "depth", layer)
+        frames = sorted(os.path.join(d, "depth", f) for f in os.listdir(os.path.join(d, "depth")))
+        return ["import", "depth", self.site, "--layer", layer, "--intrinsics", os.path.join(d, "intrinsics.txt"),
+                "--poses", os.path.join(d, "poses_recorded.txt"), "--colour", os.path.join(d, "colour")] + frames
+
+    def write_calibration(self):
+        """An OpenCV calibration (YAML) of the synthetic camera's size, for 'import calibration'."""
+        w, h = PHOTO_WIDTH, PHOTO_WIDTH * 2 // 3
+        f = 0.9 * w
+        with open(os.path.join(self.data, "lens.yml"), "w") as out:
+            out.write("%YAML:1.0\n---\n"
+                      f"image_width: {w}\nimage_height: {h}\n"
+                      "camera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n"
+                      f"   data: [ {f:.1f}, 0., {(w - 1) / 2}, 0., {f:.1f}, {(h - 1) / 2}, 0., 0., 1. ]\n"
+                      "distortion_coefficients: !!opencv-matrix\n   rows: 1\n   cols: 4\n   dt: d\n"
+                      "   data: [ -0.05, 0.01, 0., 0. ]\n")
 
     def outline(self):
         f = os.path.join(self.data, "trench_outline.geojson")
@@ -161,12 +247,20 @@ class Project:
 # ---- scenarios: a start state and the command run from it -----------------------------
 
 class Scenario:
-    def __init__(self, name, state, command, out=None):
-        self.name, self.state, self.command, self.out = name, state, command, out
+    """`entry`: the output file that names the others (an .obj its .mtl and atlases):
+    when it is there, every file of the undisturbed output must be too.
+    `done_refusal`: the error by which the command refuses, by design, to do again what
+    is already recorded; a rerun refused with it passes when the project already is as
+    the undisturbed run leaves it (the killed run had committed)."""
+
+    def __init__(self, name, state, command, out=None, entry=None, done_refusal=None):
+        self.name, self.state, self.command, self.out, self.entry = name, state, command, out, entry
+        self.done_refusal = done_refusal
 
 
 def scenarios(p):
     layer, unit = p.layers()[0]
+    rlayer = p.range_layer()
     s, o = p.site, p.out
     units = p.units()
     return {
@@ -198,6 +292,37 @@ def scenarios(p):
         "qgz": Scenario("qgz", "processed", lambda: ["export", "qgis", s, "--out", f"{o}/site.qgz"], out="site.qgz"),
         "grass": Scenario("grass", "processed", lambda: ["export", "grass", s, "--out", f"{o}/grass"], out="grass"),
         "report": Scenario("report", "volumes", lambda: ["report", s, "--out", f"{o}/report.html"], out="report.html"),
+        # The unit register and the relations as spreadsheets, into a project without them.
+        "units": Scenario("units", "initialised", lambda: ["import", "units", s, os.path.join(p.data, "units.csv")]),
+        "relations": Scenario("relations", "units",
+                              lambda: ["import", "relations", s, os.path.join(p.data, "relations.csv")]),
+        "finds": Scenario("finds", "volumes", lambda: ["import", "finds", s, os.path.join(p.data, "finds.csv")]),
+        "find": Scenario("find", "volumes", lambda: ["find", "add", s, "--id", "F99", "--at",
+                                                      "734013.5,4174018.5,1450.55", "--unit", unit]),
+        "calibration": Scenario("calibration", "photos", lambda: ["import", "calibration", s,
+                                                                  os.path.join(p.data, "lens.yml"), "--camera",
+                                                                  os.path.basename(p.photos(layer)[0])]),
+        "camera": Scenario("camera", "photos", lambda: ["camera", "set", s, os.path.basename(p.photos(layer)[0]),
+                                                        "--focal-px", str(0.9 * PHOTO_WIDTH), "--fixed"]),
+        # The first layer's three scans, imported unregistered; then registered by ICP on
+        # its photo surface, or one of them on the surveyed markers its scanner measured.
+        "scan": Scenario("scan", "volumes", lambda: ["import", "scan", s, "--layer", rlayer] + p.scans()),
+        "register_scan": Scenario("register_scan", "scans", lambda: ["register", "scan", s, "--layer", rlayer]),
+        "register_targets": Scenario("register_targets", "scans", lambda: [
+            "register", "scan", s, "--layer", rlayer, "--scan", SCANS[0][0], "--targets",
+            os.path.join(p.data, "scans", rlayer, "S1_targets.csv")]),
+        # A sequence imported again is refused by design ('give another --sequence name'):
+        # killed after its commit, the rerun is refused and the project must already be whole.
+        "depth": Scenario("depth", "scans", lambda: p.depth_import(rlayer),
+                          done_refusal="already has a depth sequence named"),
+        "register_depth": Scenario("register_depth", "depth", lambda: ["register", "depth", s, "--layer", rlayer]),
+        "glb": Scenario("glb", "volumes", lambda: ["export", "model", s, "--out", f"{o}/site.glb"], out="site.glb"),
+        "obj": Scenario("obj", "processed", lambda: ["export", "model", s, "--layer", layer, "--texture",
+                                                     "--atlas-size", "2048", "--out", f"{o}/model/{layer}.obj"],
+                        out="model", entry=f"model/{layer}.obj"),
+        # The meshes kept whole (no simplification: 100 s of this project's 2 cores for the same writing).
+        "viewer": Scenario("viewer", "volumes", lambda: ["export", "viewer", s, "--max-faces", "0", "--coarse-lod", "0",
+                                                         "--out", f"{o}/site.html"], out="site.html"),
     }
 
 
@@ -208,8 +333,20 @@ def runs_for(point, where):
         "init.before_commit": [("init", None)],
         "db.migration_applied": [("init", None)],
         "db.before_commit": [("unit", None), ("photos", None), ("align", None), ("dense", ":1"), ("dense", ":2"),
-                             ("products", ":1"), ("products", ":2"), ("volume", None), ("revolume", None)],
-        "db.after_commit": [("markers", None), ("dense", ":1"), ("products", ":3"), ("revolume", None)],
+                             ("products", ":1"), ("products", ":2"), ("volume", None), ("revolume", None),
+                             ("scan", None), ("register_depth", None)],
+        "db.after_commit": [("markers", None), ("dense", ":1"), ("products", ":3"), ("revolume", None),
+                            ("finds", None)],
+        # The media store is shared: scans and depth frames pass it too.
+        "import.photos.media_part_written": [("photos", None), ("photos", ":3"), ("scan", ":2"), ("depth", ":3")],
+        "import.finds.parsed": [("finds", None), ("find", None)],
+        "import.finds.find_written": [("finds", None), ("finds", ":3"), ("find", None)],
+        "import.finds.before_commit": [("finds", None), ("find", None)],
+        "register.scans.fitted": [("register_scan", None), ("register_targets", None)],
+        "register.scans.scan_written": [("register_scan", None), ("register_scan", ":3"), ("register_targets", None)],
+        "register.scans.before_commit": [("register_scan", None), ("register_targets", None)],
+        # Four renames (two atlases, the .mtl, the .obj): after the first atlas, the .mtl, the .obj.
+        "export.obj.file_renamed": [("obj", None), ("obj", ":3"), ("obj", ":4")],
         "stratigraphy.unit_before_commit": [("unit", None)],
         "stratigraphy.layer_before_commit": [("layer", None)],
         "stratigraphy.relation_before_commit": [("relation", None)],
@@ -229,7 +366,10 @@ def runs_for(point, where):
     prefix = [("import.photos.", "photos"), ("import.markers.", "markers"), ("process.features.", "align"),
               ("process.matching.", "align"), ("process.targets.", "align"), ("process.sfm.", "align"),
               ("process.georeference.", "align"), ("process.align.", "align"), ("process.dense.", "dense"),
-              ("process.products.", "products"), ("export.grass.", "grass")]
+              ("process.products.", "products"), ("export.grass.", "grass"), ("import.scans.", "scan"),
+              ("import.depth.", "depth"), ("import.units.", "units"), ("import.relations.", "relations"),
+              ("import.calibration.", "calibration"), ("camera.set.", "camera"), ("register.depth.", "register_depth"),
+              ("export.gltf.", "glb"), ("export.obj.", "obj"), ("export.viewer.", "viewer")]
     for pre, scenario in prefix:
         if point.startswith(pre):
             # A point passed once per item (its description says "one ...", "a ..." or "an ..."):
@@ -349,19 +489,26 @@ def tree_hashes(path):
 
 
 def is_temp(name):
-    return re.search(r"\.(tmp|part)(\.[a-z]+)?$|\.tmp\d", name) is not None
+    """A file at its temporary or staged name (x.tmp, x.part, x.tmp3, x.next.glb)."""
+    return re.search(r"\.(tmp|part)(\.[a-z]+)?$|\.tmp\d|\.next\.[a-z0-9]+$", name) is not None
 
 
-def output_problems(out, reference):
-    """An export's output after a kill: absent, or every file whole (the reference's bytes)."""
+def output_problems(out, reference, entry=None):
+    """An export's output after a kill: absent, or every file whole (the reference's bytes);
+    when the file naming the others (`entry`) is there, every one of them too."""
     problems = []
-    for rel, sha in tree_hashes(out).items():
+    found = tree_hashes(out)
+    for rel, sha in found.items():
         if is_temp(rel):
             continue
         if rel not in reference:
             problems.append(f"{rel}: not in the undisturbed output")
         elif reference[rel] != sha:
             problems.append(f"{rel}: half-written (differs from the undisturbed output)")
+    if entry and entry in found:
+        missing = sorted(rel for rel in reference if rel not in found)
+        if missing:
+            problems.append(f"{entry} is there without " + ", ".join(missing) + ", which it names")
     return problems
 
 
@@ -388,6 +535,21 @@ def fingerprint(p):
             "products": "SELECT kind, path, sha256, bytes FROM products ORDER BY path",
             "unit_volumes": "SELECT u.code, v.volume_m3, v.area_m2, v.mean_thickness_m FROM unit_volumes v "
                             "JOIN units u ON u.id = v.unit_id ORDER BY 1",
+            "calibrations": "SELECT camera_id, model, fx, fy, cx, cy, k1, k2, k3, k4, p1, p2, fixed, source "
+                            "FROM camera_calibrations ORDER BY 1",
+            "finds": "SELECT find_id, unit, type, description, e, n, z, source FROM finds ORDER BY 1",
+            "finds_extent": "SELECT min_x, min_y, max_x, max_y FROM gpkg_contents WHERE table_name = 'finds'",
+            "scans": "SELECT l.name, s.name, s.sha256, s.media_path, s.bytes, s.points, s.sigma_m, s.registration, "
+                     "s.transform, s.min_x, s.min_y, s.min_z, s.max_x, s.max_y, s.max_z, s.registered_by, "
+                     "s.registered_against, s.registration_rms_m, s.registration_inliers FROM scans s "
+                     "JOIN layers l ON l.id = s.layer_id ORDER BY 1, 2",
+            "depth_sequences": "SELECT l.name, d.name, d.width, d.height, d.fx, d.fy, d.cx, d.cy, d.depth_scale_m, "
+                               "d.noise_k, d.intrinsics_file, d.poses_file FROM depth_sequences d "
+                               "JOIN layers l ON l.id = d.layer_id ORDER BY 1, 2",
+            "depth_frames": "SELECT q.name, f.frame, f.name, f.sha256, f.media_path, f.bytes, f.valid_pixels, "
+                            "f.colour_sha256, f.colour_media_path, f.recorded_pose, f.pose, f.registered_by, "
+                            "f.registration_rms_m, f.min_x, f.min_y, f.min_z, f.max_x, f.max_y, f.max_z "
+                            "FROM depth_frames f JOIN depth_sequences q ON q.id = f.sequence_id ORDER BY 1, 2",
         }
         try:
             for k, sql in q.items():
@@ -464,6 +626,12 @@ def main():
         return references[name]
 
     results = []
+    listed = {n for n, _ in points}
+    for name, where_used in sorted(points_in_sources().items()):
+        if name not in listed and (not args.only or any(s in name for s in args.only)):
+            results.append({"point": name, "run": "-", "passed": False,
+                            "failures": [f"passed in {where_used} but not in kCrashPoints (core/fault.hpp)"]})
+            log(f"FAIL {name}: passed in {where_used} but not in kCrashPoints")
     for name, where in chosen:
         runs = runs_for(name, where)
         if not runs:
@@ -473,7 +641,7 @@ def main():
             sc = scen[sc_name]
             spec = name + (hit or "")
             ref = reference(sc_name)
-            failures = []
+            failures, notes = [], []
             t = time.time()
             p.restore(sc.state)
             r = p.run(sc.command(), crash=spec, check=False)
@@ -484,11 +652,14 @@ def main():
             else:
                 failures += db_problems(p.site) + media_problems(p.site) + product_problems(p.site)
                 if sc.out:
-                    failures += output_problems(p.out, ref["out"])
+                    failures += output_problems(p.out, ref["out"], sc.entry)
                 r2 = p.run(sc.command(), check=False)
-                if r2.returncode != 0:
+                refused_done = r2.returncode != 0 and sc.done_refusal and sc.done_refusal in r2.stderr
+                if r2.returncode != 0 and not refused_done:
                     failures.append(f"rerun failed (exit {r2.returncode}): {r2.stderr.strip()[-300:]}")
                 else:
+                    if refused_done:
+                        notes.append("rerun refused by design (the killed run had committed): " + sc.done_refusal)
                     failures += ["after the rerun: " + x for x in db_problems(p.site) + media_problems(p.site)
                                  + product_problems(p.site)]
                     diff = differences(fingerprint(p), ref)
@@ -498,10 +669,11 @@ def main():
                     if leftovers:
                         failures.append("temporary files left in the output: " + ", ".join(leftovers))
             results.append({"point": name, "run": f"{sc_name}{hit or ''}", "where": where, "passed": not failures,
-                            "failures": failures, "seconds": round(time.time() - t, 1)})
+                            "failures": failures, "seconds": round(time.time() - t, 1)}
+                           | ({"notes": notes} if notes else {}))
             status = "pass" if not failures else "FAIL"
             log(f"{status} {spec:<46} {sc_name:<9} {time.time() - t:5.1f} s" +
-                ("" if not failures else "\n        " + "\n        ".join(failures)))
+                "".join("\n        " + x for x in failures + notes))
 
     passed = sum(r["passed"] for r in results)
     failed = len(results) - passed

@@ -3,6 +3,7 @@
 #include "exporters/gltf/gltf_writer.hpp"
 
 #include "core/error.hpp"
+#include "core/fault.hpp"
 #include "core/staged_files.hpp"
 
 #include <Eigen/Geometry>
@@ -384,6 +385,7 @@ std::string glb_bytes(const fs::path& path, std::string json, std::string bin) {
 void write_bytes(const fs::path& path, const std::string& bytes) {
   StagedFiles staged(kStage);
   staged.write(path, [&](std::ostream& f) { f.write(bytes.data(), static_cast<std::streamsize>(bytes.size())); });
+  fault::point("export.gltf.staged");
   staged.swap_in();
 }
 

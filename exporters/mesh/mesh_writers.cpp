@@ -6,6 +6,7 @@
 
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
+#include "core/fault.hpp"
 #include "core/staged_files.hpp"
 
 #include <fmt/format.h>
@@ -253,18 +254,21 @@ ObjModelFiles write_obj_model(const std::filesystem::path& path, const DenseMesh
       files.images.push_back(path.parent_path() / fmt::format("{}_atlas{}{}", path.stem().string(), k + 1, ext));
     }
   }
-  // Every file staged, renamed into place only once all are complete, the .obj first.
+  // Every file staged, renamed into place only once all are complete: the atlases,
+  // the .mtl that names them, then the .obj that names the .mtl, so that a crash
+  // between two renames never leaves an .obj naming a file that is not there.
   StagedFiles staged(stage);
-  staged.write(path, [&](std::ostream& f) { write_obj_text(f, mesh, text); });
   if (texture) {
-    staged.write(files.mtl, [&](std::ostream& f) { write_mtl(f, text.materials, files.images); });
     for (std::size_t k = 0; k < files.images.size(); ++k) {
       staged.write(files.images[k], [&](std::ostream& f) {
         f.write(texture->images[k].data(), static_cast<std::streamsize>(texture->images[k].size()));
       });
     }
+    staged.write(files.mtl, [&](std::ostream& f) { write_mtl(f, text.materials, files.images); });
   }
-  staged.swap_in();
+  staged.write(path, [&](std::ostream& f) { write_obj_text(f, mesh, text); });
+  fault::point("export.obj.staged");
+  staged.swap_in("export.obj.file_renamed");
   return files;
 }
 

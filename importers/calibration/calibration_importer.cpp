@@ -2,6 +2,7 @@
 
 #include "core/door.hpp"
 #include "core/error.hpp"
+#include "core/fault.hpp"
 #include "importers/calibration/calibration_formats.hpp"
 #include "project/calibration_records.hpp"
 
@@ -100,6 +101,7 @@ CalibrationImportSummary import_calibration(Project& project, const CalibrationI
   Transaction tx(db);
   s.replaced = find_calibration(db, camera.id).has_value();
   upsert_calibration(db, record);
+  fault::point("import.calibration.before_commit");
   tx.commit();
   return s;
 }

@@ -2,6 +2,7 @@
 
 #include "core/door.hpp"
 #include "core/error.hpp"
+#include "core/fault.hpp"
 #include "core/hash.hpp"
 #include "core/progress.hpp"
 #include "project/media.hpp"
@@ -133,6 +134,7 @@ DepthImportSummary import_depth(Project& project, const DepthImportOptions& opti
     progress.finish();
   }
   refuse_known(db, layer, summary.sequence, good);
+  fault::point("import.depth.checked");
 
   Transaction tx(db);
   MediaBatch media(project.media_dir());
@@ -145,6 +147,7 @@ DepthImportSummary import_depth(Project& project, const DepthImportOptions& opti
   seq.intrinsics_file = options.intrinsics.filename().string();
   if (options.poses) seq.poses_file = options.poses->filename().string();
   const std::int64_t sequence_id = insert_depth_sequence(db, seq);
+  fault::point("import.depth.sequence_inserted");
   for (std::size_t i = 0; i < good.size(); ++i) {
     check_cancelled();
     const Candidate& c = good[i];
@@ -165,10 +168,13 @@ DepthImportSummary import_depth(Project& project, const DepthImportOptions& opti
     r.recorded_pose = c.pose;
     if (c.pose) ++summary.with_pose;
     insert_depth_frame(db, r);
+    fault::point("import.depth.frame_inserted");
     summary.valid_pixels += c.valid;
     ++summary.frames;
   }
+  fault::point("import.depth.before_commit");
   tx.commit();
+  fault::point("import.depth.after_commit");
   media.commit();
   return summary;
 }

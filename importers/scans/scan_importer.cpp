@@ -2,6 +2,7 @@
 
 #include "core/door.hpp"
 #include "core/error.hpp"
+#include "core/fault.hpp"
 #include "core/hash.hpp"
 #include "core/progress.hpp"
 #include "crs/crs.hpp"
@@ -220,6 +221,7 @@ ScanImportSummary import_scans(Project& project, const ScanImportOptions& option
     }
     progress.finish();
   }
+  fault::point("import.scans.checked");
 
   Transaction tx(db);
   MediaBatch media(project.media_dir());
@@ -244,6 +246,7 @@ ScanImportSummary import_scans(Project& project, const ScanImportOptions& option
     r.name = c.path.filename().string();
     r.sha256 = c.sha;
     r.media_path = media.store(c.path, c.sha);
+    fault::point("import.scans.media_stored");
     r.bytes = std::int64_t(fs::file_size(c.path));
     r.format = c.info.format;
     r.points = std::int64_t(c.info.points);
@@ -256,9 +259,12 @@ ScanImportSummary import_scans(Project& project, const ScanImportOptions& option
     if (transform) r.transform = transform->matrix;
     r.bounds = s.bounds;
     insert_scan(db, r);
+    fault::point("import.scans.row_inserted");
     summary.imported.push_back(std::move(s));
   }
+  fault::point("import.scans.before_commit");
   tx.commit();
+  fault::point("import.scans.after_commit");
   media.commit();
   return summary;
 }

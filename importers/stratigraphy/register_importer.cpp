@@ -2,6 +2,7 @@
 
 #include "core/door.hpp"
 #include "core/error.hpp"
+#include "core/fault.hpp"
 #include "importers/markers/delimited.hpp"
 #include "project/records.hpp"
 #include "stratigraphy/harris_matrix.hpp"
@@ -106,6 +107,7 @@ UnitImportSummary import_units(Project& project, const UnitImportOptions& option
   UnitImportSummary summary;
   const std::vector<ParsedUnit> units = parse_units(file, summary.ignored_columns);
   auto& db = project.db();
+  fault::point("import.units.parsed");
   Transaction tx(db);
   for (const auto& u : units) {
     if (const auto existing = find_unit(db, u.record.code)) {
@@ -124,7 +126,9 @@ UnitImportSummary import_units(Project& project, const UnitImportOptions& option
       insert_unit(db, u.record);
       summary.units_new++;
     }
+    fault::point("import.units.unit_written");
   }
+  fault::point("import.units.before_commit");
   tx.commit();
   return summary;
 }
@@ -140,6 +144,7 @@ RelationImportSummary import_relations(Project& project, const fs::path& file) {
   auto& db = project.db();
   HarrisMatrix matrix = recorded_matrix(db);
   const std::vector<std::string>& codes = matrix.units();
+  fault::point("import.relations.parsed");
   Transaction tx(db);
   for (auto& row : reg.rows) {
     for (std::size_t c : {0, 2}) {
@@ -156,10 +161,12 @@ RelationImportSummary import_relations(Project& project, const fs::path& file) {
       matrix.add(r);  // throws naming the cycle
       const bool added = insert_relation(db, {0, r.unit_a, to_string(r.kind), r.unit_b}) != 0;
       (added ? summary.relations_new : summary.relations_unchanged)++;
+      if (added) fault::point("import.relations.relation_written");
     } catch (const InputError& e) {
       throw InputError(fmt::format("{}: {}", row.at, e.what()));
     }
   }
+  fault::point("import.relations.before_commit");
   tx.commit();
   return summary;
 }

@@ -3,6 +3,7 @@
 // The page is built by build_site_viewer (src/pipeline), as the field station's 3D page.
 #include "cli/commands.hpp"
 #include "core/error.hpp"
+#include "core/fault.hpp"
 #include "core/log.hpp"
 #include "core/staged_files.hpp"
 #include "pipeline/site_viewer.hpp"
@@ -37,6 +38,7 @@ void export_viewer(const ViewerArgs& a) {
     out.close();
     if (!out) throw IoError(fmt::format("export viewer: {}: cannot write (disk full?)", tmp.string()));
   }
+  fault::point("export.viewer.staged");
   staged.swap_in();
   log::info("wrote {} ({} layers, {} units, {} markers, {} finds, {} cameras; model {:.1f} MB{})", a.out, v.layers,
             v.units, v.markers, v.finds, v.cameras, double(model_bytes) / 1e6,

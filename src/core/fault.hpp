@@ -44,6 +44,32 @@ inline constexpr CrashPoint kCrashPoints[] = {
     {"import.markers.marker_written", "a marker row written, not committed"},
     {"import.markers.observation_written", "an observation row written, not committed"},
     {"import.markers.before_commit", "every row written, not committed"},
+    // ---- strata import scan
+    {"import.scans.checked", "every scan read, checked and hashed, nothing written"},
+    {"import.scans.media_stored", "a scan renamed into media/, its row not inserted"},
+    {"import.scans.row_inserted", "a scan's row inserted, not committed"},
+    {"import.scans.before_commit", "every scan stored and inserted, not committed"},
+    {"import.scans.after_commit", "committed; the media batch not yet released"},
+    // ---- strata import depth
+    {"import.depth.checked", "every frame read, checked and hashed, nothing written"},
+    {"import.depth.sequence_inserted", "the sequence row inserted, no frame stored, not committed"},
+    {"import.depth.frame_inserted", "a frame stored in media/ and its row inserted, not committed"},
+    {"import.depth.before_commit", "every frame stored and inserted, not committed"},
+    {"import.depth.after_commit", "committed; the media batch not yet released"},
+    // ---- strata import finds, strata find add
+    {"import.finds.parsed", "the finds read, their units checked, nothing written"},
+    {"import.finds.find_written", "a find row written, not committed"},
+    {"import.finds.before_commit", "every find written and the finds extent updated, not committed"},
+    // ---- strata import units, strata import relations
+    {"import.units.parsed", "the register read and checked, nothing written"},
+    {"import.units.unit_written", "a unit row inserted or updated, not committed"},
+    {"import.units.before_commit", "every unit written, not committed"},
+    {"import.relations.parsed", "the relations read, nothing written"},
+    {"import.relations.relation_written", "a relation row inserted, not committed"},
+    {"import.relations.before_commit", "every relation written, not committed"},
+    // ---- strata import calibration, strata camera set
+    {"import.calibration.before_commit", "the camera's calibration row written, not committed"},
+    {"camera.set.before_commit", "the camera's calibration row written, not committed"},
     // ---- strata process: alignment
     {"process.features.file_temp_written", "a feature or match cache file written to its temporary name"},
     {"process.features.image_done", "one photo's features in the cache"},
@@ -94,6 +120,14 @@ inline constexpr CrashPoint kCrashPoints[] = {
     // ---- strata volume
     {"volume.model_loaded", "surfaces read and unit solids built in memory, nothing written"},
     {"volume.stored", "volumes, voxels and thickness rasters stored and committed"},
+    // ---- strata register scan
+    {"register.scans.fitted", "every scan fitted (ICP or targets) in memory, nothing written"},
+    {"register.scans.scan_written", "a scan's pose, bounds and fit written, not committed"},
+    {"register.scans.before_commit", "every scan's registration written, not committed"},
+    // ---- strata register depth
+    {"register.depth.registered", "every sequence registered in memory, nothing written"},
+    {"register.depth.frame_written", "a frame's pose, bounds and fit written, not committed"},
+    {"register.depth.before_commit", "every frame's registration written, not committed"},
     // ---- strata export
     {"export.cameras.temp_written", "the cameras file written to its temporary name"},
     {"export.copy.temp_written", "a mesh or point cloud copied to its temporary name"},
@@ -103,6 +137,10 @@ inline constexpr CrashPoint kCrashPoints[] = {
     {"export.grass.vectors_written", "site_plan.gpkg written into the GRASS folder"},
     {"export.grass.script_temp_written", "import.sh written to its temporary name"},
     {"export.report.temp_written", "the HTML report written to its temporary name"},
+    {"export.gltf.staged", "the .glb (export model) complete at its staged name (.next.glb), not renamed"},
+    {"export.obj.staged", "the .obj, .mtl and texture atlases complete at their staged names, none renamed"},
+    {"export.obj.file_renamed", "one of the OBJ's files renamed into place (atlases, .mtl, then .obj), the others not"},
+    {"export.viewer.staged", "the viewer page complete at its staged name (.next.html), not renamed"},
 };
 
 // Kills the process with SIGKILL if STRATA_CRASH_AT arms this point and this is the

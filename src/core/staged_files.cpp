@@ -1,6 +1,7 @@
 #include "core/staged_files.hpp"
 
 #include "core/error.hpp"
+#include "core/fault.hpp"
 #include "core/temporaries.hpp"
 
 #include <fmt/format.h>
@@ -40,13 +41,23 @@ void StagedFiles::write(const fs::path& final_path, const std::function<void(std
   if (!f) throw IoError(fmt::format("{}: {}: write failed (disk full?)", stage_, final_path.string()));
 }
 
-void StagedFiles::swap_in() {
+void StagedFiles::swap_in(std::string_view renamed_point) {
+  // A rename that cannot succeed (a folder holds the final name) is refused before any
+  // file is renamed: the files that name others go last, and must not be the only ones
+  // missing.
+  for (const auto& [staged, final_path] : files_) {
+    std::error_code ec;
+    if (fs::is_directory(final_path, ec))
+      throw IoError(fmt::format("{}: {}: cannot rename {} over it: it is a folder", stage_, final_path.string(),
+                                staged.filename().string()));
+  }
   for (const auto& [staged, final_path] : files_) {
     std::error_code ec;
     fs::rename(staged, final_path, ec);
     if (ec)
       throw IoError(fmt::format("{}: {}: cannot rename {} over it: {}", stage_, final_path.string(),
                                 staged.filename().string(), ec.message()));
+    if (!renamed_point.empty()) fault::point(renamed_point);
   }
   files_.clear();
   held_.clear();

@@ -10,6 +10,7 @@
 #include <iosfwd>
 #include <memory>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -29,8 +30,11 @@ class StagedFiles {
   // the folder cannot be made, the file opened or the writing completed.
   void write(const std::filesystem::path& final_path, const std::function<void(std::ostream&)>& fill);
   // Every staged file takes its final name (rename: atomic, the old file replaced),
-  // in the order added; throws IoError naming the file that could not be renamed.
-  void swap_in();
+  // in the order added; throws IoError naming the file that could not be renamed (a
+  // folder of a final name is refused before any rename).
+  // `renamed_point` (core/fault.hpp) is passed after each rename. A file that names
+  // others (an .obj its .mtl) goes last, so that it never names one not yet in place.
+  void swap_in(std::string_view renamed_point = {});
 
  private:
   std::string stage_;

@@ -1,6 +1,7 @@
 #include "pipeline/camera_calibration.hpp"
 
 #include "core/error.hpp"
+#include "core/fault.hpp"
 #include "core/log.hpp"
 #include "pipeline/alignment_store.hpp"
 
@@ -150,6 +151,7 @@ CameraSetSummary set_camera_calibration(Project& project, const CameraSetOptions
   s.replaced = find_calibration(db, camera.id).has_value();
   upsert_calibration(db, record);
   s.record = *find_calibration(db, camera.id);
+  fault::point("camera.set.before_commit");
   tx.commit();
   return s;
 }

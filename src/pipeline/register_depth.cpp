@@ -1,6 +1,7 @@
 #include "pipeline/register_depth.hpp"
 
 #include "core/error.hpp"
+#include "core/fault.hpp"
 #include "core/log.hpp"
 #include "core/progress.hpp"
 #include "core/resources.hpp"
@@ -523,9 +524,15 @@ DepthRegistrationSummary register_layer_depth(Project& project, const std::strin
   out.layer = layer_name;
   for (const auto& seq : sequences_to_register(db, layer, options.sequence))
     out.sequences.push_back(register_sequence(project, layer, seq, options));
+  fault::point("register.depth.registered");
   Transaction tx(db);
-  for (const auto& s : out.sequences)
-    for (const auto& r : s.frames) set_depth_frame_registered(db, r.frame.id, r.pose, *r.frame.bounds, *r.frame.fit);
+  for (const auto& s : out.sequences) {
+    for (const auto& r : s.frames) {
+      set_depth_frame_registered(db, r.frame.id, r.pose, *r.frame.bounds, *r.frame.fit);
+      fault::point("register.depth.frame_written");
+    }
+  }
+  fault::point("register.depth.before_commit");
   tx.commit();
   return out;
 }

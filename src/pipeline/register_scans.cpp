@@ -1,6 +1,7 @@
 #include "pipeline/register_scans.hpp"
 
 #include "core/error.hpp"
+#include "core/fault.hpp"
 #include "core/log.hpp"
 #include "core/resources.hpp"
 #include "importers/scans/scan_targets.hpp"
@@ -247,9 +248,13 @@ LayerRegistrationSummary register_layer_scans(Project& project, const std::strin
                          r.icp.rms_m, r.icp.inlier_share, r.icp.sigma_translation_m, r.icp.sigma_rotation_rad};
     out.scans.push_back(std::move(r));
   }
+  fault::point("register.scans.fitted");
   Transaction tx(db);
-  for (const ScanRegistrationResult& r : out.scans)
+  for (const ScanRegistrationResult& r : out.scans) {
     set_scan_registered(db, r.scan.id, r.pose, *r.scan.bounds, *r.scan.fit);
+    fault::point("register.scans.scan_written");
+  }
+  fault::point("register.scans.before_commit");
   tx.commit();
   return out;
 }
@@ -302,8 +307,11 @@ TargetRegistrationResult register_scan_on_targets(Project& project, const std::s
   r.scan.bounds = bounds_under(project.dir() / scan.media_path, r.pose);
   r.scan.fit = ScanFit{"targets", file, r.rms_m, double(r.inliers) / double(r.targets.size()),
                        r.sigma_translation_m, r.sigma_rotation_rad};
+  fault::point("register.scans.fitted");
   Transaction tx(db);
   set_scan_registered(db, r.scan.id, r.pose, *r.scan.bounds, *r.scan.fit);
+  fault::point("register.scans.scan_written");
+  fault::point("register.scans.before_commit");
   tx.commit();
   r.seconds = sw.seconds();
   return r;

@@ -266,7 +266,8 @@ TEST(ObjModelExport, AFailureLeavesNoFileBehind) {
   test::write_text(dir / "plain_file", "a file, not a folder");
   const std::filesystem::path out = dir / "plain_file" / "l1.obj";  // refused even to root
   EXPECT_THROW(write_obj_model(out, small_mesh(), ExportFrame{}), IoError);
-  // The .obj's name taken by a folder: the images and .mtl staged before it are removed too.
+  // The .obj's name taken by a folder: refused before any rename, the images and .mtl
+  // staged (and renamed before the .obj) are removed too.
   std::filesystem::create_directories(dir / "l1.obj");
   MeshTexture t;
   t.uv.assign(4, Eigen::Vector2f(0.5f, 0.5f));
