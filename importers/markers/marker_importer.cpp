@@ -295,6 +295,8 @@ MarkerImportSummary import_markers(Project& project, const MarkerImportOptions& 
   for (auto& [name, m] : markers) {
     const std::string at = where(stage.c_str(), file, m.line);
     m.record.source = file.filename().string();
+    m.has_sigma = m.has_sigma || options.sigma_stated;
+    m.record.sigma_stated = m.has_sigma;
     if (auto existing = find_marker(db, name)) {
       const bool same = (existing->position - m.record.position).cwiseAbs().maxCoeff() <= kSameCoordinateTolerance;
       if (!same && !options.update) {
@@ -304,9 +306,13 @@ MarkerImportSummary import_markers(Project& project, const MarkerImportOptions& 
             at, name, existing->position.x(), existing->position.y(), existing->position.z(),
             m.record.position.x(), m.record.position.y(), m.record.position.z()));
       }
-      if (!m.has_sigma) m.record.sigma = existing->sigma;
+      if (!m.has_sigma) {
+        m.record.sigma = existing->sigma;
+        m.record.sigma_stated = existing->sigma_stated;
+      }
       if (format == MarkerFormat::odm) m.record.kind = existing->kind;  // ODM has no kind
-      const bool unchanged = same && existing->sigma == m.record.sigma && existing->kind == m.record.kind;
+      const bool unchanged = same && existing->sigma == m.record.sigma &&
+                             existing->sigma_stated == m.record.sigma_stated && existing->kind == m.record.kind;
       marker_ids[name] = unchanged ? existing->id : upsert_marker(db, m.record, site.srs_id);
       (unchanged ? summary.markers_unchanged : summary.markers_updated)++;
     } else {

@@ -21,6 +21,9 @@ struct MarkerImportOptions {
   std::string crs;
   // One-sigma survey precision (metres) for markers whose file gives none.
   double default_sigma = 0.01;
+  // `default_sigma` is the survey's statement of its precision (--sigma was given),
+  // not strata's default weight: the verdict then judges against it.
+  bool sigma_stated = false;
   bool update = false;  // replace markers already in the project with new coordinates
   std::string layer;    // ODM: look up observed images in this layer only
   // ODM: observations of images that are not in the project (or not in `layer`) are

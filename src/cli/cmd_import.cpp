@@ -304,8 +304,10 @@ void register_import_commands(CLI::App& app) {
     cmd->add_option("--crs", options->crs,
                     "CRS of the file's coordinates (default: the site CRS for CSV, the header for "
                     "ODM); e.g. EPSG:4326 for longitude/latitude in degrees");
-    cmd->add_option("--sigma", options->default_sigma,
-                    "survey precision in metres for markers without a sigma column (default 0.01)");
+    auto* sigma = cmd->add_option("--sigma", options->default_sigma,
+                                  "the survey's precision, metres per axis (1 sigma), for markers without a "
+                                  "sigma column; the verdict then judges the layer against it (without it: "
+                                  "weighed with 0.01 and judged against the report's fixed tolerances)");
     cmd->add_flag("--update", options->update, "replace markers already in the project");
     cmd->add_option("--layer", options->layer, "ODM: observed images are in this layer");
     cmd->add_flag("--skip-missing-images", options->skip_missing_images,
@@ -316,6 +318,7 @@ void register_import_commands(CLI::App& app) {
       const ProjectLock lock = lock_project(*dir);
       Project p = Project::open(*dir);
       options->format = parse_marker_format(*format);
+      options->sigma_stated = sigma->count() > 0;
       const auto s = import_markers(p, *options, *file);
       fmt::print("{} ({}, {}): {} new, {} updated, {} unchanged markers; {} new, {} updated observations\n",
                  *file, s.format, s.source_crs, s.markers_new, s.markers_updated, s.markers_unchanged,
@@ -331,49 +334,7 @@ void register_import_commands(CLI::App& app) {
   register_depth_import(*import);
   register_find_imports(app, *import);
   register_stratigraphy_imports(*import);
-  {
-    auto* cmd = app.add_subcommand(
-        "markers",
-        "list markers with their survey and image observations (clicked, guided, detected);\n"
-        "'strata markers guide DIR --layer L' finds hand-clicked markers in every photo");
-    auto dir = std::make_shared<std::string>();
-    auto json = std::make_shared<bool>(false);
-    cmd->add_option("DIR", *dir, "project folder");
-    cmd->add_flag("--json", *json, "machine-readable output");
-    cmd->require_subcommand(0, 1);
-    CLI::App* guide = register_markers_guide_command(*cmd);
-    cmd->callback([=] {
-      if (guide->parsed()) return;
-      if (dir->empty()) throw InputError("markers: the project folder DIR is required (strata markers DIR)");
-      Project p = Project::open(*dir);
-      // Observations per marker and source (a marker may have several per photo:
-      // a click and a detection; the alignment takes one, see docs/markers.md).
-      std::map<std::int64_t, std::map<std::string, int>> seen;
-      for (const auto& o : list_observations(p.db())) seen[o.marker_id][o.source]++;
-      const auto markers = list_markers(p.db());
-      if (*json) {
-        nlohmann::json j = nlohmann::json::array();
-        for (const auto& m : markers) {
-          auto& s = seen[m.id];
-          const int total = s["clicked"] + s["guided"] + s["detected"];
-          j.push_back({{"name", m.name}, {"kind", m.kind}, {"E", m.position.x()}, {"N", m.position.y()},
-                       {"Z", m.position.z()}, {"sigma_m", m.sigma.x()}, {"observations", total},
-                       {"sources", {{"clicked", s["clicked"]}, {"guided", s["guided"]}, {"detected", s["detected"]}}}});
-        }
-        fmt::print("{}\n", j.dump(2));
-        return;
-      }
-      fmt::print("{:<10} {:<8} {:>14} {:>14} {:>10} {:>8} {:>6} {:>8} {:>7} {:>9}\n", "name", "kind", "E", "N", "Z",
-                 "sigma", "obs", "clicked", "guided", "detected");
-      for (const auto& m : markers) {
-        auto& s = seen[m.id];
-        fmt::print("{:<10} {:<8} {:>14.4f} {:>14.4f} {:>10.4f} {:>8.4f} {:>6} {:>8} {:>7} {:>9}\n", m.name, m.kind,
-                   m.position.x(), m.position.y(), m.position.z(), m.sigma.x(),
-                   s["clicked"] + s["guided"] + s["detected"], s["clicked"], s["guided"], s["detected"]);
-      }
-      fmt::print("{} markers. Residuals appear here once a layer is processed.\n", markers.size());
-    });
-  }
+  register_markers_command(app);
 }
 
 }  // namespace strata::cli

@@ -2,6 +2,7 @@
 #include "cli/commands.hpp"
 #include "cli/common.hpp"
 #include "core/error.hpp"
+#include "core/text_table.hpp"
 #include "crs/crs.hpp"
 #include "project/project.hpp"
 #include "project/records.hpp"
@@ -82,18 +83,29 @@ void print_summary(const nlohmann::json& j) {
     fmt::print("origin    not set yet (fixed from the first markers imported)\n");
   }
   fmt::print("units     {}   relations {}\n", j["units"].size(), j["relations"].get<int>());
-  for (const auto& u : j["units"]) {
-    std::string layers;
-    for (const auto& l : u["layers"]) layers += (layers.empty() ? "" : ", ") + l.get<std::string>();
-    fmt::print("  {:<10} {:<10} {:<30} layers: {}\n", u["code"].get<std::string>(),
-               u["type"].get<std::string>(), u["description"].get<std::string>().substr(0, 30),
-               layers.empty() ? "-" : layers);
+  // Descriptions wrap within their column (docs/cli.md): a long one never runs into
+  // the layers column.
+  const int width = terminal_width();
+  if (!j["units"].empty()) {
+    TextTable units;
+    units.columns = {{"unit"}, {"type"}, {"description", false, true}, {"layers"}};
+    for (const auto& u : j["units"]) {
+      std::string layers;
+      for (const auto& l : u["layers"]) layers += (layers.empty() ? "" : ", ") + l.get<std::string>();
+      units.add({u["code"].get<std::string>(), u["type"].get<std::string>(), u["description"].get<std::string>(),
+                 layers.empty() ? "-" : layers});
+    }
+    fmt::print("{}", units.render(width, 2));
   }
   fmt::print("layers    {}\n", j["layers"].size());
-  for (const auto& l : j["layers"]) {
-    fmt::print("  {:<10} unit {:<8} {:>4} photos  {:>3} markers seen  {:>4} observations\n",
-               l["name"].get<std::string>(), l["unit"].get<std::string>(), l["photos"].get<int>(),
-               l["markers_observed"].get<int>(), l["observations"].get<int>());
+  if (!j["layers"].empty()) {
+    TextTable layers;
+    layers.columns = {{"layer"}, {"unit"}, {"photos", true}, {"markers seen", true}, {"observations", true}};
+    for (const auto& l : j["layers"]) {
+      layers.add({l["name"].get<std::string>(), l["unit"].get<std::string>(), std::to_string(l["photos"].get<int>()),
+                  std::to_string(l["markers_observed"].get<int>()), std::to_string(l["observations"].get<int>())});
+    }
+    fmt::print("{}", layers.render(width, 2));
   }
   fmt::print("markers   {} ({} control, {} check)\n", j["markers"]["total"].get<int>(),
              j["markers"]["control"].get<int>(), j["markers"]["check"].get<int>());

@@ -12,7 +12,7 @@ void register_stratigraphy_commands(CLI::App& app);  // unit, relation, matrix, 
 void register_import_commands(CLI::App& app);    // import photos|markers, markers
 // camera list|set|clear, import calibration (after register_import_commands)
 void register_camera_commands(CLI::App& app);
-CLI::App* register_markers_guide_command(CLI::App& markers);  // markers guide
+void register_markers_command(CLI::App& app);  // markers (the list and residuals), markers guide
 void register_synth_command(CLI::App& app);      // synth
 void register_registration_commands(CLI::App& app);  // register scan
 void register_process_commands(CLI::App& app);   // process, (later) volume, check

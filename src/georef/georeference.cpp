@@ -1149,12 +1149,38 @@ void summarise(GeoreferenceSummary& summary) {
 
 }  // namespace
 
+std::optional<Eigen::Vector3d> up_from_cameras(const Reconstruction& rec) {
+  // Photos of a trench look down at it: the sum of the optical axes points down
+  // (a ring of oblique photos cancels sideways). Below this share of the cameras'
+  // count the views point every way (an object photographed all round, a room) and
+  // say nothing about up.
+  constexpr double kMinAgreement = 0.3;
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  int n = 0;
+  for (const auto& im : rec.images) {
+    if (!im.registered) continue;
+    sum += im.pose.R.row(2).transpose();  // the optical axis (camera +z) in the frame
+    ++n;
+  }
+  if (n == 0 || sum.norm() < kMinAgreement * n) return std::nullopt;
+  return Eigen::Vector3d(-sum.normalized());
+}
+
 GeoreferenceSummary keep_arbitrary_frame(Reconstruction& rec) {
   rec.georeferenced = false;
   GeoreferenceSummary s;
   s.georeferenced = false;
-  s.message =
-      "no control markers: the layer stays in an arbitrary local frame at an arbitrary scale";
+  // The alignment's frame is the first photo's: a plan would show the trench on its
+  // side or upside down. Turned so that the cameras' common viewing direction is
+  // down (-Z); the scale and the heading stay arbitrary.
+  const auto up = up_from_cameras(rec);
+  if (up) {
+    Similarity3 level;
+    level.R = Eigen::Quaterniond::FromTwoVectors(*up, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    transform_reconstruction(level, rec);
+  }
+  s.message = fmt::format("no control markers: the layer stays in an arbitrary local frame at an arbitrary scale{}",
+                          up ? ", turned so that the cameras look down" : " (its up is unknown: the cameras look every way)");
   return s;
 }
 

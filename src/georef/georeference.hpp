@@ -27,6 +27,7 @@
 #include "sfm/triangulation.hpp"
 
 #include <cstddef>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -184,9 +185,14 @@ GeoreferenceSummary georeference(const GeoreferenceOptions& options,
                                  const std::vector<ImageKeypoints>& keypoints,
                                  Reconstruction& rec);
 
-// For a layer without markers: leaves the arbitrary frame as it is, sets
+// For a layer without markers: keeps the arbitrary frame's scale and heading but
+// turns it so that "up" is +Z, taken from the cameras (up_from_cameras), sets
 // rec.georeferenced = false and returns a summary saying so (the caller warns).
 GeoreferenceSummary keep_arbitrary_frame(Reconstruction& rec);
+
+// The frame's up direction (unit) from the registered cameras' optical axes, which
+// look down at a trench; nullopt when they point every way.
+std::optional<Eigen::Vector3d> up_from_cameras(const Reconstruction& rec);
 
 // Applies a similarity to every registered camera and every point:
 // X' = s R X + t, camera centre C' = S(C), rotation R_cam' = R_cam R^T, intrinsics kept.

@@ -43,7 +43,7 @@ ImageRecord read_image(const Statement& st) {
 }
 
 constexpr const char* kMarkerSelect =
-    "SELECT fid, name, e, n, z, sigma_e, sigma_n, sigma_z, kind, source FROM markers ";
+    "SELECT fid, name, e, n, z, sigma_e, sigma_n, sigma_z, kind, source, sigma_stated FROM markers ";
 
 MarkerRecord read_marker(const Statement& st) {
   MarkerRecord m;
@@ -53,6 +53,7 @@ MarkerRecord read_marker(const Statement& st) {
   m.sigma = {st.get_double(5), st.get_double(6), st.get_double(7)};
   m.kind = st.get_text(8);
   m.source = st.get_text(9);
+  m.sigma_stated = st.get_int(10) != 0;
   return m;
 }
 
@@ -142,6 +143,31 @@ std::vector<LayerRecord> list_layers(Database& db) {
   return out;
 }
 
+std::vector<MarkerResidualRecord> list_marker_residuals(Database& db, const std::string& layer) {
+  auto st = db.prepare(
+      "SELECT l.name, m.name, mr.role, mr.triangulated, mr.de, mr.dn, mr.dz, mr.reprojection_px, mr.images "
+      "FROM marker_residuals mr JOIN markers m ON m.fid = mr.marker_id "
+      "JOIN reconstructions r ON r.id = mr.reconstruction_id JOIN layers l ON l.id = r.layer_id "
+      "WHERE ?1 = '' OR l.name = ?1 ORDER BY l.id, m.name");
+  st.bind(1, layer);
+  std::vector<MarkerResidualRecord> out;
+  while (st.step()) {
+    MarkerResidualRecord r;
+    r.layer = st.get_text(0);
+    r.marker = st.get_text(1);
+    r.role = st.get_text(2);
+    r.triangulated = st.get_int(3) != 0;
+    if (r.triangulated) {
+      r.residual_m = {st.get_optional_double(4).value_or(0), st.get_optional_double(5).value_or(0),
+                      st.get_optional_double(6).value_or(0)};
+      r.reprojection_px = st.get_optional_double(7).value_or(0);
+    }
+    r.images = int(st.get_int(8));
+    out.push_back(std::move(r));
+  }
+  return out;
+}
+
 std::int64_t find_or_insert_camera(Database& db, const CameraRecord& c) {
   auto st = db.prepare(
       "SELECT id FROM cameras WHERE make = ? AND model = ? AND width = ? AND height = ? AND "
@@ -224,22 +250,22 @@ std::int64_t upsert_marker(Database& db, const MarkerRecord& m, int srs_id) {
   if (auto existing = find_marker(db, m.name)) {
     auto st = db.prepare(
         "UPDATE markers SET geom = ?, e = ?, n = ?, z = ?, sigma_e = ?, sigma_n = ?, sigma_z = ?, "
-        "kind = ?, source = ? WHERE fid = ?");
+        "kind = ?, source = ?, sigma_stated = ? WHERE fid = ?");
     st.bind_blob(1, geom);
     st.bind(2, m.position.x()).bind(3, m.position.y()).bind(4, m.position.z());
     st.bind(5, m.sigma.x()).bind(6, m.sigma.y()).bind(7, m.sigma.z());
-    st.bind(8, m.kind).bind(9, m.source).bind(10, existing->id);
+    st.bind(8, m.kind).bind(9, m.source).bind(10, m.sigma_stated ? 1 : 0).bind(11, existing->id);
     st.run();
     return existing->id;
   }
   auto st = db.prepare(
-      "INSERT INTO markers(geom, name, e, n, z, sigma_e, sigma_n, sigma_z, kind, source) "
-      "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
+      "INSERT INTO markers(geom, name, e, n, z, sigma_e, sigma_n, sigma_z, kind, source, sigma_stated) "
+      "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
   st.bind_blob(1, geom);
   st.bind(2, m.name);
   st.bind(3, m.position.x()).bind(4, m.position.y()).bind(5, m.position.z());
   st.bind(6, m.sigma.x()).bind(7, m.sigma.y()).bind(8, m.sigma.z());
-  st.bind(9, m.kind).bind(10, m.source);
+  st.bind(9, m.kind).bind(10, m.source).bind(11, m.sigma_stated ? 1 : 0);
   st.run();
   return db.last_insert_id();
 }

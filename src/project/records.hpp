@@ -63,6 +63,9 @@ struct MarkerRecord {
   std::string name;
   Eigen::Vector3d position = Eigen::Vector3d::Zero();  // metres, site CRS (E, N, Z)
   Eigen::Vector3d sigma = Eigen::Vector3d::Constant(0.01);  // metres
+  // The survey stated `sigma` (a file's sigma column, or --sigma), rather than strata
+  // weighing the marker with its default: only a stated sigma moves the verdict.
+  bool sigma_stated = false;
   std::string kind = "control";                        // control|check
   std::string source;
 };
@@ -75,6 +78,16 @@ struct ObservationRecord {
   // detected (coded target) | clicked (placed by a person) | guided (markers guide);
   // schema 7 renamed the 'manual' rows of earlier projects to clicked.
   std::string source = "clicked";
+};
+
+// A marker as the last alignment of a layer saw it (table marker_residuals).
+struct MarkerResidualRecord {
+  std::string layer, marker;
+  std::string role;  // control|check|rejected
+  bool triangulated = false;
+  Eigen::Vector3d residual_m = Eigen::Vector3d::Zero();  // photogrammetric minus surveyed (E, N, Z)
+  double reprojection_px = 0;
+  int images = 0;
 };
 
 // ---- units and relations
@@ -94,6 +107,9 @@ std::int64_t insert_layer(Database& db, const LayerRecord& l);
 std::optional<LayerRecord> find_layer(Database& db, const std::string& name);
 LayerRecord require_layer(Database& db, const std::string& name);  // InputError when missing
 std::vector<LayerRecord> list_layers(Database& db);
+// The marker residuals of every layer's current alignment (or of `layer` only), in
+// layer order (list_layers) then marker name.
+std::vector<MarkerResidualRecord> list_marker_residuals(Database& db, const std::string& layer = "");
 
 // ---- cameras and images
 std::int64_t find_or_insert_camera(Database& db, const CameraRecord& c);

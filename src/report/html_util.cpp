@@ -94,7 +94,7 @@ std::string PlanFrame::image(const std::string& data_uri, const Extent& where, b
       a.x(), a.y(), b.x() - a.x(), b.y() - a.y(), pixelated ? " style=\"image-rendering:pixelated\"" : "", data_uri);
 }
 
-std::string PlanFrame::decorations() const {
+std::string PlanFrame::decorations(bool georeferenced) const {
   // Scale bar: the largest 1-2-5 length that fits in a quarter of the width.
   const double target_m = 0.25 * width_ / scale_;
   double bar = 0.01;
@@ -105,12 +105,15 @@ std::string PlanFrame::decorations() const {
   }
   const double len = bar * scale_;
   const double x = 12, y = height_ - 14;
-  const std::string label = bar >= 1 ? fmt::format("{:g} m", bar) : fmt::format("{:g} cm", bar * 100);
+  const std::string label = !georeferenced ? fmt::format("{:g} units, arbitrary scale", bar)
+                            : bar >= 1     ? fmt::format("{:g} m", bar)
+                                           : fmt::format("{:g} cm", bar * 100);
   std::string s = fmt::format(
       "<g class=\"deco\"><rect x=\"{:.1f}\" y=\"{:.1f}\" width=\"{:.1f}\" height=\"6\" fill=\"#222\"/>"
       "<rect x=\"{:.1f}\" y=\"{:.1f}\" width=\"{:.1f}\" height=\"6\" fill=\"#fff\" stroke=\"#222\"/>"
       "<text x=\"{:.1f}\" y=\"{:.1f}\" class=\"lbl\">{}</text>",
       x, y, len / 2, x + len / 2, y, len / 2, x + len + 6, y + 6, label);
+  if (!georeferenced) return s + "</g>\n";  // north is unknown too
   const double nx = width_ - 22, ny = 14;
   s += fmt::format(
       "<polygon points=\"{:.1f},{:.1f} {:.1f},{:.1f} {:.1f},{:.1f}\" fill=\"#222\"/>"

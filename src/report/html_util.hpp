@@ -44,7 +44,9 @@ class PlanFrame {
   int height() const { return height_; }
   std::string open(const std::string& label) const;  // <svg ...> with a background
   std::string image(const std::string& data_uri, const Extent& where, bool pixelated = false) const;
-  std::string decorations() const;  // scale bar bottom-left, north arrow top-right
+  // Scale bar bottom-left, north arrow top-right. A plan in an arbitrary frame (a
+  // layer without markers) gets a bar in arbitrary units and no north arrow.
+  std::string decorations(bool georeferenced = true) const;
   static std::string close() { return "</svg>\n"; }
 
  private:

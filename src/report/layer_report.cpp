@@ -209,7 +209,7 @@ std::string cameras_section(const LayerData& d, const ReportOptions& o) {
   }
   s += cameras_svg(f, d);
   if (d.figures.georeferenced) s += markers_svg(f, d);
-  s += f.decorations() + PlanFrame::close();
+  s += f.decorations(d.figures.georeferenced) + PlanFrame::close();
   s += plan_symbols_legend(d.figures.georeferenced);
   if (!d.figures.georeferenced) caption += " The layer is not georeferenced: arbitrary frame and scale.";
   s += "<p class=\"caption\">" + xml_escape(caption) + fmt::format(" {} cameras.", d.cameras.size()) + "</p>\n";
@@ -278,7 +278,7 @@ std::string coverage_section(const LayerData& d, const ReportOptions& o) {
     s += fmt::format("<text x=\"{:.1f}\" y=\"{:.1f}\" class=\"lbl halo gap\" text-anchor=\"middle\">gap: {}</text>", p.x(),
                      p.y(), xml_escape(g.sector.name));
   }
-  s += f.decorations() + PlanFrame::close();
+  s += f.decorations(d.figures.georeferenced) + PlanFrame::close();
   // Legend and figures.
   std::size_t area = 0, enough = 0;
   std::vector<double> counts, gsds;
@@ -302,13 +302,19 @@ std::string coverage_section(const LayerData& d, const ReportOptions& o) {
     s += fmt::format("<span><i style=\"background:#{:02x}{:02x}{:02x}\"></i>{}</span>", c[0], c[1], c[2], xml_escape(label));
   }
   s += fmt::format("<span><i class=\"hatch\"></i>coarser than {} per pixel</span></div>\n", format_mm(t.max_gsd_m));
-  s += "<p class=\"caption\">" +
-       xml_escape(fmt::format("Photos that see each part of the trench (plan grid of {} cells of {:.0f} mm from the {}). "
-                          "{:.0f} % of the area is seen by {} or more photos; median {} photos per cell; median best "
-                          "ground resolution {} per pixel.",
-                          area, 1000 * m.cell, d.coverage_source, 100.0 * double(enough) / double(std::max<std::size_t>(1, area)),
-                          t.min_photos_per_area, median(counts), format_mm(median(gsds)))) +
-       "</p>\n";
+  const double enough_percent = 100.0 * double(enough) / double(std::max<std::size_t>(1, area));
+  const std::string caption =
+      d.figures.georeferenced
+          ? fmt::format("Photos that see each part of the trench (plan grid of {} cells of {:.0f} mm from the {}). "
+                        "{:.0f} % of the area is seen by {} or more photos; median {} photos per cell; median best "
+                        "ground resolution {} per pixel.",
+                        area, 1000 * m.cell, d.coverage_source, enough_percent, t.min_photos_per_area,
+                        median(counts), format_mm(median(gsds)))
+          : fmt::format("Photos that see each part of the trench (plan grid of {} cells from the {}, in the "
+                        "layer's arbitrary frame: no scale, no north). {:.0f} % of the area is seen by {} or more "
+                        "photos; median {} photos per cell. The ground resolution is unknown without markers.",
+                        area, d.coverage_source, enough_percent, t.min_photos_per_area, median(counts));
+  s += "<p class=\"caption\">" + xml_escape(caption) + "</p>\n";
   return s + "</section>\n";
 }
 
@@ -410,7 +416,7 @@ std::string markers_section(const LayerData& d, const ReportOptions& o) {
        "<th>3D</th><th>reprojection</th></tr>";
   for (const auto& m : d.figures.markers) {
     const bool few = m.images < o.thresholds.min_marker_photos;
-    const bool far = m.triangulated && m.residual_m.norm() > o.thresholds.max_marker_residual_m;
+    const bool far = m.triangulated && m.residual_m.norm() > allowed_marker_residual_m(m, o.thresholds);
     s += fmt::format("<tr class=\"{}\"><td>{}</td><td>{}</td><td class=\"{}\">{}</td>", m.role, xml_escape(m.name),
                      xml_escape(m.role), few ? "bad" : "", m.images);
     if (m.triangulated) {
@@ -424,8 +430,19 @@ std::string markers_section(const LayerData& d, const ReportOptions& o) {
   s += "</table>\n";
   s += marker_diagnosis(q);
   s += residual_plot(d, o);
-  s += "<p class=\"caption\">Residuals are photogrammetric minus surveyed positions. Control markers drive the "
-       "georeference; check markers measure it independently.</p>\n";
+  std::string yardstick;
+  if (!d.figures.survey_words.empty()) {
+    double expected = 0;
+    for (const auto& m : d.figures.markers) expected = std::max(expected, m.expected_m);
+    yardstick = fmt::format(" The markers come from {}: each is expected within about {} (3D, one sigma) of its "
+                            "surveyed position, and is marked only beyond {} times that or {}.",
+                            d.figures.survey_words, format_mm(expected), o.thresholds.survey_allowance,
+                            format_mm(o.thresholds.max_marker_residual_m));
+  }
+  s += "<p class=\"caption\">" +
+       xml_escape("Residuals are photogrammetric minus surveyed positions. Control markers drive the georeference; "
+                  "check markers measure it independently." + yardstick) +
+       "</p>\n";
   return s + "</section>\n";
 }
 
@@ -540,7 +557,7 @@ std::string hillshade_section(const LayerData& d, const ReportOptions& o) {
   const Extent where{t.west - d.site.origin.x(), t.south - d.site.origin.y(), t.east - d.site.origin.x(),
                      t.north - d.site.origin.y()};
   const PlanFrame f(where.padded(0.03), o.image_px, o.image_px);
-  s += f.open("DTM hillshade") + f.image(rd::png_data_uri(im), where) + f.decorations() + PlanFrame::close();
+  s += f.open("DTM hillshade") + f.image(rd::png_data_uri(im), where) + f.decorations(d.figures.georeferenced) + PlanFrame::close();
   std::string ramp = "<div class=\"ramp\">";
   for (int k = 0; k <= 10; ++k) {
     std::uint8_t rgb[3];
@@ -576,7 +593,9 @@ std::string figures_section(const LayerData& d) {
     row("sparse points", fmt::format("{}", q.sparse.points));
     row("mean track length", fmt::format("{:.1f} photos", q.sparse.mean_track_length));
     row("reprojection RMSE", fmt::format("{:.2f} px", q.sparse.reprojection_rmse_px));
-    row("ground sampling distance", format_mm(q.sparse.gsd_m) + " per pixel");
+    row("ground sampling distance", d.figures.georeferenced
+                                        ? format_mm(q.sparse.gsd_m) + " per pixel"
+                                        : "unknown: the layer has no scale (not georeferenced)");
     row("georeferenced", d.figures.georeferenced ? "yes" : "no");
     row("alignment time", fmt::format("{:.0f} s", q.timings.total_s));
   } else {
@@ -600,6 +619,37 @@ std::string figures_section(const LayerData& d) {
   return s + "</section>\n";
 }
 
+// The survey's yardstick (docs/quality.md): each marker's expected error from its
+// stated sigma, the rounding the alignment found in the survey, and its photos; and
+// the survey in the verdict's words.
+void judge_against_survey(const AlignmentQuality& q, const std::map<std::string, MarkerRecord>& surveyed,
+                          LayerFigures& f) {
+  const SurveyAssessment& survey = q.survey;
+  double stated = 0;
+  for (auto& m : f.markers) {
+    const auto it = surveyed.find(m.name);
+    const bool is_stated = it != surveyed.end() && it->second.sigma_stated;
+    const Eigen::Vector3d sigma = is_stated ? it->second.sigma : Eigen::Vector3d::Zero();
+    if (m.triangulated && (m.role == "control" || m.role == "check")) stated = std::max(stated, sigma.maxCoeff());
+    m.expected_m = expected_marker_error_m(sigma, survey.plan_rounding_sigma_m(), survey.height_rounding_sigma_m(),
+                                           m.reprojection_px * q.sparse.gsd_m);
+  }
+  // The same steps the alignment warns about (pipeline/align_layer.cpp).
+  constexpr double kCoarseStep = 0.02;
+  std::vector<std::string> words;
+  const bool plan = survey.plan_step_m >= kCoarseStep, height = survey.height_step_m >= kCoarseStep;
+  if (plan && height && survey.plan_step_m == survey.height_step_m) {
+    words.push_back(fmt::format("rounded to {} m", survey.plan_step_m));
+  } else {
+    if (plan) words.push_back(fmt::format("rounded to {} m in plan", survey.plan_step_m));
+    if (height) words.push_back(fmt::format("with heights rounded to {} m", survey.height_step_m));
+  }
+  if (stated > 0) words.push_back(fmt::format("stated to {} per axis", format_mm(stated)));
+  if (words.empty()) return;
+  f.survey_words = "a survey " + words[0];
+  for (std::size_t i = 1; i < words.size(); ++i) f.survey_words += (i + 1 == words.size() ? " and " : ", ") + words[i];
+}
+
 }  // namespace
 
 namespace report_detail {
@@ -610,7 +660,11 @@ LayerData gather_layer(Project& project, const LayerRecord& layer, const ReportO
   d.layer = layer;
   d.site = project.site();
   d.images = list_images(db, layer.id);
-  for (const auto& m : list_markers(db)) d.marker_positions[m.name] = m.position - d.site.origin;
+  std::map<std::string, MarkerRecord> surveyed;
+  for (auto& m : list_markers(db)) {
+    d.marker_positions[m.name] = m.position - d.site.origin;
+    surveyed[m.name] = std::move(m);
+  }
   LayerFigures& f = d.figures;
   f.layer = layer.name;
   f.photos = int(d.images.size());
@@ -659,24 +713,17 @@ LayerData gather_layer(Project& project, const LayerRecord& layer, const ReportO
     for (const auto& im : d.images) {
       if (!imported.count(im.name)) f.unaligned.push_back(im.name + " (imported after processing)");
     }
-    auto st = db.prepare(
-        "SELECT m.name, mr.role, mr.triangulated, mr.de, mr.dn, mr.dz, mr.reprojection_px, mr.images "
-        "FROM marker_residuals mr JOIN markers m ON m.fid = mr.marker_id WHERE mr.reconstruction_id = ? "
-        "ORDER BY m.name");
-    st.bind(1, a.reconstruction_id);
-    while (st.step()) {
+    for (const auto& r : list_marker_residuals(db, layer.name)) {
       MarkerFigures m;
-      m.name = st.get_text(0);
-      m.role = st.get_text(1);
-      m.triangulated = st.get_int(2) != 0;
-      if (m.triangulated) {
-        m.residual_m = {st.get_optional_double(3).value_or(0), st.get_optional_double(4).value_or(0),
-                        st.get_optional_double(5).value_or(0)};
-        m.reprojection_px = st.get_optional_double(6).value_or(0);
-      }
-      m.images = int(st.get_int(7));
+      m.name = r.marker;
+      m.role = r.role;
+      m.triangulated = r.triangulated;
+      m.residual_m = r.residual_m;
+      m.reprojection_px = r.reprojection_px;
+      m.images = r.images;
       f.markers.push_back(m);
     }
+    judge_against_survey(a.quality, surveyed, f);
 
     // Coverage: on the DTM when there is one (the surface as reconstructed), else
     // on the sparse points.

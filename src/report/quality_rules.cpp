@@ -36,6 +36,7 @@ void QualityThresholds::validate() const {
   require(max_marker_residual_m > 0, "max_marker_residual_m");
   require(max_reprojection_rmse_px > 0, "max_reprojection_rmse_px");
   require(max_unaligned_fraction >= 0 && max_unaligned_fraction <= 1, "max_unaligned_fraction");
+  require(survey_allowance >= 1, "survey_allowance");
 }
 
 const char* to_string(Severity s) {
@@ -53,6 +54,17 @@ const char* to_string(Severity s) {
 namespace {
 std::vector<Finding> evaluate_unsorted(const LayerFigures& f, const QualityThresholds& t);
 }  // namespace
+
+double expected_marker_error_m(const Eigen::Vector3d& stated_sigma_m, double plan_rounding_sigma_m,
+                               double height_rounding_sigma_m, double photo_sigma_m) {
+  const Eigen::Vector3d rounding(plan_rounding_sigma_m, plan_rounding_sigma_m, height_rounding_sigma_m);
+  const Eigen::Vector3d survey = stated_sigma_m.cwiseMax(rounding);
+  return std::sqrt(survey.squaredNorm() + photo_sigma_m * photo_sigma_m);
+}
+
+double allowed_marker_residual_m(const MarkerFigures& m, const QualityThresholds& t) {
+  return std::max(t.max_marker_residual_m, t.survey_allowance * m.expected_m);
+}
 
 std::string format_mm(double metres) {
   const double mm = metres * 1000.0;
@@ -118,6 +130,47 @@ void alignment_rules(const LayerFigures& f, const QualityThresholds& t, Findings
   }
 }
 
+std::string survey_words(const LayerFigures& f) {
+  return f.survey_words.empty() ? "these photos and this survey" : f.survey_words;
+}
+
+// metres, 3D: the RMSE of the located markers of `role` that their survey and photos
+// explain (the root mean square of their expected errors); 0 when nothing is known.
+double expected_rmse_m(const LayerFigures& f, const std::string& role) {
+  double sum = 0;
+  int n = 0;
+  for (const auto& m : f.markers) {
+    if (m.role != role || !m.triangulated) continue;
+    sum += m.expected_m * m.expected_m;
+    ++n;
+  }
+  return n > 0 ? std::sqrt(sum / n) : 0.0;
+}
+
+// The survey's yardstick (docs/quality.md): over the fixed tolerance, a figure within
+// `survey_allowance` times what the survey explains is as good as that survey allows
+// (a warning: new photos would not help); beyond it, the markers disagree (a problem).
+void rmse_rule(const LayerFigures& f, const QualityThresholds& t, const std::string& role, double rmse,
+               double tolerance, const char* advice, Findings& r) {
+  if (rmse <= tolerance) return;
+  const double expected = expected_rmse_m(f, role);
+  const double allowed = t.survey_allowance * expected;
+  if (rmse <= allowed) {
+    r.add(Severity::warning, role + "_rmse_survey",
+        fmt::format("{} RMSE {} on {} (about {} expected): as close as that survey allows, but over the {} "
+                    "tolerance",
+                    role, format_mm(rmse), survey_words(f), format_mm(expected), format_mm(tolerance)),
+        "no new photos needed; for plans at that tolerance, survey the markers to the millimetre (total "
+        "station), import them with their sigma, and process the layer again");
+    return;
+  }
+  const std::string beyond =
+      !f.survey_words.empty() ? fmt::format(", and more than {} explains (about {} expected)", survey_words(f), format_mm(expected))
+                   : std::string();
+  r.add(Severity::problem, role + "_rmse",
+      fmt::format("{} RMSE {} exceeds {}{}", role, format_mm(rmse), format_mm(tolerance), beyond), advice);
+}
+
 void marker_rules(const LayerFigures& f, const QualityThresholds& t, Findings& r) {
   for (const auto& m : f.markers) {
     if (m.role == "rejected") {
@@ -138,10 +191,17 @@ void marker_rules(const LayerFigures& f, const QualityThresholds& t, Findings& r
           fmt::format("take {} more photos that show {} from different positions", t.min_marker_photos - m.images + 1,
                       m.name));
     }
-    if (m.residual_m.norm() > t.max_marker_residual_m) {
+    // A residual the survey explains is no sign of a wrong marker: the RMSE rules
+    // judge the layer as a whole against that survey.
+    const double allowed = allowed_marker_residual_m(m, t);
+    if (m.residual_m.norm() > allowed) {
+      const std::string over = allowed > t.max_marker_residual_m
+                                   ? fmt::format("over {}: {} times what {} explains", format_mm(allowed),
+                                                 t.survey_allowance, survey_words(f))
+                                   : fmt::format("over {}", format_mm(allowed));
       r.add(Severity::warning, "marker_residual",
-          fmt::format("{} marker {} is {} from its surveyed position (over {})", m.role, m.name,
-                      format_mm(m.residual_m.norm()), format_mm(t.max_marker_residual_m)),
+          fmt::format("{} marker {} is {} from its surveyed position ({})", m.role, m.name,
+                      format_mm(m.residual_m.norm()), over),
           fmt::format("check the survey of {} (typing error, wrong target, moved marker)", m.name));
     }
   }
@@ -167,16 +227,16 @@ void georeference_rules(const LayerFigures& f, const QualityThresholds& t, Findi
         "make sure at least 3 control markers, spread around the trench, each appear in 3 or more photos");
   }
   marker_rules(f, t, r);
-  if (f.georeferenced && f.control_rmse_m && *f.control_rmse_m > t.max_control_rmse_m) {
-    r.add(Severity::problem, "control_rmse",
-        fmt::format("control RMSE {} exceeds {}", format_mm(*f.control_rmse_m), format_mm(t.max_control_rmse_m)),
-        "check the survey of the markers with the largest residuals in the table below, then process again");
+  if (f.georeferenced && f.control_rmse_m) {
+    rmse_rule(f, t, "control", *f.control_rmse_m, t.max_control_rmse_m,
+              "check the survey of the markers with the largest residuals in the table below, then process again",
+              r);
   }
-  if (f.georeferenced && f.check_rmse_m && *f.check_rmse_m > t.max_check_rmse_m) {
-    r.add(Severity::problem, "check_rmse",
-        fmt::format("check RMSE {} exceeds {}", format_mm(*f.check_rmse_m), format_mm(t.max_check_rmse_m)),
-        "the model is less accurate than required: add control markers on the side of the worst check marker, "
-        "or check its survey");
+  if (f.georeferenced && f.check_rmse_m) {
+    rmse_rule(f, t, "check", *f.check_rmse_m, t.max_check_rmse_m,
+              "the model is less accurate than required: add control markers on the side of the worst check "
+              "marker, or check its survey",
+              r);
   }
   if (f.georeferenced && check == 0) {
     r.add(Severity::note, "no_check_markers", "no check marker: the accuracy is not measured independently",
@@ -190,12 +250,17 @@ void coverage_rules(const LayerFigures& f, const QualityThresholds& t, Findings&
       const int more = std::max(2, t.min_photos_per_area - g.min_count + 1);
       const std::string side = side_to_photograph(g, f.camera_centres, f.trench_centre);
       r.add(Severity::problem, "coverage_gap",
-          fmt::format("the {} is seen by fewer than {} photos ({:.0f} % of it, {:.2f} m²)", g.sector.name,
-                      t.min_photos_per_area, 100 * g.fraction, g.area_m2),
+          f.georeferenced ? fmt::format("the {} is seen by fewer than {} photos ({:.0f} % of it, {:.2f} m²)",
+                                        g.sector.name, t.min_photos_per_area, 100 * g.fraction, g.area_m2)
+                          : fmt::format("the {} is seen by fewer than {} photos ({:.0f} % of it)", g.sector.name,
+                                        t.min_photos_per_area, 100 * g.fraction),
           side.empty() ? fmt::format("take {} more photos from above the centre of the trench, looking down", more)
                        : fmt::format("take {} more photos from the {} side, aimed at the {}", more, side,
                                      g.sector.name));
     }
+    // Without markers the layer has no scale: its ground resolution is in arbitrary
+    // units, and the not_georeferenced problem already says what to do.
+    if (!f.georeferenced) return;
     // When most of the trench falls short, one finding says so: nine sector
     // messages would bury the other findings.
     constexpr std::size_t kMostSectors = 5;

@@ -36,6 +36,12 @@ struct QualityThresholds {
   double max_reprojection_rmse_px = 1.0;
   // Above this share of unaligned photos, parts of the trench may be missing.
   double max_unaligned_fraction = 0.10;
+  // The survey's yardstick: a control or check RMSE, or one marker's residual, over
+  // its fixed tolerance above is still accepted (as a warning) up to this multiple of
+  // the error the survey and the photos explain (MarkerFigures::expected_m). Twice
+  // covers a single marker's 3D error 99 % of the time for a Gaussian survey error
+  // (1.94 sigma) and always for a rounded one (at most sqrt(3)/2 step per axis).
+  double survey_allowance = 2.0;
 
   void validate() const;  // InputError naming the first invalid field
 };
@@ -61,6 +67,10 @@ struct MarkerFigures {
   Eigen::Vector3d residual_m = Eigen::Vector3d::Zero();  // photogrammetric minus surveyed, E N Z
   double reprojection_px = 0;
   int images = 0;
+  // metres, 3D, 1 sigma: the error this marker's survey (its stated sigma, the
+  // rounding of its coordinates) and its photos (reprojection x GSD) explain. 0 when
+  // nothing is known beyond strata's default weight: the fixed tolerances alone apply.
+  double expected_m = 0;
 };
 
 // Every figure the rules look at; what a stage has not produced yet stays empty.
@@ -75,6 +85,9 @@ struct LayerFigures {
   std::optional<double> reprojection_rmse_px;
   std::optional<double> control_rmse_m, check_rmse_m;  // 3D
   std::vector<MarkerFigures> markers;
+  // The survey in the verdict's words, e.g. "a survey rounded to 0.1 m"; empty when
+  // it says nothing beyond strata's defaults.
+  std::string survey_words;
   bool dense = false, products = false;
   // Coverage (when cameras and a plan exist).
   bool coverage_known = false;
@@ -85,6 +98,16 @@ struct LayerFigures {
 
 // Findings, most severe first.
 std::vector<Finding> evaluate_layer(const LayerFigures& f, const QualityThresholds& t);
+
+// One marker's expected 3D error (1 sigma, metres): per axis the larger of its stated
+// sigma (zero when not stated) and the rounding of its coordinates, in quadrature with
+// the photogrammetric term (reprojection error x GSD, metres).
+double expected_marker_error_m(const Eigen::Vector3d& stated_sigma_m, double plan_rounding_sigma_m,
+                               double height_rounding_sigma_m, double photo_sigma_m);
+
+// metres, 3D: the largest residual of `m` that is no sign of a wrong marker, the fixed
+// tolerance or what its survey explains times the allowance, whichever is larger.
+double allowed_marker_residual_m(const MarkerFigures& m, const QualityThresholds& t);
 
 // Millimetres, rounded for reading at the trench edge: "14 mm", "2.5 mm".
 std::string format_mm(double metres);

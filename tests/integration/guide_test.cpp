@@ -130,7 +130,7 @@ TEST(Guide, FindsClickedQuadrantMarkersInThePhotosThatSeeThem) {
   ok(run_strata({"-q", "import", "markers", site, (data / "markers.csv").string()}));
 
   // Refusal 1: the layer is not aligned. One line, the project unchanged.
-  const std::string listing = run_strata({"markers", site, "--json"}).out;
+  std::string listing = run_strata({"markers", site, "--json"}).out;
   auto r = run_strata({"markers", "guide", site, "--layer", "L1"});
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_EQ(lines(r.err), 1) << r.err;
@@ -141,6 +141,7 @@ TEST(Guide, FindsClickedQuadrantMarkersInThePhotosThatSeeThem) {
   // Refusal 2: a marker clicked in one photo only.
   const auto q_partial = process_json(site);
   ASSERT_TRUE(q_partial["georeferenced"].get<bool>()) << q_partial["markers"];
+  listing = run_strata({"markers", site, "--json"}).out;  // now with the layer's residuals
   r = run_strata({"markers", "guide", site, "--layer", "L1"});
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_EQ(lines(r.err), 1) << r.err;

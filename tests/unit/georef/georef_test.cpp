@@ -14,6 +14,7 @@
 #include <cmath>
 #include <cstdio>
 #include <map>
+#include <numbers>
 #include <random>
 #include <set>
 
@@ -657,6 +658,54 @@ TEST(Georeference, PlanOnlyControlKeepsTheBlockLevelOnItsGround) {
   EXPECT_NEAR(solved_tilt, 0.0, 0.05);
   EXPECT_LT(truth_tilt, 3.0) << "the scene's ground is nearly level, so levelling it is right here";
   EXPECT_GE(s.control_used.size(), 3u) << "5 cm misfits may reject one marker against a 1 cm survey sigma";
+}
+
+// Without markers the frame keeps its scale and heading but is turned so that the
+// cameras look down: the truth's up (+Z) is the frame's up again, within the spread of
+// the synthetic cameras' tilts, however the alignment happened to start.
+constexpr double kUpTolRad = 0.2;  // about 11 degrees
+
+TEST(Georeference, FrameWithoutMarkersIsTurnedSoThatCamerasLookDown) {
+  for (const double angle : {0.7, 3.0}) {  // tilted, and nearly upside down
+    Reconstruction rec = scene().truth_reconstruction();
+    Similarity3 s;
+    s.scale = 0.37;
+    s.R = Eigen::AngleAxisd(angle, Eigen::Vector3d(0.2, -0.5, 1.0).normalized()).toRotationMatrix();
+    transform_reconstruction(s, rec);
+    const double scale_before = (rec.images[0].pose.centre() - rec.images[1].pose.centre()).norm();
+    const auto summary = keep_arbitrary_frame(rec);
+    EXPECT_FALSE(summary.georeferenced);
+    EXPECT_FALSE(rec.georeferenced);
+    EXPECT_NE(summary.message.find("cameras look down"), std::string::npos) << summary.message;
+    // The truth's up, carried into the levelled frame.
+    std::vector<Eigen::Vector3d> truth, levelled;
+    for (std::size_t i = 0; i < rec.images.size(); ++i) {
+      truth.push_back(scene().poses[i].centre());
+      levelled.push_back(rec.images[i].pose.centre());
+    }
+    const Similarity3 to_levelled = fit_similarity(truth, levelled);
+    const Eigen::Vector3d up = to_levelled.R * Eigen::Vector3d::UnitZ();
+    EXPECT_LT(std::acos(std::clamp(up.z(), -1.0, 1.0)), kUpTolRad) << "angle " << angle << ": up " << up.transpose();
+    EXPECT_NEAR((rec.images[0].pose.centre() - rec.images[1].pose.centre()).norm(), scale_before, kExactFitTol)
+        << "the scale stays arbitrary: levelling only turns the frame";
+    for (const auto& im : rec.images) EXPECT_LT(im.pose.R(2, 2), 0) << im.name << " looks up";
+  }
+}
+
+TEST(Georeference, CamerasLookingEveryWaySayNothingAboutUp) {
+  Reconstruction rec = scene().truth_reconstruction();
+  // Two opposite views per camera: the optical axes cancel.
+  const std::size_t n = rec.images.size();
+  for (std::size_t i = 0; i < n; ++i) {
+    RegisteredImage flipped = rec.images[i];
+    flipped.pose.R = Eigen::AngleAxisd(std::numbers::pi, Eigen::Vector3d::UnitX()).toRotationMatrix() * flipped.pose.R;
+    rec.images.push_back(flipped);
+  }
+  EXPECT_FALSE(up_from_cameras(rec).has_value());
+  const auto before = rec.images[0].pose.centre();
+  const auto summary = keep_arbitrary_frame(rec);
+  EXPECT_NE(summary.message.find("up is unknown"), std::string::npos) << summary.message;
+  EXPECT_LT((rec.images[0].pose.centre() - before).norm(), kExactFitTol) << "an unknown up leaves the frame alone";
 }
 
 }  // namespace

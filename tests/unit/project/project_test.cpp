@@ -78,6 +78,7 @@ TEST(Project, Migration7KeepsObservationIdsAndRenamesManualToClicked) {
       db.exec("DELETE FROM gpkg_contents WHERE table_name = '" + table + "'");
       db.exec("DROP TABLE " + table);
     }
+    db.exec("ALTER TABLE markers DROP COLUMN sigma_stated");  // schema 15's
     db.exec("CREATE TABLE observations (id INTEGER PRIMARY KEY, marker_id INTEGER NOT NULL REFERENCES "
             "markers(fid) ON DELETE CASCADE, image_id INTEGER NOT NULL REFERENCES images(id) ON DELETE CASCADE, "
             "x REAL NOT NULL, y REAL NOT NULL, source TEXT NOT NULL CHECK (source IN ('detected', 'manual')), "

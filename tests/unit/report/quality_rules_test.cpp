@@ -269,6 +269,68 @@ TEST(Rules, MarkerFarFromItsSurveyAndRejectedMarker) {
   ASSERT_NE(find_rule(fs, "marker_rejected"), nullptr);
 }
 
+// A survey rounded to 0.1 m in plan: each axis carries 0.1 / sqrt(12) = 28.9 mm, 3D
+// about 41 mm, which is what the layer is judged against instead of the fixed 10 mm.
+LayerFigures layer_on_a_rounded_survey(double control_rmse_m) {
+  LayerFigures f = good_layer();
+  f.survey_words = "a survey rounded to 0.1 m";
+  const double rounding = 0.1 / std::sqrt(12.0);
+  for (auto& m : f.markers) {
+    m.expected_m = expected_marker_error_m(Eigen::Vector3d::Zero(), rounding, 0.0, m.reprojection_px * 0.001);
+    m.residual_m = {0.045, -0.03, 0.01};  // 55 mm: over 20 mm, under twice 41 mm
+  }
+  f.control_rmse_m = control_rmse_m;
+  f.check_rmse_m = 0.05;
+  return f;
+}
+
+TEST(Rules, ExpectedMarkerErrorCombinesStatedRoundingAndPhotos) {
+  EXPECT_DOUBLE_EQ(expected_marker_error_m(Eigen::Vector3d::Zero(), 0, 0, 0), 0);
+  // The larger of stated and rounding per axis: plan from the rounding, height stated.
+  EXPECT_NEAR(expected_marker_error_m({0.01, 0.01, 0.02}, 0.03, 0, 0), std::sqrt(2 * 0.03 * 0.03 + 0.02 * 0.02), 1e-12);
+  EXPECT_NEAR(expected_marker_error_m(Eigen::Vector3d::Zero(), 0, 0, 0.003), 0.003, 1e-12);
+  EXPECT_NEAR(expected_marker_error_m(Eigen::Vector3d::Zero(), 0.1 / std::sqrt(12.0), 0, 0), 0.0408, 1e-4);
+}
+
+TEST(Rules, RoundedSurveyIsJudgedAgainstWhatItCanDeliver) {
+  const auto fs = evaluate_layer(layer_on_a_rounded_survey(0.07), {});
+  EXPECT_EQ(find_rule(fs, "control_rmse"), nullptr);
+  const Finding* c = find_rule(fs, "control_rmse_survey");
+  ASSERT_NE(c, nullptr);
+  EXPECT_EQ(c->severity, Severity::warning);
+  EXPECT_EQ(c->message,
+            "control RMSE 70 mm on a survey rounded to 0.1 m (about 41 mm expected): as close as that survey "
+            "allows, but over the 10 mm tolerance");
+  EXPECT_EQ(find_rule(fs, "marker_residual"), nullptr) << "55 mm is within what a 0.1 m rounding explains";
+  for (const auto& x : fs) EXPECT_NE(x.severity, Severity::problem) << x.rule << ": " << x.message;
+}
+
+TEST(Rules, RoundedSurveyStillFailsMarkersThatDisagree) {
+  LayerFigures f = layer_on_a_rounded_survey(0.15);
+  f.markers[2].residual_m = {0.25, 0.1, 0};
+  const auto fs = evaluate_layer(f, {});
+  const Finding* c = find_rule(fs, "control_rmse");
+  ASSERT_NE(c, nullptr);
+  EXPECT_EQ(c->severity, Severity::problem);
+  EXPECT_EQ(c->message,
+            "control RMSE 150 mm exceeds 10 mm, and more than a survey rounded to 0.1 m explains (about 41 mm "
+            "expected)");
+  const Finding* m = find_rule(fs, "marker_residual");
+  ASSERT_NE(m, nullptr);
+  EXPECT_NE(m->message.find("GCP3 is 269 mm"), std::string::npos) << m->message;
+  EXPECT_NE(m->message.find("2 times what a survey rounded to 0.1 m explains"), std::string::npos) << m->message;
+}
+
+TEST(Rules, UnstatedSurveyKeepsTheFixedTolerance) {
+  LayerFigures f = good_layer();
+  f.control_rmse_m = 0.012;
+  for (auto& m : f.markers) m.expected_m = m.reprojection_px * 0.001;  // photos only: 0.5 mm
+  const auto fs = evaluate_layer(f, {});
+  const Finding* c = find_rule(fs, "control_rmse");
+  ASSERT_NE(c, nullptr);
+  EXPECT_EQ(c->message, "control RMSE 12 mm exceeds 10 mm");
+}
+
 TEST(Rules, ThresholdsAreValidated) {
   QualityThresholds t;
   t.min_control_markers = 2;
