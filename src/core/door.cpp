@@ -188,10 +188,15 @@ namespace {
 
 // `value` decoded from UTF-8, or FieldError.
 icu::UnicodeString decoded(std::string_view field, std::string_view value) {
+  // Longer than any code, name or description (and than ICU's 32-bit lengths allow).
+  constexpr std::size_t kMaxTextBytes = 1u << 20;
+  if (value.size() > kMaxTextBytes)
+    throw FieldError(std::string(field), std::string(value.substr(0, 64)) + "...",
+                     fmt::format("{} is {} bytes long, over the {} this field takes", field, value.size(), kMaxTextBytes));
   UErrorCode status = U_ZERO_ERROR;
   int32_t length = 0;
   u_strFromUTF8(nullptr, 0, &length, value.data(), int32_t(value.size()), &status);
-  if (status == U_INVALID_CHAR_FOUND || value.size() > 1u << 20)
+  if (status == U_INVALID_CHAR_FOUND)
     throw FieldError(std::string(field), std::string(value), fmt::format("{} is not UTF-8 text", field));
   return icu::UnicodeString::fromUTF8(icu::StringPiece(value.data(), int32_t(value.size())));
 }

@@ -37,6 +37,9 @@ TEST(DoorChecks, NamesAreTrimmedNormalisedAndPrintable) {
   EXPECT_NE(refusal([] { door::name("code", "a\xe2\x80\xa8" "b"); }).find("line break"), std::string::npos);
   EXPECT_NE(refusal([] { door::name("code", "\xc3"); }).find("not UTF-8"), std::string::npos);
   EXPECT_NE(refusal([] { door::name("code", "\xed\xa0\x80"); }).find("not UTF-8"), std::string::npos);  // a surrogate
+  // Too long is said as too long, not as "not UTF-8".
+  EXPECT_NE(refusal([] { door::text("description", std::string((1u << 20) + 1, 'a')); }).find("bytes long"),
+            std::string::npos);
   EXPECT_EQ(door::name("code", std::string(64, 'x')).size(), 64u);
   EXPECT_NE(refusal([] { door::name("code", std::string(65, 'x')); }).find("more than 64"), std::string::npos);
   // 64 characters, not bytes: Greek letters take two bytes each.
