@@ -258,8 +258,9 @@ std::string coverage_section(const LayerData& d, const ReportOptions& o) {
     }
   }
   im = rd::enlarge(im, factor);
-  // Hatch low-resolution cells with dark blue diagonals.
-  for (int y = 0; y < im.height; ++y) {
+  // Hatch low-resolution cells with dark blue diagonals (a ground resolution needs a
+  // scale: not for a layer without markers).
+  for (int y = 0; y < im.height && d.figures.georeferenced; ++y) {
     for (int x = 0; x < im.width; ++x) {
       const std::size_t i = m.index(x / factor, y / factor);
       if (!m.inside(i) || !(m.gsd_m[i] > t.max_gsd_m) || (x + y) % 8 >= 2) continue;
@@ -301,7 +302,9 @@ std::string coverage_section(const LayerData& d, const ReportOptions& o) {
     coverage_colour(n, t.min_photos_per_area, c);
     s += fmt::format("<span><i style=\"background:#{:02x}{:02x}{:02x}\"></i>{}</span>", c[0], c[1], c[2], xml_escape(label));
   }
-  s += fmt::format("<span><i class=\"hatch\"></i>coarser than {} per pixel</span></div>\n", format_mm(t.max_gsd_m));
+  if (d.figures.georeferenced)
+    s += fmt::format("<span><i class=\"hatch\"></i>coarser than {} per pixel</span>", format_mm(t.max_gsd_m));
+  s += "</div>\n";
   const double enough_percent = 100.0 * double(enough) / double(std::max<std::size_t>(1, area));
   const std::string caption =
       d.figures.georeferenced
@@ -435,7 +438,7 @@ std::string markers_section(const LayerData& d, const ReportOptions& o) {
     double expected = 0;
     for (const auto& m : d.figures.markers) expected = std::max(expected, m.expected_m);
     yardstick = fmt::format(" The markers come from {}: each is expected within about {} (3D, one sigma) of its "
-                            "surveyed position, and is marked only beyond {} times that or {}.",
+                            "surveyed position, and is flagged only beyond {:g} times that or {}, whichever is larger.",
                             d.figures.survey_words, format_mm(expected), o.thresholds.survey_allowance,
                             format_mm(o.thresholds.max_marker_residual_m));
   }
@@ -565,8 +568,9 @@ std::string hillshade_section(const LayerData& d, const ReportOptions& o) {
     ramp += fmt::format("<i style=\"background:#{:02x}{:02x}{:02x}\"></i>", rgb[0], rgb[1], rgb[2]);
   }
   ramp += "</div>";
-  s += "<div class=\"legend\"><span>" + fmt::format("{:.3f} m", lo) + "</span>" + ramp + "<span>" +
-       fmt::format("{:.3f} m", hi) + "</span></div>\n";
+  const char* unit = d.figures.georeferenced ? "m" : "units";
+  s += "<div class=\"legend\"><span>" + fmt::format("{:.3f} {}", lo, unit) + "</span>" + ramp + "<span>" +
+       fmt::format("{:.3f} {}", hi, unit) + "</span></div>\n";
   std::string caption = fmt::format("Heights {:.3f}–{:.3f} m ({} relief {:.0f} mm), lit from the north-west.", lo, hi,
                                     d.site.crs, 1000.0 * (hi - lo));
   if (d.products_quality) {
@@ -576,6 +580,12 @@ std::string hillshade_section(const LayerData& d, const ReportOptions& o) {
       caption += fmt::format(" Height uncertainty per cell (one sigma, from the agreement of the fused depth maps; "
                              "dtm_sigma.tif): median {:.1f} mm, 95 % of cells within {:.1f} mm.",
                              dtm.sigma->median_m * 1000, dtm.sigma->p95_m * 1000);
+  }
+  if (!d.figures.georeferenced) {
+    caption = fmt::format("Relative heights of the layer's arbitrary frame (range {:.3g} units), lit from one side. "
+                          "The layer is not georeferenced: no scale, no north, no heights in {}; the figures are in "
+                          "arbitrary units.",
+                          hi - lo, d.site.crs);
   }
   s += "<p class=\"caption\">" + xml_escape(caption) + "</p>\n";
   return s + "</section>\n";
@@ -604,13 +614,18 @@ std::string figures_section(const LayerData& d) {
   if (d.dense_quality) {
     const DenseSummary& dense = d.dense_quality->figures;
     row("dense completeness", fmt::format("{:.0f} %", 100 * dense.completeness));
-    if (std::isfinite(dense.median_distance_sparse_m)) row("dense vs sparse (median)", format_mm(dense.median_distance_sparse_m));
+    if (std::isfinite(dense.median_distance_sparse_m))
+      row("dense vs sparse (median)", d.figures.georeferenced
+                                          ? format_mm(dense.median_distance_sparse_m)
+                                          : fmt::format("{:.3g} units (arbitrary scale)", dense.median_distance_sparse_m));
   } else {
     row("dense surface", "not processed");
   }
   if (d.products_quality) {
     if (d.products_quality->ortho) row("orthophoto coverage", fmt::format("{:.0f} %", 100 * d.products_quality->ortho->coverage));
-    row("footprint area", fmt::format("{:.2f} m²", d.products_quality->footprint.area_m2));
+    row("footprint area", d.figures.georeferenced
+                              ? fmt::format("{:.2f} m²", d.products_quality->footprint.area_m2)
+                              : fmt::format("{:.3g} square units (arbitrary scale)", d.products_quality->footprint.area_m2));
   } else {
     row("DTM and orthophoto", "not produced");
   }

@@ -196,7 +196,7 @@ void marker_rules(const LayerFigures& f, const QualityThresholds& t, Findings& r
     const double allowed = allowed_marker_residual_m(m, t);
     if (m.residual_m.norm() > allowed) {
       const std::string over = allowed > t.max_marker_residual_m
-                                   ? fmt::format("over {}: {} times what {} explains", format_mm(allowed),
+                                   ? fmt::format("over {}: {:g} times what {} explains", format_mm(allowed),
                                                  t.survey_allowance, survey_words(f))
                                    : fmt::format("over {}", format_mm(allowed));
       r.add(Severity::warning, "marker_residual",
