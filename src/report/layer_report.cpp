@@ -7,6 +7,7 @@
 #include "core/error.hpp"
 #include "core/log.hpp"
 #include "pipeline/stage_json.hpp"
+#include "products/hillshade.hpp"
 #include "importers/raster/geotiff.hpp"
 #include "report/html_util.hpp"
 #include "report/report_internal.hpp"
@@ -529,31 +530,20 @@ std::string hillshade_section(const LayerData& d, const ReportOptions& o) {
     hi = std::max(hi, z[i]);
   }
   if (!(hi >= lo)) return s + missing("The DTM has no valid cell.") + "</section>\n";
+  // Lit from the north-west, 45 degrees up (the cartographic convention), over the
+  // height colours.
   const double cx = (t.east - t.west) / t.width, cy = (t.north - t.south) / t.height;
-  // Light from the north-west, 45 degrees up (the cartographic convention).
-  const double az = 315 * std::numbers::pi / 180, alt = 45 * std::numbers::pi / 180;
-  const Eigen::Vector3d light(std::cos(alt) * std::sin(az), std::cos(alt) * std::cos(az), std::sin(alt));
+  const std::vector<float> shade = hillshade({t.width, t.height, cx, cy, z.data(), t.valid.data()});
   rd::Image im{t.width, t.height, 4, {}};
   im.pixels.assign(std::size_t(t.width) * std::size_t(t.height) * 4, 0);
-  auto value = [&](int x, int y, float fallback) {
-    x = std::clamp(x, 0, t.width - 1);
-    y = std::clamp(y, 0, t.height - 1);
-    const std::size_t i = std::size_t(y) * std::size_t(t.width) + std::size_t(x);
-    return t.valid[i] ? z[i] : fallback;
-  };
   for (int y = 0; y < t.height; ++y) {
     for (int x = 0; x < t.width; ++x) {
       const std::size_t i = std::size_t(y) * std::size_t(t.width) + std::size_t(x);
-      if (!t.valid[i]) continue;
-      const float c = z[i];
-      const double dzdx = (value(x + 1, y, c) - value(x - 1, y, c)) / (2 * cx);
-      const double dzdy = (value(x, y - 1, c) - value(x, y + 1, c)) / (2 * cy);  // rows run southwards
-      const Eigen::Vector3d n = Eigen::Vector3d(-dzdx, -dzdy, 1).normalized();
-      const double shade = std::max(0.0, n.dot(light));
+      if (std::isnan(shade[i])) continue;
       std::uint8_t rgb[3];
-      rd::ramp_terrain(hi > lo ? (c - lo) / (hi - lo) : 0.5, rgb);
+      rd::ramp_terrain(hi > lo ? (z[i] - lo) / (hi - lo) : 0.5, rgb);
       std::uint8_t* p = im.at(x, y);
-      for (int k = 0; k < 3; ++k) p[k] = std::uint8_t(std::clamp(rgb[k] * (0.3 + 0.85 * shade), 0.0, 255.0));
+      for (int k = 0; k < 3; ++k) p[k] = std::uint8_t(std::clamp(rgb[k] * (0.3 + 0.85 * shade[i]), 0.0, 255.0));
       p[3] = 255;
     }
   }

@@ -11,6 +11,7 @@
 #include "project/find_records.hpp"
 #include "project/records.hpp"
 #include "project/site_plan_records.hpp"
+#include "products/hillshade.hpp"
 #include "server/http.hpp"
 
 #include <fmt/format.h>
@@ -161,35 +162,19 @@ cv::Mat ortho_tile(const fs::path& file, double west, double south, double east,
   return out;
 }
 
-// Hillshade of the DTM, the Lambertian shading used by GIS hillshades (Burrough &
-// McDonnell 1998, Principles of GIS, ch. 8; ESRI's and gdaldem's): 255 x max(0, n . s)
-// with n the surface normal from Horn's (1981) 3x3 slopes and s the direction to a sun
-// at azimuth 315 degrees (north-west, clockwise from north) and altitude 45 degrees.
+// Hillshade of the DTM (products/hillshade.hpp), one tile read with a pixel more on
+// every side for the 3x3 window at its edges.
 cv::Mat hillshade_tile(const fs::path& file, double west, double south, double east, double north) {
-  constexpr double kAzimuth = 315 * M_PI / 180, kAltitude = 45 * M_PI / 180;
   const double cell = (east - west) / kTilePx;  // metres per tile pixel
-  // One pixel more on every side, for the 3x3 window at the tile's edges.
   const int n = kTilePx + 2;
   const RasterThumbnail t = read_raster_window(file, west - cell, south - cell, east + cell, north + cell, n, n);
-  const Eigen::Vector3d sun(std::cos(kAltitude) * std::sin(kAzimuth), std::cos(kAltitude) * std::cos(kAzimuth),
-                            std::sin(kAltitude));  // E, N, up
+  const std::vector<float> shade = hillshade({n, n, cell, cell, t.band[0].data(), t.valid.data()});
   cv::Mat out(kTilePx, kTilePx, CV_8UC4, cv::Scalar(0, 0, 0, 0));
-  const auto z = [&](int row, int col) { return double(t.band[0][std::size_t(row) * n + std::size_t(col)]); };
-  const auto ok = [&](int row, int col) { return t.valid[std::size_t(row) * n + std::size_t(col)] != 0; };
   for (int row = 1; row <= kTilePx; ++row) {
     for (int col = 1; col <= kTilePx; ++col) {
-      bool all = true;
-      for (int dr = -1; dr <= 1 && all; ++dr)
-        for (int dc = -1; dc <= 1 && all; ++dc) all = ok(row + dr, col + dc);
-      if (!all) continue;
-      // Horn: a b c / d e f / g h i, the first row the northern one.
-      const double a = z(row - 1, col - 1), b = z(row - 1, col), c = z(row - 1, col + 1);
-      const double d = z(row, col - 1), f = z(row, col + 1);
-      const double g = z(row + 1, col - 1), h = z(row + 1, col), i = z(row + 1, col + 1);
-      const double dz_de = ((c + 2 * f + i) - (a + 2 * d + g)) / (8 * cell);
-      const double dz_dn = ((a + 2 * b + c) - (g + 2 * h + i)) / (8 * cell);
-      const Eigen::Vector3d normal = Eigen::Vector3d(-dz_de, -dz_dn, 1).normalized();
-      const std::uint8_t grey = byte_of(float(255 * std::max(0.0, normal.dot(sun))));
+      const float v = shade[std::size_t(row) * std::size_t(n) + std::size_t(col)];
+      if (std::isnan(v)) continue;
+      const std::uint8_t grey = byte_of(255 * v);
       out.at<cv::Vec4b>(row - 1, col - 1) = {grey, grey, grey, 255};
     }
   }
