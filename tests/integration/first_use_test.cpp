@@ -18,6 +18,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <map>
+#include <numbers>
 #include <sstream>
 
 namespace strata {
@@ -162,6 +163,7 @@ TEST(Verdict, RoundedSurveyIsJudgedAgainstWhatItCanDeliver) {
   EXPECT_EQ(c->at("severity"), "warning");
   const std::string message = c->at("message");
   EXPECT_NE(message.find("on a survey rounded to 0.1 m (about"), std::string::npos) << message;
+  std::printf("[ figures  ] rounded survey: %s\n", message.c_str());
   EXPECT_EQ(rule(findings, "control_rmse"), nullptr);
   EXPECT_EQ(rule(findings, "marker_residual"), nullptr) << "residuals within what the rounding explains";
 }
@@ -178,6 +180,7 @@ TEST(Verdict, RoundedSurveyStillFailsMarkersThatDisagree) {
   EXPECT_EQ(c->at("severity"), "problem");
   const std::string message = c->at("message");
   EXPECT_NE(message.find("more than a survey rounded to 0.1 m explains"), std::string::npos) << message;
+  std::printf("[ figures  ] markers that disagree: %s\n", message.c_str());
   EXPECT_NE(rule(findings, "marker_residual"), nullptr) << findings.dump(1);
 }
 
@@ -303,7 +306,10 @@ TEST(Unreferenced, CamerasAreAboveTheSurfaceLookingDownAndTheScaleIsSaidArbitrar
   ASSERT_GE(got.size(), 15u);
   const Similarity3 to_got = fit_similarity(truth_centres, got_centres);
   const Eigen::Vector3d up = to_got.R * Eigen::Vector3d::UnitZ();
-  EXPECT_LT(std::acos(std::clamp(up.z(), -1.0, 1.0)), kUpTolRad) << "the truth's up in the layer's frame: " << up.transpose();
+  const double tilt = std::acos(std::clamp(up.z(), -1.0, 1.0));
+  EXPECT_LT(tilt, kUpTolRad) << "the truth's up in the layer's frame: " << up.transpose();
+  std::printf("[ figures  ] layer without markers: the truth's up is %.1f degrees from the frame's +Z\n",
+              tilt * 180 / std::numbers::pi);
 
   const auto findings = s.findings();
   ASSERT_NE(rule(findings, "not_georeferenced"), nullptr) << findings.dump(1);
