@@ -68,13 +68,23 @@ struct GeoreferenceStep {
   SurveyAssessment survey;
 };
 
+// What of a surveyed marker the alignment depends on, field for field as MarkerRecord
+// had it before schema 15: `sigma_stated` only moves the report's verdict, and adding
+// it to the key would have re-aligned every layer of every project after the upgrade.
+struct MarkerInputs {
+  std::int64_t id;
+  std::string name;
+  Eigen::Vector3d position, sigma;
+  std::string kind, source;
+};
+
 // Up to date? The key covers photos, survey, clicked and guided observations and
 // options (detected ones are this stage's own output).
 std::string alignment_key(Database& db, const AlignmentInputs& in, const AlignOptions& options) {
   CacheKey key("alignment v4");
   key.add(options);
   for (const auto& r : in.records) key.add(r.sha256);
-  for (const auto& m : in.markers) key.add(m);
+  for (const auto& m : in.markers) key.add(MarkerInputs{m.id, m.name, m.position, m.sigma, m.kind, m.source});
   for (const auto& o : list_observations(db, in.layer.id)) {
     if (o.source != "detected") key.add(o);
   }
