@@ -242,11 +242,8 @@ void list_markers_command(const std::string& dir, const std::string& layer, bool
   for (const auto& o : list_observations(p.db())) seen[o.marker_id][o.source]++;
   const auto markers = list_markers(p.db());
   const auto residuals = list_marker_residuals(p.db());
-  if (!layer.empty()) {
-    bool known = false;
-    for (const auto& l : list_layers(p.db())) known = known || l.name == layer;
-    if (!known) throw InputError(fmt::format("markers: there is no layer '{}' in {}", layer, dir));
-  }
+  if (!layer.empty() && !find_layer(p.db(), layer))
+    throw InputError(fmt::format("markers: there is no layer '{}' in {}", layer, dir));
   if (json) {
     nlohmann::json j = nlohmann::json::array();
     for (const auto& m : markers) {

@@ -15,6 +15,11 @@ struct SurveyAssessment {
   double plan_step_m = 0;
   double height_step_m = 0;  // the same for the heights (0 when all are equal)
   bool heights_equal = false;  // >= 3 markers and every height identical
+  // metres: from this step on the rounding is coarse enough to say so (a warning at
+  // alignment, the verdict's words in the report); finer steps only weigh the markers.
+  static constexpr double kCoarseStep_m = 0.02;
+  bool plan_coarse() const { return plan_step_m >= kCoarseStep_m; }
+  bool height_coarse() const { return height_step_m >= kCoarseStep_m; }
   // metres, 1 sigma per axis, of the rounding: step / sqrt(12) (a uniform error).
   double plan_rounding_sigma_m() const;
   double height_rounding_sigma_m() const;

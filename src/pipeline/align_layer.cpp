@@ -258,12 +258,12 @@ void warn_about_survey(const AlignmentInputs& in, const SurveyAssessment& survey
               "only (height sigma {} m); heights and volumes of this layer are not tied to the survey",
               layer, in.markers.front().position.z(), options.georef.unknown_height_sigma_m);
   }
-  if (survey.plan_step_m >= 0.02) {
+  if (survey.plan_coarse()) {
     log::warn("layer {}: every surveyed E, N is a multiple of {} m: rounded coordinates, weighed with at "
               "least {:.3f} m per axis (the rounding's own sigma, step / sqrt(12))",
               layer, survey.plan_step_m, survey.plan_rounding_sigma_m());
   }
-  if (survey.height_step_m >= 0.02) {
+  if (survey.height_coarse()) {
     log::warn("layer {}: every surveyed height is a multiple of {} m: rounded heights, weighed with at "
               "least {:.3f} m", layer, survey.height_step_m, survey.height_rounding_sigma_m());
   }

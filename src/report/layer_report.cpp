@@ -639,10 +639,9 @@ void judge_against_survey(const AlignmentQuality& q, const std::map<std::string,
     m.expected_m = expected_marker_error_m(sigma, survey.plan_rounding_sigma_m(), survey.height_rounding_sigma_m(),
                                            m.reprojection_px * q.sparse.gsd_m);
   }
-  // The same steps the alignment warns about (pipeline/align_layer.cpp).
-  constexpr double kCoarseStep = 0.02;
+  // The same steps the alignment warns about.
   std::vector<std::string> words;
-  const bool plan = survey.plan_step_m >= kCoarseStep, height = survey.height_step_m >= kCoarseStep;
+  const bool plan = survey.plan_coarse(), height = survey.height_coarse();
   if (plan && height && survey.plan_step_m == survey.height_step_m) {
     words.push_back(fmt::format("rounded to {} m", survey.plan_step_m));
   } else {

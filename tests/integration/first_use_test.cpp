@@ -171,25 +171,24 @@ TEST(Verdict, RoundedSurveyIsJudgedAgainstWhatItCanDeliver) {
 
 // Whether the survey stated its sigma moves the verdict, not the alignment: a project
 // upgraded to schema 15 (every marker unstated) keeps its layers up to date.
+// Runs `sql` on the site's project database, as another program would.
+void edit_project(const std::string& site, const char* sql) {
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open((fs::path(site) / "project.gpkg").c_str(), &db), SQLITE_OK);
+  EXPECT_EQ(sqlite3_exec(db, sql, nullptr, nullptr, nullptr), SQLITE_OK) << sql;
+  sqlite3_close(db);
+}
+
 TEST(Verdict, StatingTheSigmaDoesNotRealignTheLayer) {
   const Site& s = rounded_site();
-  {
-    sqlite3* db = nullptr;
-    ASSERT_EQ(sqlite3_open((fs::path(s.site) / "project.gpkg").c_str(), &db), SQLITE_OK);
-    EXPECT_EQ(sqlite3_exec(db, "UPDATE markers SET sigma_stated = 1 - sigma_stated", nullptr, nullptr, nullptr),
-              SQLITE_OK);
-    sqlite3_close(db);
-  }
+  edit_project(s.site, "UPDATE markers SET sigma_stated = 1 - sigma_stated");
   const auto r = run_strata({"process", s.site, "--layer", "L1", "--until", "sparse"});
   ok(r);
   EXPECT_NE(r.out.find("up to date"), std::string::npos) << r.out << r.err;
   const auto markers = nlohmann::json::parse(run_strata({"markers", s.site, "--json"}).out);
   ASSERT_FALSE(markers.empty());
   EXPECT_TRUE(markers[0]["sigma_stated"].get<bool>());
-  sqlite3* db = nullptr;  // back as it was, for the other tests of this site
-  ASSERT_EQ(sqlite3_open((fs::path(s.site) / "project.gpkg").c_str(), &db), SQLITE_OK);
-  sqlite3_exec(db, "UPDATE markers SET sigma_stated = 0", nullptr, nullptr, nullptr);
-  sqlite3_close(db);
+  edit_project(s.site, "UPDATE markers SET sigma_stated = 0");  // back as it was, for the other tests of this site
 }
 
 TEST(Verdict, RoundedSurveyStillFailsMarkersThatDisagree) {
